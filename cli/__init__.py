@@ -1,0 +1,1 @@
+"""photogram_cli: the `photogram` command line (installed from cli/)."""

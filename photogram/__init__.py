@@ -1,0 +1,3 @@
+"""photogram: close-range photogrammetry and multi-camera sports motion capture."""
+
+__version__ = "0.1.0"

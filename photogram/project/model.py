@@ -1,0 +1,230 @@
+"""The in-memory project model: cameras, stations, points, observations,
+constraints and settings.
+
+Tables are column arrays (numpy), so that every later layer works on all
+observations at once. Internal units are the project's own length unit and
+image unit; angles are always **radians** in memory (the readers and writers
+convert from and to the unit named in ``[project]``). Unknown values are NaN.
+
+Conventions (see docs/camera-models.md):
+
+* Rotations are omega-phi-kappa, stored as the angles of the
+  **world-to-camera** matrix R (``Xc = R (X - X0)``); the camera frame is the
+  photogrammetric one (x right, y up, camera looking along -z).
+* Image coordinates have x to the right and y **down** (pixel columns and
+  rows; or millimetres from the top-left corner of the format).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+LENGTH_UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001}
+ANGLE_UNITS = ("rad", "deg", "gon")
+IMAGE_UNITS = ("px", "mm")
+POINT_KINDS = ("control", "check", "tie")
+DATUMS = ("control", "weighted", "free")
+ROTATIONS = ("omega-phi-kappa",)           # as written in [project] rotation
+ROTATION_DIRECTIONS = ("world_to_camera", "camera_to_world")
+DAMPINGS = ("none", "lm", "armijo")
+ROBUST_FUNCTIONS = ("huber", "cauchy", "tukey")  # [adjustment] robust ("none": off)
+
+
+@dataclass
+class Parameter:
+    """One interior-orientation parameter.
+
+    ``sigma`` is an a-priori standard deviation: a free parameter with a sigma
+    is a weighted (prior) observation of ``value``. ``sigma_estimated`` is the
+    a-posteriori sigma of an earlier adjustment (results/cameras.toml); it is
+    carried along for information and never used as a weight.
+    """
+
+    value: float
+    free: bool = False
+    sigma: float | None = None
+    sigma_estimated: float | None = None
+
+
+@dataclass
+class Camera:
+    """A physical camera (interior orientation), shared by its stations.
+
+    ``parameters`` holds every parameter of ``model`` (see
+    :func:`photogram.geometry.camera_model`), in the model's order.
+    """
+
+    name: str
+    model: str = "brown"
+    parameters: dict[str, Parameter] = field(default_factory=dict)
+    image_size: tuple[int, int] | None = None      # width, height in px
+    pixel_size: tuple[float, float] | None = None  # mm per px (x, y)
+    source: str | None = None                      # file it was taken from
+
+    def values(self) -> np.ndarray:
+        """Parameter values as an array, in model order."""
+        return np.array([p.value for p in self.parameters.values()], dtype=float)
+
+    def free_mask(self) -> np.ndarray:
+        """Boolean mask of free parameters, in model order."""
+        return np.array([p.free for p in self.parameters.values()], dtype=bool)
+
+
+@dataclass
+class Units:
+    length: str = "m"
+    angle: str = "deg"
+    image: str = "px"
+
+
+@dataclass
+class Stations:
+    """Camera stations (exposures). Row i is station ``names[i]``.
+
+    ``position``/``angles`` are approximate exterior orientations (NaN where
+    unknown); ``position_sigma``/``angle_sigma`` are a-priori sigmas that make
+    them weighted observations (NaN: no prior). Angles in radians.
+    ``record`` is the 1-based line of each station in its source file.
+    """
+
+    names: list[str] = field(default_factory=list)
+    camera: list[str] = field(default_factory=list)
+    position: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    angles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    position_sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    angle_sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    record: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def index(self) -> dict[str, int]:
+        return {n: i for i, n in enumerate(self.names)}
+
+
+@dataclass
+class Points:
+    """Object points. ``kind`` is control, check or tie; ``xyz`` NaN where
+    unknown; ``sigma`` the a-priori sigma of reference coordinates (NaN: none,
+    0: fixed); ``record`` the 1-based line in the source file (empty if the
+    points were not read from a file)."""
+
+    ids: list[str] = field(default_factory=list)
+    kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
+    xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    record: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def index(self) -> dict[str, int]:
+        return {n: i for i, n in enumerate(self.ids)}
+
+
+@dataclass
+class ImagePoints:
+    """Image point observations, one row per measurement.
+
+    ``station``/``point`` are integer indices into :class:`Stations` and
+    :class:`Points`; ``xy`` in the project's image unit; ``sigma`` per
+    observation (NaN: the default from ``[adjustment]``); ``record`` the
+    1-based line in the source file (for messages).
+    """
+
+    station: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    point: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    record: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+
+    def __len__(self) -> int:
+        return len(self.station)
+
+
+@dataclass
+class ImageLines:
+    """Points measured along image lines (e.g. skis): one row per point."""
+
+    station: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    line: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
+    xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    record: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+
+    def __len__(self) -> int:
+        return len(self.station)
+
+
+@dataclass
+class DistanceConstraint:
+    """A measured distance between two object points (scale bar, rod)."""
+
+    point_a: str
+    point_b: str
+    value: float
+    sigma: float
+
+
+@dataclass
+class VerticalConstraint:
+    """Two points on a vertical rod (eq. (3) of the ski-jump paper): the
+    horizontal offsets of ``top`` from ``bottom`` are observed as zero with
+    ``sigma`` as a slope ratio (e.g. 0.01 for 1:100)."""
+
+    top: str
+    bottom: str
+    sigma: float
+
+
+@dataclass
+class AdjustmentSettings:
+    datum: str = "control"
+    max_iterations: int = 50
+    tolerance: float = 1e-8
+    sigma_image: float = 1.0          # default a-priori image sigma (image unit)
+    sigma_control: float | None = None  # default sigma of control coords
+    damping: str = "lm"               # "none" | "lm" | "armijo"
+    robust: str | None = None         # None | "huber" | "cauchy" ...
+    variance_components: bool = False
+    snooping_alpha: float | None = None
+    inner_constraints: list[str] | None = None  # point ids; None: all points
+
+
+@dataclass
+class OutputSettings:
+    folder: str = "results"
+
+
+@dataclass
+class Project:
+    """A whole photogrammetric project, as read from a .prj file."""
+
+    name: str = "project"
+    path: Path | None = None
+    units: Units = field(default_factory=Units)
+    rotation: str = "opk"
+    rotation_direction: str = "world_to_camera"
+    cameras: dict[str, Camera] = field(default_factory=dict)
+    stations: Stations = field(default_factory=Stations)
+    points: Points = field(default_factory=Points)
+    image_points: ImagePoints = field(default_factory=ImagePoints)
+    image_lines: ImageLines = field(default_factory=ImageLines)
+    distances: list[DistanceConstraint] = field(default_factory=list)
+    verticals: list[VerticalConstraint] = field(default_factory=list)
+    adjustment: AdjustmentSettings = field(default_factory=AdjustmentSettings)
+    output: OutputSettings = field(default_factory=OutputSettings)
+    sources: dict[str, Path] = field(default_factory=dict)  # table -> file
+    warnings: list[str] = field(default_factory=list)  # found by the reader
+
+    @property
+    def folder(self) -> Path:
+        """Folder the project's relative paths are resolved against."""
+        return self.path.parent if self.path is not None else Path.cwd()
+
+    def output_folder(self) -> Path:
+        out = Path(self.output.folder)
+        return out if out.is_absolute() else self.folder / out
