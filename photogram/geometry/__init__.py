@@ -1,0 +1,27 @@
+"""Geometry: rotations, camera models and their conversions.
+
+See docs/camera-models.md for the equations and conventions.
+"""
+
+from photogram.geometry.rotations import (
+    ANGLE_FACTORS, from_radians, matrix_to_opk, matrix_to_quaternion,
+    matrix_to_rodrigues, opk_derivatives, opk_to_matrix, quaternion_to_matrix,
+    rodrigues_derivatives, rodrigues_to_matrix, skew, small_rotation, to_radians)
+from photogram.geometry.camera import (
+    CAMERA_MODELS, CameraModel, camera_frame, camera_model, ideal_projection,
+    opencv_pose, photogrammetric_pose, pose_jacobians, rescale_parameters)
+from photogram.geometry.brown import BrownModel
+from photogram.geometry.opencv_model import OpenCVModel
+from photogram.geometry.conversions import (
+    brown_to_opencv, fit_distortion, format_grid, opencv_to_brown)
+
+__all__ = [
+    "ANGLE_FACTORS", "from_radians", "matrix_to_opk", "matrix_to_quaternion",
+    "matrix_to_rodrigues", "opk_derivatives", "opk_to_matrix",
+    "quaternion_to_matrix", "rodrigues_derivatives", "rodrigues_to_matrix",
+    "skew", "small_rotation", "to_radians",
+    "CAMERA_MODELS", "CameraModel", "camera_frame", "camera_model",
+    "ideal_projection", "opencv_pose", "photogrammetric_pose", "pose_jacobians",
+    "rescale_parameters", "BrownModel", "OpenCVModel",
+    "brown_to_opencv", "fit_distortion", "format_grid", "opencv_to_brown",
+]
