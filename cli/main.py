@@ -1,0 +1,188 @@
+"""The ``photogram`` command line: argument parsing and dispatch only.
+
+Every subcommand except ``demo`` takes a project path, reads and validates
+the project first (so bad input fails the same way everywhere) and then calls
+a library function named in :data:`COMMANDS` as ``"module:function"``. The
+module is imported lazily; if it (or another photogram module it needs) does
+not exist yet, the command reports that its engine is not built yet.
+
+A command function has the signature ``run(project, args) -> int | None``
+(``demo``: ``run(args)``), where ``project`` is the validated
+:class:`photogram.project.Project` with ``project.output.folder`` already set
+from ``--output``, and ``args`` the parsed :class:`argparse.Namespace`.
+Registering a new engine is one line in :data:`COMMANDS`.
+
+Exit codes: 0 success, 1 internal error (a bug), 2 user error
+(:class:`photogram.errors.PhotogramError`, one line on stderr),
+130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+import photogram
+from photogram.errors import NotBuiltError, PhotogramError
+
+__all__ = ["main", "build_parser", "COMMANDS", "Command"]
+
+
+@dataclass(frozen=True)
+class Command:
+    """A subcommand: where its function lives and what it needs."""
+
+    target: str                 # "module:function", imported lazily
+    engine: str                 # for "the ... is not built yet"
+    help: str
+    needs_project: bool = True
+
+
+COMMANDS: dict[str, Command] = {
+    "check": Command("photogram_cli.check:run", "the project checker",
+                     "read and validate a project and print a summary"),
+    "calibrate": Command("photogram.commands.calibrate:run", "the adjustment engine",
+                         "bundle adjustment with self-calibration (interior orientation)"),
+    "orient": Command("photogram.commands.orient:run", "the adjustment engine",
+                      "exterior orientation of the stations with known cameras"),
+    "intersect": Command("photogram.commands.intersect:run", "the adjustment engine",
+                         "object coordinates of points from oriented stations"),
+    "montecarlo": Command("photogram.commands.montecarlo:run", "the Monte Carlo engine",
+                          "precision of the results by Monte Carlo simulation"),
+    "simulate": Command("photogram.commands.simulate:run", "the simulator",
+                        "synthetic image observations for a planned network"),
+    "report": Command("photogram.commands.report:run", "the report generator",
+                      "report of the results folder of a project"),
+    "mocap": Command("photogram.commands.mocap:run", "the motion-capture pipeline",
+                     "track and reconstruct the jumper's markers frame by frame"),
+    "demo": Command("photogram.demo:run", "the demo",
+                    "run the built-in demonstration", needs_project=False),
+}
+
+
+def _common_options() -> argparse.ArgumentParser:
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("-v", "--verbose", action="count", default=0,
+                        help="more messages; on errors also the traceback")
+    common.add_argument("-q", "--quiet", action="store_true", help="only errors")
+    common.add_argument("--output", metavar="FOLDER", type=Path,
+                        help="output folder (default: [output] folder of the project)")
+    return common
+
+
+def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
+    if name == "check":
+        sub.add_argument("--force", action="store_true",
+                         help="with --output: replace existing files")
+    if name in ("montecarlo", "simulate"):
+        sub.add_argument("--seed", type=int, default=None, help="random seed")
+    if name == "montecarlo":
+        sub.add_argument("--runs", type=int, default=1000, help="number of simulations")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with one subparser per entry of :data:`COMMANDS`."""
+    parser = argparse.ArgumentParser(
+        prog="photogram",
+        description="Close-range photogrammetry and multi-camera motion capture.")
+    parser.add_argument("--version", action="version",
+                        version=f"photogram {photogram.__version__}")
+    subs = parser.add_subparsers(dest="command", metavar="COMMAND")
+    common = _common_options()
+    for name, cmd in COMMANDS.items():
+        sub = subs.add_parser(name, parents=[common], help=cmd.help, description=cmd.help)
+        if cmd.needs_project:
+            sub.add_argument("project", type=Path,
+                             help="the .prj file (or a folder holding one)")
+        _extra_options(name, sub)
+    return parser
+
+
+def load_command(name: str):
+    """Import the function of subcommand ``name``.
+
+    Raises
+    ------
+    NotBuiltError
+        Its module (or a photogram module it imports) or function is missing.
+    PhotogramError
+        A third-party package it needs is not installed.
+    """
+    cmd = COMMANDS[name]
+    module_name, _, attr = cmd.target.partition(":")
+    not_built = NotBuiltError(f"photogram {name}: {cmd.engine} is not built yet")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        missing = exc.name or ""
+        if missing.split(".")[0] in ("photogram", "photogram_cli"):
+            raise not_built from exc
+        raise PhotogramError(f"photogram {name}: needs the Python package '{missing}', "
+                             f"which is not installed",
+                             hint="run `make venv` or `pip install -e .`") from exc
+    function = getattr(module, attr, None)
+    if function is None:
+        raise not_built
+    return function
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Read the project (if any), then call the command's function."""
+    cmd = COMMANDS[args.command]
+    if not cmd.needs_project:
+        return int(load_command(args.command)(args) or 0)
+    from photogram.project import read_project
+
+    project = read_project(args.project)
+    if args.output is not None and args.command != "check":
+        project.output.folder = str(Path(args.output).absolute())
+    return int(load_command(args.command)(project, args) or 0)
+
+
+def _setup_logging(args: argparse.Namespace) -> None:
+    level = logging.WARNING if args.quiet else \
+        logging.DEBUG if args.verbose > 1 else logging.INFO
+    logging.basicConfig(level=level, format="%(message)s", stream=sys.stderr)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``photogram`` console script; returns the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    if args.command is None:
+        parser.print_help(sys.stderr)
+        return 2
+    verbose = args.verbose
+    try:
+        _setup_logging(args)
+        return run_command(args)
+    except PhotogramError as exc:
+        if verbose:
+            traceback.print_exc()
+        print(exc.one_line(), file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"photogram {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # anything else is a bug
+        if verbose:
+            traceback.print_exc()
+        print(_one_line(f"internal error: {type(exc).__name__}: {exc} "
+                        f"(please report; rerun with -v for the traceback)"), file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,103 @@
+"""Atomic file writes: a file is either the old one or the complete new one.
+
+The text goes to a temporary file in the same folder, is flushed and
+fsync'ed, and then renamed over the target with :func:`os.replace` (atomic on
+POSIX and Windows). On any failure the temporary file is removed and the
+target is left untouched.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from photogram.errors import InputError
+
+__all__ = ["atomic_write_text", "atomic_write_bytes", "same_file"]
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (the folder must exist).
+
+    Parameters
+    ----------
+    path : str or Path
+        Target file; replaced if it exists.
+    data : bytes
+        The complete content.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        The folder does not exist or is not writable.
+    """
+    path = Path(path)
+    folder = path.parent
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise InputError(f"cannot write into {folder}: {exc.strerror}", file=path,
+                         hint="check that the folder exists and is writable") from None
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            _write_all(handle, data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        _remove(tmp)
+        raise
+    _sync_folder(folder)
+    return path
+
+
+def _write_all(handle, data: bytes) -> None:
+    """Write in chunks (a seam for tests that simulate a failure mid-write)."""
+    step = 1 << 20
+    for start in range(0, len(data), step):
+        handle.write(data[start:start + step])
+
+
+def atomic_write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` as UTF-8 with ``\\n`` line ends, atomically."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def _remove(tmp: str) -> None:
+    try:
+        os.unlink(tmp)
+    except OSError:
+        pass
+
+
+def _sync_folder(folder: Path) -> None:
+    """fsync the folder so that the rename itself is durable (POSIX only)."""
+    if os.name != "posix":
+        return
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """Whether two paths name the same file (existing or not)."""
+    a, b = Path(a), Path(b)
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return a.resolve() == b.resolve()

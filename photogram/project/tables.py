@@ -1,0 +1,297 @@
+"""CSV tables with a header row: reading with record numbers and typed
+columns, writing with exact float round trip, and angle unit conversion.
+
+Conventions of the table files (see docs/project-files.md):
+
+* UTF-8, one record per line, the first non-comment line is the header;
+* the delimiter is ``,`` (``;`` or a tab are detected from the header line);
+* lines whose first non-blank character is ``#`` and blank lines are skipped;
+* empty cells are unknown values (NaN) where a column allows them;
+* columns whose name starts with ``_`` or ``est_`` and the columns ``note``
+  and ``comment`` are ignored by the readers.
+
+Record numbers are 1-based line numbers in the file, counting the header and
+comment lines, so that they match what an editor shows.
+"""
+
+from __future__ import annotations
+
+import csv
+import difflib
+import io
+import math
+from dataclasses import dataclass
+from decimal import Decimal, localcontext
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.project.validate import read_text, suggest
+
+__all__ = ["Table", "read_table", "format_table", "format_float",
+           "angle_to_rad", "format_angle", "IGNORED_COLUMNS"]
+
+IGNORED_COLUMNS = ("note", "comment")
+_PI = Decimal("3.14159265358979323846264338327950288419716939937510582097494459")
+_PER_RAD = {"rad": None, "deg": Decimal(180), "gon": Decimal(200)}
+
+
+def _ignored(column: str) -> bool:
+    return column.startswith(("_", "est_")) or column in IGNORED_COLUMNS
+
+
+@dataclass
+class Table:
+    """A CSV table as text cells, with the line number of every record.
+
+    Attributes
+    ----------
+    path : Path
+        The file, as shown in messages.
+    header : list of str
+        Column names.
+    rows : list of list of str
+        Cells, stripped of surrounding blanks.
+    records : numpy.ndarray
+        1-based line number of each row.
+    header_line : int
+        Line of the header.
+    """
+
+    path: Path
+    header: list[str]
+    rows: list[list[str]]
+    records: np.ndarray
+    header_line: int
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def has(self, column: str) -> bool:
+        """Whether the header has ``column``."""
+        return column in self.header
+
+    def error(self, row: int | None, what: str, hint: str | None = None) -> InputError:
+        """An InputError at record ``row`` (None: at the header)."""
+        line = self.header_line if row is None else int(self.records[row])
+        return InputError(what, file=self.path, line=line, hint=hint)
+
+    def cells(self, column: str) -> list[str]:
+        """The raw cells of ``column`` (empty strings if the column is absent)."""
+        if column not in self.header:
+            return [""] * len(self.rows)
+        j = self.header.index(column)
+        return [row[j] for row in self.rows]
+
+    def text(self, column: str, *, required: bool = True) -> list[str]:
+        """Text cells; with ``required`` an empty cell is an error."""
+        cells = self.cells(column)
+        if required:
+            for i, cell in enumerate(cells):
+                if not cell:
+                    raise self.error(i, f"empty cell in column '{column}'",
+                                     hint=f"every row needs a value in column '{column}'")
+        return cells
+
+    def floats(self, column: str, *, required: bool = False) -> np.ndarray:
+        """Finite numbers; empty cells are NaN unless ``required``."""
+        cells = self.cells(column)
+        if required:
+            self.text(column)
+        try:
+            values = np.array([c if c else "nan" for c in cells], dtype=str).astype(float)
+        except ValueError:
+            values = np.array([self._parse(i, column, c) for i, c in enumerate(cells)])
+        bad = np.flatnonzero(~np.isfinite(values) & np.array([bool(c) for c in cells], bool))
+        if len(bad):
+            i = int(bad[0])
+            hint = "leave the cell empty for an unknown value" if not required \
+                else "give a finite number"
+            raise self.error(i, f"'{cells[i]}' in column '{column}' is not a finite number: "
+                                f"NaN and infinity are not allowed", hint=hint)
+        return values.reshape(len(cells))
+
+    def angles(self, column: str, unit: str) -> np.ndarray:
+        """Angles in ``unit`` converted to radians (exactly rounded)."""
+        values = self.floats(column)
+        if unit == "rad":
+            return values
+        cells = self.cells(column)
+        return np.array([angle_to_rad(c, unit) if c else math.nan for c in cells], dtype=float)
+
+    def _parse(self, row: int, column: str, cell: str) -> float:
+        if not cell:
+            return math.nan
+        try:
+            return float(cell)
+        except ValueError:
+            hint = "use a point as decimal separator" if "," in cell else \
+                "give a number, or leave the cell empty"
+            raise self.error(row, f"'{cell}' in column '{column}' is not a number",
+                             hint=hint) from None
+
+
+def _delimiter(header: str) -> str:
+    counts = {d: header.count(d) for d in (",", ";", "\t")}
+    best = max(counts, key=lambda d: counts[d])
+    return best if counts[best] else ","
+
+
+def _logical_lines(text: str) -> tuple[list[str], list[int]]:
+    lines, numbers = [], []
+    for number, line in enumerate(text.splitlines(), 1):
+        stripped = line.strip()
+        if stripped and not stripped.startswith("#"):
+            lines.append(line)
+            numbers.append(number)
+    return lines, numbers
+
+
+def read_table(path: Path, *, required: Iterable[str], optional: Iterable[str] = (),
+               what: str = "table") -> Table:
+    """Read a CSV table and check its header.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    required, optional : iterable of str
+        Column names; any other column is an error unless ignored (``_x``,
+        ``est_x``, ``note``, ``comment``).
+    what : str
+        What the table is, for messages ("stations table").
+
+    Returns
+    -------
+    Table
+
+    Raises
+    ------
+    InputError
+        Missing/unreadable/non-UTF-8 file, no header, no rows, unknown,
+        duplicate or missing columns, a record with the wrong field count.
+    """
+    path = Path(path)
+    required, optional = list(required), list(optional)
+    lines, numbers = _logical_lines(read_text(path, what))
+    if not lines:
+        raise InputError(f"the {what} is empty (no header row)", file=path, line=1,
+                         hint=f"the first line must name the columns: {', '.join(required)}")
+    reader = csv.reader(lines, delimiter=_delimiter(lines[0]))
+    header = [h.strip() for h in next(reader)]
+    table = Table(path, header, [], np.zeros(0, int), numbers[0])
+    _check_header(table, required, optional, what)
+    rows, records = [], []
+    for row in reader:
+        line = numbers[reader.line_num - 1]
+        if len(row) != len(header):
+            raise InputError(f"this record has {len(row)} fields but the header has "
+                             f"{len(header)}", file=path, line=line,
+                             hint="every row needs one cell per column; empty cells are allowed")
+        rows.append([c.strip() for c in row])
+        records.append(line)
+    if not rows:
+        raise InputError(f"the {what} has a header but no rows", file=path,
+                         line=numbers[0], hint="add at least one row below the header")
+    table.rows, table.records = rows, np.array(records, dtype=int)
+    return table
+
+
+def _check_header(table: Table, required: list[str], optional: list[str], what: str) -> None:
+    allowed = required + optional
+    unknown = [h for h in table.header if h not in allowed and not _ignored(h)]
+    seen = set()
+    for name in table.header:
+        if name in seen:
+            raise table.error(None, f"column '{name}' appears twice in the header",
+                              hint="rename or remove one of them")
+        seen.add(name)
+        if not name:
+            raise table.error(None, "the header has an empty column name",
+                              hint="name every column (or remove trailing delimiters)")
+    for name in required:
+        if name not in seen:
+            close = difflib.get_close_matches(name, unknown, n=1, cutoff=0.5)
+            hint = f"required columns: {', '.join(required)}"
+            raise table.error(None, f"the {what} has no column '{name}'",
+                              hint=hint + (f"; is '{close[0]}' meant to be '{name}'?"
+                                           if close else ""))
+    if unknown:
+        raise table.error(None, f"unknown column '{unknown[0]}' in the {what}",
+                          hint=suggest(unknown[0], allowed, noun="columns") +
+                          "; columns starting with '_' are ignored")
+
+
+# --------------------------------------------------------------------------
+# numbers and angles as text
+# --------------------------------------------------------------------------
+
+def format_float(value: float) -> str:
+    """Shortest text that reads back to exactly ``value``; '' for NaN."""
+    value = float(value)
+    return "" if math.isnan(value) else repr(value)
+
+
+def angle_to_rad(text: str | float, unit: str) -> float:
+    """Convert an angle in ``unit`` to radians, correctly rounded.
+
+    The conversion is done in 50-digit decimal arithmetic, so that
+    :func:`format_angle` can always find a text that converts back to the
+    same float.
+    """
+    per_rad = _PER_RAD[unit]
+    if per_rad is None:
+        return float(text)
+    with localcontext() as ctx:
+        ctx.prec = 50
+        return float(Decimal(str(text).strip()) * _PI / per_rad)
+
+
+def format_angle(rad: float, unit: str) -> str:
+    """Text of an angle in ``unit`` that :func:`angle_to_rad` reads back to
+    exactly ``rad`` (the shortest of a few candidates); '' for NaN."""
+    rad = float(rad)
+    if math.isnan(rad) or unit == "rad":
+        return format_float(rad)
+    with localcontext() as ctx:
+        ctx.prec = 50
+        exact = Decimal(rad) * _PER_RAD[unit] / _PI
+    candidates = [repr(float(exact))] + [format(exact, f".{d}g") for d in (17, 19, 22, 26)]
+    for text in candidates:
+        if angle_to_rad(text, unit) == rad:
+            return text
+    return candidates[-1]
+
+
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, (float, np.floating)):
+        return format_float(value)
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    return str(value)
+
+
+def format_table(columns: Mapping[str, Iterable], *, comment: str | None = None) -> str:
+    """CSV text of ``columns`` (name -> values); floats via repr, NaN empty.
+
+    Values already formatted as strings are written unchanged. If a value of
+    the first column starts with ``#`` every cell is quoted, so that the row is
+    not read back as a comment.
+    """
+    names = list(columns)
+    data = [[_cell(v) for v in columns[n]] for n in names]
+    n_rows = len(data[0]) if data else 0
+    quote_all = any(v.startswith("#") for v in data[0]) if data else False
+    buf = io.StringIO()
+    if comment:
+        for line in comment.splitlines():
+            buf.write(f"# {line}\n")
+    writer = csv.writer(buf, lineterminator="\n",
+                        quoting=csv.QUOTE_ALL if quote_all else csv.QUOTE_MINIMAL)
+    writer.writerow(names)
+    writer.writerows([col[i] for col in data] for i in range(n_rows))
+    return buf.getvalue()
