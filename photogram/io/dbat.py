@@ -1,0 +1,431 @@
+"""Readers of DBAT's text tables and camera XML (Börlin & Grussenmeyer's
+Damped Bundle Adjustment Toolbox).
+
+* Image points: comma-separated, ``#`` comments, columns named by a DBAT
+  format string, by default ``"im,id,x,y,sxy"`` (image id, point id, pixel
+  coordinates x right / y down, sigma); DBAT's aerial examples use
+  ``"id,im,x,y"`` with the sigma given separately.
+* Control points: ``id,label,x,y,z``, ``id,label,x,y,z,sxyz`` or
+  ``id,label,x,y,z,sx,sy,sz`` (recognised by the number of columns).
+* Camera XML: a ``<camera>`` element (in a camera file such as
+  ``c4040z.xml`` or in a DBAT script's ``<input><cameras>``) with ``unit``,
+  ``sensor`` ("w,h" or "auto,h"), ``image`` ("W,H" px), ``focal``, optional
+  ``cc`` and ``pp`` (``0``/``default``/``focal`` or absent: the focal length
+  and the sensor centre), ``K``, ``P``, ``model``.
+
+:func:`load_dbat_project` assembles a :class:`photogram.project.model.Project`
+with one camera of model ``"brown"`` in **pixel** units: ``c = cc / pixel
+size``, ``x0, y0`` = the principal point in pixels (the image centre
+``(W/2, H/2)`` for the default), lens distortion rescaled from camera units
+to pixels.
+"""
+
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.project.model import (AdjustmentSettings, Camera, ImagePoints, Parameter,
+                                     Points, Project, Stations, Units)
+
+__all__ = ["DbatImagePoints", "DbatControlPoints", "DbatCamera", "read_image_points",
+           "read_control_points", "read_camera_xml", "load_dbat_project"]
+
+# ---------------------------------------------------------------------------
+# tables
+
+
+def _rows(path: Path):
+    """(line number, fields) of the non-empty, non-comment lines."""
+    try:
+        text = Path(path).read_text(encoding="utf-8-sig")
+    except OSError as e:
+        raise InputError(f"cannot read {path}: {e.strerror or e}", file=path) from None
+    for no, line in enumerate(text.splitlines(), start=1):
+        s = line.split("#", 1)[0].strip()
+        if s:
+            yield no, [f.strip() for f in s.split(",")]
+
+
+def _float(s: str, path, no, what) -> float:
+    try:
+        return float(s)
+    except ValueError:
+        raise InputError(f"{what} is not a number: {s!r}", file=path, line=no) from None
+
+
+def _ident(s: str) -> str:
+    """Normalise a numeric id ("0017" -> "17", "17.0" -> "17")."""
+    try:
+        f = float(s)
+    except ValueError:
+        return s
+    return str(int(f)) if f == int(f) else s
+
+
+@dataclass
+class DbatImagePoints:
+    """Image measurements as read (one row per line)."""
+
+    image: list[str]
+    point: list[str]
+    xy: np.ndarray            # (n, 2) pixels
+    sxy: np.ndarray           # (n,) NaN where not given
+    line: np.ndarray          # (n,) 1-based line numbers
+    path: Path | None = None
+
+
+def read_image_points(path, format: str = "im,id,x,y,sxy",
+                      sxy: float | None = None) -> DbatImagePoints:
+    """Read a DBAT image-point table.
+
+    Parameters
+    ----------
+    path : str or Path
+    format : str
+        DBAT column names, comma-separated; ``im`` image id, ``id`` point
+        id, ``x``, ``y`` pixel coordinates (x right, y down), ``sxy``
+        (optional) sigma of both coordinates; other names are ignored.
+    sxy : float, optional
+        Sigma for rows without an ``sxy`` column (DBAT's ``sxy`` attribute).
+
+    Returns
+    -------
+    DbatImagePoints
+
+    Raises
+    ------
+    InputError
+        Missing columns, non-numeric coordinates, non-positive sigma.
+    """
+    path = Path(path)
+    cols = [c.strip().lower() for c in format.split(",")]
+    for need in ("im", "id", "x", "y"):
+        if need not in cols:
+            raise InputError(f"image-point format {format!r} has no column {need!r}",
+                             file=path, hint='e.g. "im,id,x,y,sxy" or "id,im,x,y"')
+    ci = {c: cols.index(c) for c in cols}
+    im, pt, xy, sg, ln = [], [], [], [], []
+    for no, f in _rows(path):
+        if len(f) < len(cols):
+            raise InputError(f"expected {len(cols)} columns ({format}), got {len(f)}",
+                             file=path, line=no)
+        im.append(_ident(f[ci["im"]]))
+        pt.append(_ident(f[ci["id"]]))
+        xy.append((_float(f[ci["x"]], path, no, "x"), _float(f[ci["y"]], path, no, "y")))
+        s = _float(f[ci["sxy"]], path, no, "sxy") if "sxy" in ci else \
+            (float(sxy) if sxy is not None else np.nan)
+        if not (np.isnan(s) or s > 0):
+            raise InputError(f"sigma must be positive, got {s:g}", file=path, line=no)
+        sg.append(s)
+        ln.append(no)
+    if not im:
+        raise InputError("no image points in file", file=path)
+    return DbatImagePoints(image=im, point=pt, xy=np.array(xy, dtype=float),
+                           sxy=np.array(sg, dtype=float), line=np.array(ln, dtype=int),
+                           path=path)
+
+
+@dataclass
+class DbatControlPoints:
+    """Control points as read."""
+
+    ids: list[str]
+    labels: list[str]
+    xyz: np.ndarray           # (n, 3)
+    sigma: np.ndarray         # (n, 3); 0 = fixed (no sigma column)
+    line: np.ndarray
+    path: Path | None = None
+
+
+def read_control_points(path) -> DbatControlPoints:
+    """Read a DBAT control-point table.
+
+    Rows ``id,label,x,y,z`` (fixed control, sigma 0),
+    ``id,label,x,y,z,sxyz`` (one sigma for all three) or
+    ``id,label,x,y,z,sx,sy,sz``.
+
+    Raises
+    ------
+    InputError
+        Wrong number of columns, non-numeric values, duplicate ids.
+    """
+    path = Path(path)
+    ids, labels, xyz, sig, ln = [], [], [], [], []
+    for no, f in _rows(path):
+        if len(f) not in (5, 6, 8):
+            raise InputError(
+                f"control point row needs 5, 6 or 8 columns, got {len(f)}", file=path,
+                line=no, hint="id,label,x,y,z[,sxyz] or id,label,x,y,z,sx,sy,sz")
+        pid = _ident(f[0])
+        if pid in ids:
+            raise InputError(f"duplicate control point {pid}", file=path, line=no)
+        ids.append(pid)
+        labels.append(f[1])
+        xyz.append([_float(v, path, no, n) for v, n in zip(f[2:5], "xyz")])
+        if len(f) == 5:
+            s = [0.0, 0.0, 0.0]
+        elif len(f) == 6:
+            s = [_float(f[5], path, no, "sxyz")] * 3
+        else:
+            s = [_float(v, path, no, "sigma") for v in f[5:8]]
+        if any(v < 0 for v in s):
+            raise InputError("control point sigma must not be negative", file=path, line=no)
+        sig.append(s)
+        ln.append(no)
+    if not ids:
+        raise InputError("no control points in file", file=path)
+    return DbatControlPoints(ids=ids, labels=labels, xyz=np.array(xyz, dtype=float),
+                             sigma=np.array(sig, dtype=float), line=np.array(ln), path=path)
+
+
+# ---------------------------------------------------------------------------
+# camera XML
+
+
+@dataclass
+class DbatCamera:
+    """A DBAT camera description (camera units, usually mm)."""
+
+    id: str
+    name: str
+    unit: str
+    sensor: tuple[float, float]          # width, height in camera units
+    image: tuple[int, int]               # width, height in px
+    focal: float
+    cc: float                            # camera constant (focal if not given)
+    pp: tuple[float, float]              # principal point in camera units
+    K: tuple[float, ...] = ()
+    P: tuple[float, ...] = ()
+    model: int | None = None
+    aspect: float = 1.0
+    notes: list = field(default_factory=list)
+
+    @property
+    def pixel_size(self) -> tuple[float, float]:
+        """Camera units per pixel (x, y)."""
+        return (self.sensor[0] / self.image[0], self.sensor[1] / self.image[1])
+
+
+def _numbers(text, path, what) -> list[float]:
+    vals = [v.strip() for v in (text or "").split(",") if v.strip()]
+    try:
+        return [float(v) for v in vals]
+    except ValueError:
+        raise InputError(f"camera XML: <{what}> is not a list of numbers: {text!r}",
+                         file=path) from None
+
+
+def read_camera_xml(path) -> list[DbatCamera]:
+    """Read the ``<camera>`` elements of a DBAT camera or script XML file.
+
+    Defaults as in DBAT: ``sensor`` width ``auto`` is the height times the
+    image aspect (square pixels, times ``aspect``); ``cc`` absent, ``focal``
+    or 0 is the focal length; ``pp`` absent, ``default`` or ``0,0`` is the
+    sensor centre. ``pp`` is taken as measured from the top-left corner of
+    the sensor, x right and y down (our image frame).
+
+    Raises
+    ------
+    InputError
+        Unreadable XML, no camera, missing ``image``/``sensor``/``focal``.
+    """
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as e:
+        raise InputError(f"cannot read camera XML: {e}", file=path) from None
+    cams = []
+    for el in root.iter("camera"):
+        def text(tag):
+            e = el.find(tag)
+            return None if e is None or e.text is None else e.text.strip()
+        if text("image") is None and text("focal") is None:
+            continue                       # e.g. a <camera> reference, not a description
+        notes = []
+        img = _numbers(text("image"), path, "image")
+        if len(img) != 2:
+            raise InputError("camera XML: <image> must be 'width,height' in pixels",
+                             file=path)
+        W, H = int(round(img[0])), int(round(img[1]))
+        aspect_t = text("aspect")
+        aspect = 1.0 if aspect_t in (None, "", "auto") else _numbers(aspect_t, path, "aspect")[0]
+        sens = [s.strip() for s in (text("sensor") or "").split(",")]
+        if len(sens) != 2:
+            raise InputError("camera XML: <sensor> must be 'width,height' or 'auto,height'",
+                             file=path)
+        h = _numbers(sens[1], path, "sensor")[0]
+        w = aspect * h * W / H if sens[0] == "auto" else _numbers(sens[0], path, "sensor")[0]
+        focal_t = text("focal")
+        if focal_t is None:
+            raise InputError("camera XML: no <focal> length", file=path)
+        focal = _numbers(focal_t, path, "focal")[0]
+        cc_t = text("cc")
+        cc = focal
+        if cc_t not in (None, "", "focal", "default"):
+            v = _numbers(cc_t, path, "cc")
+            if v and v[0] > 0:
+                cc = v[0]
+        pp = (w / 2.0, h / 2.0)
+        pp_t = text("pp")
+        if pp_t not in (None, "", "default"):
+            v = _numbers(pp_t, path, "pp")
+            if len(v) == 2 and (v[0] != 0 or v[1] != 0):
+                pp = (v[0], v[1])
+        K = tuple(_numbers(text("K"), path, "K")) if text("K") else ()
+        P = tuple(_numbers(text("P"), path, "P")) if text("P") else ()
+        if abs(aspect - 1.0) > 1e-12:
+            notes.append(f"aspect {aspect:g} is not modelled (brown has B1/B2 instead)")
+        model_t = text("model")
+        cams.append(DbatCamera(
+            id=text("id") or str(len(cams) + 1), name=text("name") or f"camera{len(cams) + 1}",
+            unit=text("unit") or "mm", sensor=(w, h), image=(W, H), focal=focal, cc=cc,
+            pp=pp, K=K, P=P, model=int(float(model_t)) if model_t else None,
+            aspect=aspect, notes=notes))
+    if not cams:
+        raise InputError("camera XML: no <camera> element with <image> and <focal>",
+                         file=path)
+    return cams
+
+
+def _slug(name: str) -> str:
+    s = re.sub(r"[^A-Za-z0-9_.-]+", "_", name.strip()).strip("_")
+    return s or "camera"
+
+
+def _brown_camera(cam: DbatCamera, name: str, source: str) -> Camera:
+    """The DBAT camera as a "brown" :class:`Camera` in pixel units.
+
+    DBAT's model-3 parameters (cc, px, py, K1-K3, P1-P2 in camera units) are
+    those of :class:`photogram.geometry.BrownModel` in mm; they are rescaled
+    to pixels with :func:`photogram.geometry.rescale_parameters` and the
+    pixel width (``c = cc / pixel width``, ``K_i * p^(2i)``, ``P_i * p``).
+    """
+    from photogram.geometry import camera_model, rescale_parameters
+    model = camera_model("brown")
+    names = tuple(model.parameter_names)
+    px, py = cam.pixel_size
+    mm = dict.fromkeys(names, 0.0)
+    mm["c"], mm["x0"] = cam.cc, cam.pp[0]
+    mm["y0"] = cam.pp[1] * px / py           # so that y0 / px = pp_y / pixel height
+    for i, k in enumerate(cam.K[:3]):
+        if np.isfinite(k):
+            mm[f"K{i + 1}"] = float(k)
+    for i, v in enumerate(cam.P[:2]):
+        if np.isfinite(v):
+            mm[f"P{i + 1}"] = float(v)
+    values = rescale_parameters(model, np.array([mm[n] for n in names]), 1.0 / px)
+    params = {n: Parameter(value=float(v)) for n, v in zip(names, values)}
+    return Camera(name=name, model="brown", parameters=params, image_size=cam.image,
+                  pixel_size=(px, py), source=source)
+
+
+def _sort_key(s: str):
+    try:
+        return (0, float(s), s)
+    except ValueError:
+        return (1, 0.0, s)
+
+
+def load_dbat_project(markpts, control, camera_xml, name: str = "camcal", *,
+                      image_format: str = "im,id,x,y,sxy", sxy: float | None = None,
+                      check_ids=(), length_unit: str = "m",
+                      camera_name: str | None = None) -> Project:
+    """Build a :class:`Project` from DBAT's image points, control points and
+    camera XML.
+
+    Stations are the image ids (sorted numerically), all of the one camera;
+    their orientation is unknown (NaN). Points are the union of measured and
+    control points (sorted numerically); control points have kind
+    ``"control"`` (or ``"check"`` for ``check_ids``), their coordinates and
+    sigmas (0: fixed); the others are ``"tie"`` points with NaN coordinates.
+
+    Parameters
+    ----------
+    markpts : str or Path
+        Image-point table (see :func:`read_image_points`).
+    control : str or Path or None
+        Control-point table (see :func:`read_control_points`).
+    camera_xml : str or Path
+        DBAT camera XML (the first camera is used).
+    name : str
+        Project name.
+    image_format : str
+        Column format of ``markpts``.
+    sxy : float, optional
+        Image sigma for tables without an ``sxy`` column.
+    check_ids : iterable of str
+        Control points to use as check points.
+    length_unit : str
+        Unit of the control coordinates.
+    camera_name : str, optional
+        Name of the camera in the project (default: the XML ``<name>`` with
+        non-identifier characters replaced by ``_``).
+
+    Returns
+    -------
+    Project
+        Image unit ``px``; adjustment ``sigma_image`` set to the median
+        image sigma.
+
+    Raises
+    ------
+    InputError
+        Unreadable or malformed files.
+    """
+    ip = read_image_points(markpts, image_format, sxy)
+    cams = read_camera_xml(camera_xml)
+    cam = cams[0]
+    cname = camera_name or _slug(cam.name)
+    camera = _brown_camera(cam, cname, str(camera_xml))
+
+    st_names = sorted(set(ip.image), key=_sort_key)
+    n_st = len(st_names)
+    stations = Stations(names=st_names, camera=[cname] * n_st,
+                        position=np.full((n_st, 3), np.nan), angles=np.full((n_st, 3), np.nan),
+                        position_sigma=np.full((n_st, 3), np.nan),
+                        angle_sigma=np.full((n_st, 3), np.nan))
+
+    cp = read_control_points(control) if control is not None else None
+    checks = {_ident(str(c)) for c in check_ids}
+    ids = set(ip.point) | (set(cp.ids) if cp is not None else set())
+    pt_ids = sorted(ids, key=_sort_key)
+    m = len(pt_ids)
+    pidx = {p: i for i, p in enumerate(pt_ids)}
+    kind = np.array(["tie"] * m, dtype=object)
+    xyz = np.full((m, 3), np.nan)
+    sig = np.full((m, 3), np.nan)
+    if cp is not None:
+        for k, pid in enumerate(cp.ids):          # loop over control points (few)
+            i = pidx[pid]
+            kind[i] = "check" if pid in checks else "control"
+            xyz[i] = cp.xyz[k]
+            sig[i] = cp.sigma[k]
+    points = Points(ids=pt_ids, kind=kind, xyz=xyz, sigma=sig)
+
+    sidx = {s: i for i, s in enumerate(st_names)}
+    station = np.array([sidx[s] for s in ip.image], dtype=int)
+    point = np.array([pidx[p] for p in ip.point], dtype=int)
+    key = station.astype(np.int64) * (m + 1) + point
+    _, first, counts = np.unique(key, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        k = int(first[np.argmax(counts > 1)])
+        raise InputError(f"point {ip.point[k]} is measured twice in image {ip.image[k]}",
+                         file=ip.path, line=int(ip.line[k]))
+    image_points = ImagePoints(station=station, point=point, xy=ip.xy.copy(),
+                               sigma=ip.sxy.copy(), record=ip.line.copy())
+    finite = ip.sxy[np.isfinite(ip.sxy)]
+    adj = AdjustmentSettings(datum="control" if cp is not None else "free")
+    if len(finite):
+        adj.sigma_image = float(np.median(finite))
+    sources = {"image_points": Path(markpts), "camera": Path(camera_xml)}
+    if control is not None:
+        sources["control_points"] = Path(control)
+    return Project(name=name, units=Units(length=length_unit, angle="deg", image="px"),
+                   cameras={cname: camera}, stations=stations, points=points,
+                   image_points=image_points, adjustment=adj, sources=sources)
