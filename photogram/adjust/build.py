@@ -1,0 +1,173 @@
+"""Turn a :class:`~photogram.project.model.Project` (with approximate values
+for every station and point) into an engine :class:`Problem`.
+
+Configuration, not computation: which blocks are free, which residual
+blocks exist, and the datum:
+
+* ``control``: control points (kind ``control``) are fixed;
+* ``weighted``: control coordinates are weighted observations (eq. (D3b))
+  with sX sY sZ (or ``sigma_control``);
+* ``free``: inner constraints (minimum trace) over all points or the points
+  named in ``inner_constraints``; 6 conditions when a distance fixes scale.
+
+Station priors (appendix D.2) and interior priors are added wherever the
+project gives sigmas; distances and verticality wherever given.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from photogram.adjust.datum import inner_constraints
+from photogram.adjust.residual_blocks import (
+    DistanceBlock, ImagePointBlock, InteriorPriorBlock, PointPriorBlock,
+    StationPriorBlock, VerticalBlock)
+from photogram.adjust.solver import Problem
+from photogram.adjust.state import Layout, State
+from photogram.errors import InputError
+from photogram.geometry import camera_model, opk_to_matrix
+
+
+@dataclass
+class Built:
+    problem: Problem
+    camera_names: list
+    present: dict            # flags for datum messages
+    control: np.ndarray      # indices of control points
+    check: np.ndarray        # indices of check points
+
+
+def _missing_approximations(project):
+    st = project.stations
+    bad_st = [n for n, ok in zip(st.names, np.all(np.isfinite(st.position), 1)
+                                  & np.all(np.isfinite(st.angles), 1)) if not ok]
+    bad_pt = [i for i, ok in zip(project.points.ids, np.all(np.isfinite(project.points.xyz), 1))
+              if not ok]
+    return bad_st, bad_pt
+
+
+def build_problem(project, fix_interior=False) -> Built:
+    """Build the engine problem of ``project``.
+
+    Parameters
+    ----------
+    project : Project
+        With finite approximate values for every station and point that
+        has observations (run :func:`photogram.init.chain.approximate`
+        first).
+    fix_interior : bool
+        Hold every interior parameter fixed (``photogram orient``).
+    """
+    adj = project.adjustment
+    bad_st, bad_pt = _missing_approximations(project)
+    if bad_st or bad_pt:
+        raise InputError(
+            f"no approximate values for station(s) {', '.join(bad_st[:5]) or '-'} "
+            f"and point(s) {', '.join(bad_pt[:5]) or '-'}",
+            file=project.path, hint="run the approximation chain or give them in the tables")
+    cam_names = list(project.cameras)
+    cam_index = {n: i for i, n in enumerate(cam_names)}
+    cams = [project.cameras[n] for n in cam_names]
+    models = [camera_model(c.model) for c in cams]
+    st, pts, obs = project.stations, project.points, project.image_points
+    n_s, n_p = len(st), len(pts)
+    station_cam = np.array([cam_index[c] for c in st.camera], dtype=int)
+
+    kinds = np.asarray(pts.kind, dtype=object)
+    control = np.flatnonzero(kinds == "control")
+    check = np.flatnonzero(kinds == "check")
+    coupled = np.zeros(n_p, dtype=bool)
+    pidx = pts.index()
+    dist = [(pidx[d.point_a], pidx[d.point_b], d.value, d.sigma) for d in project.distances]
+    vert = [(pidx[v.top], pidx[v.bottom], v.sigma) for v in project.verticals]
+    for a, b, *_ in dist + vert:
+        coupled[[a, b]] = True
+
+    free_pt = np.ones((n_p, 3), dtype=bool)
+    if adj.datum == "control":
+        free_pt[control] = False
+    # points that nothing observes stay at their values (no singular blocks)
+    seen = np.bincount(obs.point, minlength=n_p) > 0
+    if adj.datum == "weighted":
+        seen[control] = True
+    free_pt[~(seen | coupled)] = False
+    free = {"camera": [np.zeros(len(c.parameters), bool) if fix_interior else c.free_mask()
+                       for c in cams],
+            "station": np.ones((n_s, 6), dtype=bool),
+            "point": free_pt}
+    layout = Layout([len(c.parameters) for c in cams], n_s, n_p, coupled, free)
+    state = State(pts.xyz.astype(float).copy(), opk_to_matrix(st.angles), st.position.astype(float).copy(),
+                  [c.values() for c in cams])
+
+    blocks = []
+    sigma_default = adj.sigma_image
+    obs_cam = station_cam[obs.station]
+    for k, name in enumerate(cam_names):
+        rows = np.flatnonzero(obs_cam == k)
+        if not len(rows):
+            continue
+        sig = np.where(np.isfinite(obs.sigma[rows]), obs.sigma[rows], sigma_default)
+        labels = [f"{st.names[s]}/{pts.ids[p]}" for s, p in zip(obs.station[rows], obs.point[rows])]
+        blk = ImagePointBlock(models[k], [k], np.zeros(len(rows), int), obs.station[rows],
+                              obs.point[rows], obs.xy[rows], sig, layout, labels=labels)
+        blk.group = f"image {name}"
+        blk.rows = rows
+        blocks.append(blk)
+
+    if adj.datum == "weighted" and len(control):
+        sig = pts.sigma[control].astype(float)
+        if adj.sigma_control is not None:
+            sig = np.where(np.isfinite(sig), sig, adj.sigma_control)
+        if not np.all(np.isfinite(sig)) or np.any(sig <= 0):
+            bad = [pts.ids[i] for i, s in zip(control, sig) if not np.all(np.isfinite(s) & (s > 0))]
+            raise InputError(f"weighted datum: control point(s) {', '.join(bad[:5])} have no sigma",
+                             file=project.sources.get("points", project.path),
+                             hint="give sX sY sZ in the points table or [adjustment] sigma_control")
+        blk = PointPriorBlock(control, pts.xyz[control], sig, layout)
+        blk.labels = [pts.ids[i] for i in control]
+        blocks.append(blk)
+
+    has_prior = np.isfinite(st.position_sigma).any(1) | np.isfinite(st.angle_sigma).any(1)
+    if has_prior.any():
+        i = np.flatnonzero(has_prior)
+        sig = np.hstack([st.position_sigma[i], st.angle_sigma[i]])
+        sig = np.where(np.isfinite(sig), sig, np.inf)
+        blk = StationPriorBlock(i, st.position[i], st.angles[i], sig, layout)
+        blk.labels = [st.names[j] for j in i]
+        blocks.append(blk)
+
+    if not fix_interior:
+        pri = [(k, j, p.value, p.sigma) for k, c in enumerate(cams)
+               for j, p in enumerate(c.parameters.values())
+               if p.free and p.sigma is not None and np.isfinite(p.sigma) and p.sigma > 0]
+        if pri:
+            k, j, v, s = map(np.array, zip(*pri))
+            blocks.append(InteriorPriorBlock(k, j, v, s, layout))
+    if dist:
+        a, b, v, s = map(np.array, zip(*dist))
+        blk = DistanceBlock(a, b, v, s, layout)
+        blk.labels = [f"{d.point_a}-{d.point_b}" for d in project.distances]
+        blocks.append(blk)
+    if vert:
+        a, b, s = map(np.array, zip(*vert))
+        blk = VerticalBlock(a, b, s, layout)
+        blk.labels = [f"{v.top}-{v.bottom}" for v in project.verticals]
+        blocks.append(blk)
+
+    G = None
+    if adj.datum == "free":
+        chosen = None
+        if adj.inner_constraints:
+            missing = [p for p in adj.inner_constraints if p not in pidx]
+            if missing:
+                raise InputError(f"inner_constraints names unknown point(s) {', '.join(missing[:5])}",
+                                 file=project.path, hint="use ids from the points table")
+            chosen = np.array([pidx[p] for p in adj.inner_constraints])
+        G = inner_constraints(layout, state, chosen, scale=not dist)
+    present = {"control": adj.datum in ("control", "weighted") and len(control) > 0,
+               "distance": bool(dist), "inner": G is not None}
+    problem = Problem(state, layout, blocks, G=G,
+                      point_labels=[pts.ids[i] for i in np.flatnonzero(~coupled)])
+    return Built(problem, cam_names, present, control, check)

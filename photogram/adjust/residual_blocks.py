@@ -1,0 +1,205 @@
+"""Residual blocks: one class per observation type, vectorized over all its
+observations (Ceres' residual blocks).
+
+A block has ``name``, ``dim`` (residuals per observation), ``sigma`` (N, dim)
+a-priori standard deviations, ``records`` (labels for reports) and
+``slot_cols`` (one (N, s) column array per parameter block it touches). Its
+``evaluate(state)`` returns the *unweighted* residuals e (N, dim) and one
+Jacobian (N, dim, s) per slot; the solver whitens them with the sigmas,
+variance factors and robust weights.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from photogram.geometry import matrix_to_opk, opk_derivatives
+
+
+class ResidualBlock:
+    name = "residual"
+    dim = 1
+    group = "other"           # variance-component group of every row
+
+    def __len__(self) -> int:
+        return len(self.sigma)
+
+    def evaluate(self, state):  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+class ImagePointBlock(ResidualBlock):
+    """Collinearity residuals of image points of cameras sharing one model
+    (ski-jump paper, appendix A; the residual form is the model's own).
+
+    Parameters
+    ----------
+    model : camera model
+    cameras : (K,) int, the cameras (indices into ``state.io``) of this block
+    camera : (N,) int, index into ``cameras`` per observation
+    station, point : (N,) int
+    xy : (N, 2) measured image coordinates
+    sigma : (N,) a-priori sigma (image unit)
+    layout : Layout
+    """
+
+    name = "image points"
+    dim = 2
+
+    def __init__(self, model, cameras, camera, station, point, xy, sigma, layout, labels=None):
+        self.model = model
+        self.cameras = np.asarray(cameras)
+        self.camera = np.asarray(camera)
+        self.station = np.asarray(station)
+        self.point = np.asarray(point)
+        self.xy = np.asarray(xy, dtype=float)
+        self.sigma = np.repeat(np.asarray(sigma, dtype=float)[:, None], 2, axis=1)
+        cam_cols = np.stack([layout.camera_cols[k] for k in self.cameras])
+        self.slot_cols = [layout.point_cols[self.point],
+                          layout.station_cols[self.station],
+                          cam_cols[self.camera]]
+        self.labels = labels
+
+    def evaluate(self, state):
+        io = np.stack([state.io[k] for k in self.cameras])[self.camera]
+        R = state.R[self.station]
+        angles = matrix_to_opk(R)
+        e, jac = self.model.residuals(self.xy, state.points[self.point], angles,
+                                      state.X0[self.station], io)
+        return e, [jac["X"], np.concatenate([jac["X0"], jac["rotation"]], axis=2), jac["io"]]
+
+    def project(self, state):
+        """Forward projection of the observed points (for reports)."""
+        io = np.stack([state.io[k] for k in self.cameras])[self.camera]
+        return self.model.project(state.points[self.point], matrix_to_opk(state.R[self.station]),
+                                  state.X0[self.station], io)
+
+
+class PointPriorBlock(ResidualBlock):
+    """Reference coordinates as weighted observations (appendix D.1,
+    eq. (D3b)): ``e = X - X_ref``."""
+
+    name = "control coordinates"
+    dim = 3
+    group = "control"
+
+    def __init__(self, point, xyz, sigma, layout):
+        self.point = np.asarray(point)
+        self.xyz = np.asarray(xyz, dtype=float)
+        self.sigma = np.asarray(sigma, dtype=float)
+        self.slot_cols = [layout.point_cols[self.point]]
+
+    def evaluate(self, state):
+        e = state.points[self.point] - self.xyz
+        J = np.broadcast_to(np.eye(3), (len(e), 3, 3)).copy()
+        return e, [J]
+
+
+def _angle_increment_map(R):
+    """Matrix E with ``d(opk) = E delta`` for ``R = expm([delta]x) R0``.
+
+    From ``[delta]x R = sum_j dR/da_j da_j``: the columns of ``E^-1`` are
+    ``vee(dR/da_j R^T)``.
+    """
+    angles = matrix_to_opk(R)
+    dR = opk_derivatives(angles)                       # (n, 3, 3, 3): [..., j]
+    M = np.einsum("nikj,nlk->njil", dR, R)             # (n, j, 3, 3) dR_j R^T
+    Einv = np.stack([M[:, :, 2, 1], M[:, :, 0, 2], M[:, :, 1, 0]], axis=1)  # (n, 3, j)
+    return angles, np.linalg.inv(Einv)
+
+
+class StationPriorBlock(ResidualBlock):
+    """Approximate exterior orientations as weighted observations with a
+    guessed accuracy (appendix D.2). Angles in radians; angle residuals are
+    wrapped to (-pi, pi]."""
+
+    name = "station priors"
+    dim = 6
+    group = "station priors"
+
+    def __init__(self, station, position, angles, sigma, layout):
+        self.station = np.asarray(station)
+        self.position = np.asarray(position, dtype=float)
+        self.angles = np.asarray(angles, dtype=float)
+        self.sigma = np.asarray(sigma, dtype=float)   # (N, 6); inf = no prior
+        self.slot_cols = [layout.station_cols[self.station]]
+
+    def evaluate(self, state):
+        n = len(self.station)
+        ang, E = _angle_increment_map(state.R[self.station])
+        e = np.zeros((n, 6))
+        e[:, :3] = np.where(np.isfinite(self.position), state.X0[self.station] - self.position, 0.0)
+        d = np.angle(np.exp(1j * (ang - self.angles)))
+        e[:, 3:] = np.where(np.isfinite(self.angles), d, 0.0)
+        J = np.zeros((n, 6, 6))
+        J[:, :3, :3] = np.eye(3)
+        J[:, 3:, 3:] = E
+        return e, [J]
+
+
+class InteriorPriorBlock(ResidualBlock):
+    """Weighted interior-orientation priors: ``e = io_k - value_k``."""
+
+    name = "interior priors"
+    dim = 1
+    group = "interior priors"
+
+    def __init__(self, camera, parameter, value, sigma, layout):
+        self.camera = np.asarray(camera)
+        self.parameter = np.asarray(parameter)
+        self.value = np.asarray(value, dtype=float)
+        self.sigma = np.asarray(sigma, dtype=float)[:, None]
+        cols = np.array([layout.camera_cols[k][j] for k, j in zip(self.camera, self.parameter)])
+        self.slot_cols = [cols.reshape(-1, 1)]
+
+    def evaluate(self, state):
+        current = np.array([state.io[k][j] for k, j in zip(self.camera, self.parameter)])
+        e = (current - self.value)[:, None]
+        return e, [np.ones((len(e), 1, 1))]
+
+
+class DistanceBlock(ResidualBlock):
+    """Measured distances between two points (scale bars, rods):
+    ``e = |X_a - X_b| - d``."""
+
+    name = "distances"
+    dim = 1
+    group = "distances"
+
+    def __init__(self, a, b, value, sigma, layout):
+        self.a, self.b = np.asarray(a), np.asarray(b)
+        self.value = np.asarray(value, dtype=float)
+        self.sigma = np.asarray(sigma, dtype=float)[:, None]
+        self.slot_cols = [layout.point_cols[self.a], layout.point_cols[self.b]]
+
+    def evaluate(self, state):
+        d = state.points[self.a] - state.points[self.b]
+        length = np.linalg.norm(d, axis=1)
+        u = (d / length[:, None])[:, None, :]
+        return (length - self.value)[:, None], [u, -u]
+
+
+class VerticalBlock(ResidualBlock):
+    """Rod verticality (ski-jump paper, eq. (3)): the horizontal offsets of
+    the top from the bottom point per unit height are observed as zero,
+    ``e = ((X_t - X_b)/(Z_t - Z_b), (Y_t - Y_b)/(Z_t - Z_b))`` with sigma a
+    slope ratio (1:100 -> 0.01)."""
+
+    name = "verticality"
+    dim = 2
+    group = "verticality"
+
+    def __init__(self, top, bottom, sigma, layout):
+        self.top, self.bottom = np.asarray(top), np.asarray(bottom)
+        self.sigma = np.repeat(np.asarray(sigma, dtype=float)[:, None], 2, axis=1)
+        self.slot_cols = [layout.point_cols[self.top], layout.point_cols[self.bottom]]
+
+    def evaluate(self, state):
+        d = state.points[self.top] - state.points[self.bottom]
+        h = d[:, 2]
+        e = d[:, :2] / h[:, None]
+        J = np.zeros((len(d), 2, 3))
+        J[:, 0, 0] = 1.0 / h
+        J[:, 1, 1] = 1.0 / h
+        J[:, :, 2] = -e / h[:, None]
+        return e, [J, -J]

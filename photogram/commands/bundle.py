@@ -1,0 +1,235 @@
+"""`photogram calibrate` and `photogram orient`: configurations of the one
+engine, from a project file to a results folder.
+
+read project -> approximate values (chain) -> build problem -> datum check
+-> solve -> robust reweighting / data snooping / variance components ->
+statistics -> results folder (summary.json, cameras.toml, stations.csv,
+points.csv, residuals.csv, log.txt).
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from photogram.adjust.build import build_problem
+from photogram.adjust.datum import check_datum
+from photogram.adjust.solver import SolverOptions, solve
+from photogram.geometry import matrix_to_opk
+from photogram.stats.covariance import (
+    camera_covariances, cofactors, high_correlations, point_covariances, station_covariances)
+from photogram.stats.reliability import data_snooping, normalized_residuals, redundancy_numbers
+from photogram.stats.robust import robust_reweighting
+from photogram.stats.variance import estimate_variance_components
+
+log = logging.getLogger("photogram")
+
+
+@dataclass
+class BundleResult:
+    """Everything a command produces, before it is written."""
+
+    project: object                     # Project with the estimated values
+    summary: dict
+    camera_sigma: dict
+    station_sigma: np.ndarray           # (n_s, 6), angles in radians
+    point_sigma: np.ndarray             # (n_p, 3)
+    residuals: dict                     # column -> array
+    covariances: dict = field(default_factory=dict)
+
+
+def _options(adj):
+    return SolverOptions(max_iterations=adj.max_iterations, tolerance=adj.tolerance,
+                         damping=adj.damping)
+
+
+def _needs_approximations(project):
+    st, pts = project.stations, project.points
+    seen = np.zeros(len(pts), dtype=bool)
+    seen[project.image_points.point] = True
+    return (not np.all(np.isfinite(st.position)) or not np.all(np.isfinite(st.angles))
+            or not np.all(np.isfinite(pts.xyz[seen])))
+
+
+def approximate_if_needed(project, summary):
+    """Run the approximation chain when some station or observed point has
+    no approximate value; record its report in the summary."""
+    if not _needs_approximations(project):
+        return project
+    from photogram.init.chain import approximate
+    project, report = approximate(project)
+    summary["approximation"] = report.to_dict() if hasattr(report, "to_dict") else dict(report)
+    return project
+
+
+def adjust(project, *, fix_interior=False) -> BundleResult:
+    """Adjust ``project`` with the settings of its ``[adjustment]`` table.
+
+    Parameters
+    ----------
+    project : Project
+    fix_interior : bool
+        Hold all interior orientation fixed (``photogram orient``).
+    """
+    t0 = time.perf_counter()
+    adj = project.adjustment
+    summary = {"datum": adj.datum, "warnings": list(project.warnings)}
+    project = approximate_if_needed(project, summary)
+    t_approx = time.perf_counter()
+    built = build_problem(project, fix_interior=fix_interior)
+    problem = built.problem
+    check_datum(problem, built.present)
+    opts = _options(adj)
+    s = solve(problem, opts)
+    iterations = s.iterations
+    if adj.robust:
+        summary["robust"] = robust_reweighting(problem, adj.robust, opts)
+        s = solve(problem, opts)
+        iterations += s.iterations
+    snoop = None
+    if adj.snooping_alpha:
+        snoop = data_snooping(problem, alpha=adj.snooping_alpha, options=opts)
+        summary["snooping"] = {"alpha": snoop.alpha, "critical_value": snoop.critical_value,
+                               "rejected": snoop.rejected}
+        if snoop.rejected:
+            summary["warnings"].append(
+                f"data snooping rejected {len(snoop.rejected)} observation(s) "
+                f"(|w| > {snoop.critical_value:.2f}, alpha {snoop.alpha:g})")
+        s = solve(problem, opts)
+        iterations += s.iterations
+    if adj.variance_components:
+        hist = estimate_variance_components(problem, opts)
+        summary["variance_components"] = {"history": hist,
+                                          "factors": dict(problem.variance),
+                                          "sigma": {g: float(np.sqrt(v)) for g, v in problem.variance.items()}}
+        s = solve(problem, opts)
+        iterations += s.iterations
+    t_solve = time.perf_counter()
+
+    cof = cofactors(problem)
+    s0sq = s.sigma0 ** 2 if np.isfinite(s.sigma0) else 1.0
+    result = _collect(project, built, cof, s0sq, summary)
+    red = redundancy_numbers(problem, cof)
+    result.residuals = _residual_columns(problem, red)
+    t_stats = time.perf_counter()
+    summary.update({
+        "status": s.status, "message": s.message, "iterations": iterations,
+        "sigma0": s.sigma0, "sigma0_px": s.sigma0 * adj.sigma_image,
+        "redundancy": s.redundancy, "initial_cost": s.initial_cost, "final_cost": s.final_cost,
+        "cost_trace": s.cost_trace,
+        "counts": {"observations": s.n_observations, "unknowns": s.n_unknowns,
+                   "conditions": s.n_conditions,
+                   "interior": int(sum(problem.layout.free[c].sum() for c in problem.layout.camera_cols)),
+                   "exterior": int(problem.layout.free[problem.layout.station_cols].sum()),
+                   "points": int(problem.layout.free[problem.layout.point_cols].sum())},
+        "timings": {"approximation": t_approx - t0, "adjustment": t_solve - t_approx,
+                    "statistics": t_stats - t_solve, "total": t_stats - t0},
+    })
+    if s.status != "converged":
+        summary["warnings"].append(s.message)
+    result.summary = summary
+    return result
+
+
+def _collect(project, built, cof, s0sq, summary):
+    """Estimated values and a-posteriori sigmas into a copy of the project."""
+    problem = built.problem
+    st = problem.state
+    out = copy.deepcopy(project)
+    out.points.xyz = st.points.copy()
+    out.stations.position = st.X0.copy()
+    out.stations.angles = matrix_to_opk(st.R)
+    cams = camera_covariances(cof, s0sq)
+    camera_sigma, corr = {}, {}
+    for k, name in enumerate(built.camera_names):
+        cam = out.cameras[name]
+        for pname, v in zip(cam.parameters, st.io[k]):
+            cam.parameters[pname].value = float(v)
+        sig = np.sqrt(np.clip(np.diag(cams[k]), 0, None))
+        camera_sigma[name] = dict(zip(cam.parameters, sig.tolist()))
+        free = cam.free_mask() & (sig > 0)
+        names = [n for n, f in zip(cam.parameters, free) if f]
+        high = high_correlations(cams[k][np.ix_(free, free)], names)
+        for a, b, r in high:
+            summary["warnings"].append(f"camera {name}: correlation {a}-{b} = {r:+.3f}")
+        corr[name] = high
+    summary["high_correlations"] = {k: v for k, v in corr.items() if v}
+    P = point_covariances(cof, s0sq)
+    S = station_covariances(cof, st.R, s0sq)
+    point_sigma = np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0, None))
+    station_sigma = np.sqrt(np.clip(np.diagonal(S, axis1=1, axis2=2), 0, None))
+    if len(built.check):
+        d = st.points[built.check] - project.points.xyz[built.check]
+        summary["check_points"] = {
+            "ids": [project.points.ids[i] for i in built.check],
+            "differences": d.tolist(),
+            "rmse": np.sqrt(np.mean(d ** 2, axis=0)).tolist()}
+    return BundleResult(out, summary, camera_sigma, station_sigma, point_sigma, {},
+                        {"points": P, "stations": S, "cameras": cams})
+
+
+def _residual_columns(problem, redundancy):
+    """One row per image observation: residuals, normalized residuals and
+    redundancy numbers."""
+    w = normalized_residuals(problem, redundancy)
+    cols = {k: [] for k in ("station", "point", "x", "y", "vx", "vy", "wx", "wy", "rx", "ry", "used")}
+    for k, blk in enumerate(problem.blocks):
+        if blk.name != "image points":
+            continue
+        e, _ = blk.evaluate(problem.state)
+        cols["station"].append(blk.station)
+        cols["point"].append(blk.point)
+        cols["x"].append(blk.xy[:, 0])
+        cols["y"].append(blk.xy[:, 1])
+        cols["vx"].append(e[:, 0])
+        cols["vy"].append(e[:, 1])
+        cols["wx"].append(w[k][:, 0])
+        cols["wy"].append(w[k][:, 1])
+        cols["rx"].append(redundancy[k][:, 0])
+        cols["ry"].append(redundancy[k][:, 1])
+        cols["used"].append(problem.active[k].astype(int))
+    return {k: np.concatenate(v) if v else np.zeros(0) for k, v in cols.items()}
+
+
+def run(project, *, command, output=None, fix_interior=False):
+    """Adjust a (validated) project and write its results folder.
+
+    Returns ``(folder, BundleResult)``.
+    """
+    from photogram.project.results import write_results
+    folder = Path(output) if output else project.output_folder()
+    log.info("%s: %s -> %s", command, project.path, folder)
+    result = adjust(project, fix_interior=fix_interior)
+    result.summary["command"] = command
+    write_results(folder, result.project, result.summary, camera_sigma=result.camera_sigma,
+                  station_sigma=result.station_sigma, point_sigma=result.point_sigma,
+                  residuals=result.residuals,
+                  log_text=_log_text(command, project.path, result.summary))
+    return folder, result
+
+
+def _log_text(command, path, summary):
+    lines = [f"photogram {command} {path}",
+             f"status: {summary.get('status')} ({summary.get('message', '')})",
+             f"iterations: {summary.get('iterations')}",
+             f"sigma0: {summary.get('sigma0'):.6g}  redundancy: {summary.get('redundancy')}",
+             "cost trace: " + " ".join(f"{c:.6g}" for c in summary.get("cost_trace", []))]
+    lines += [f"warning: {w}" for w in summary.get("warnings", [])]
+    return "\n".join(lines) + "\n"
+
+
+def calibrate(project, output=None):
+    """`photogram calibrate`: self-calibrating bundle adjustment (interior
+    parameters free as the project says)."""
+    return run(project, command="calibrate", output=output)
+
+
+def orient(project, output=None):
+    """`photogram orient`: exterior orientation with the interior
+    orientation held fixed."""
+    return run(project, command="orient", output=output, fix_interior=True)

@@ -1,0 +1,1 @@
+"""Synthetic networks with known truth (tests, example projects, design)."""

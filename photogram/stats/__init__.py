@@ -1,0 +1,1 @@
+"""Statistics of an adjustment: covariance, reliability, variance components."""
