@@ -35,7 +35,7 @@ def pair(i, j, P, c1=C, c2=C, X0=STATIONS):
     xy2 = project_ideal(P, R2, X0[j], c2)
     R2m = R2 @ R1.T
     b = R1 @ (X0[j] - X0[i])
-    s = 1.0 / abs(b[0])
+    s = 1.0 / abs(b[0]) if b[0] != 0 else 1.0
     Pm = (P - X0[i]) @ R1.T * s
     return xy1, xy2, R2m, b * s, Pm
 

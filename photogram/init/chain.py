@@ -292,8 +292,6 @@ class _Chain:
         # what is known in the project frame
         xyz = np.asarray(self.pts.xyz, dtype=float).reshape(-1, 3)
         self.known = np.isfinite(xyz).all(1)
-        kind = np.asarray(self.pts.kind, dtype=object)
-        self.is_control = self.known & np.isin(kind, ["control", "check"])
         pos = np.asarray(self.st.position, dtype=float).reshape(-1, 3)
         ang = np.asarray(self.st.angles, dtype=float).reshape(-1, 3)
         self.given_station = np.isfinite(pos).all(1) & np.isfinite(ang).all(1)
@@ -436,17 +434,17 @@ class _Chain:
         from photogram.init.relative import relative_orientation
         o = self.obs
         rows = self.use
-        A = np.zeros((self.n_st, self.n_pt), dtype=np.int32)
-        A[o.station[rows], o.point[rows]] = 1
-        common = A @ A.T
-        np.fill_diagonal(common, 0)
-        iu = np.triu_indices(self.n_st, 1)
-        cnt = common[iu]
-        order = np.argsort(-cnt, kind="stable")
+        import scipy.sparse as sp
+        A = sp.csr_matrix((np.ones(len(rows)), (o.station[rows], o.point[rows])),
+                          shape=(self.n_st, self.n_pt))
+        A.data[:] = 1.0                                 # duplicates count once
+        common = sp.triu(A @ A.T, k=1).tocoo()          # points common to two stations
+        cnt = np.rint(common.data).astype(int)
+        order = np.lexsort((common.col, common.row, -cnt))
         tried = []
         best = None
         for k in order[: self.max_pairs]:               # loop over candidate pairs
-            a, b, n = int(iu[0][k]), int(iu[1][k]), int(cnt[k])
+            a, b, n = int(common.row[k]), int(common.col[k]), int(cnt[k])
             if n < 5:
                 break
             ra = self.rows_of_station[a]

@@ -32,9 +32,14 @@ Refinement: least squares of the *image residuals* of both images, i.e.
 the bundle adjustment of the pair with the model points as unknowns
 (equivalent to the Gauss-Helmert adjustment of the coplanarity condition
 with the image coordinates as observations): 5 orientation unknowns
-(rotation increment δ, ``R2 <- small_rotation(δ) R2``, and the two free
-baseline components) and 3 per point, solved with the Schur complement of
-the 3x3 point blocks and Levenberg-Marquardt damping.
+(rotation increment δ, ``R2 <- small_rotation(δ) R2``, and two baseline
+unknowns, iterated on the unit sphere) and 3 per point. It is solved by
+variable projection (Golub & Pereyra 2003): the points are kept at their
+optimum for the current orientation (3x3 Gauss-Newton per point), the step
+is the Levenberg-Marquardt-damped Schur-complement step of the orientation.
+A joint step over points and orientation overshoots in the long curved
+valley of narrow-field pairs (rotation about y against b_z); this does not.
+The precision is that of the normal equations with ``|b_k| = 1`` held.
 """
 
 from __future__ import annotations
@@ -45,8 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from photogram.errors import GeometryError
-from photogram.init.intersection import intersect_points, max_intersection_angles, \
-    project_ideal
+from photogram.init.intersection import intersect_points, max_intersection_angles
 
 __all__ = ["RelativeOrientationResult", "relative_orientation", "essential_candidates",
            "homography_candidates", "eight_point", "decompose_essential", "sampson_errors",
@@ -427,13 +431,14 @@ def _blocks(xy1, xy2, c1, c2, R2, b, X, Tb, r1, r2):
     return Npp, Npc, Ncc, gp, gc
 
 
-def _refine(xy1, xy2, c1, c2, R2, b, X, fixed_component, max_iterations, tol, notes):
-    """Levenberg-Marquardt bundle of the pair (Schur complement of points).
+def _refine(xy1, xy2, c1, c2, R2, b, X, fixed_component, max_iterations, tol):
+    """Bundle of the pair by variable projection (see the module docstring).
 
-    Iterates with the baseline on the unit sphere (two tangent unknowns, no
-    coupling of the model scale with the points: a well-conditioned valley),
-    then rescales to ``|b_k| = 1`` and forms the normal equations with
-    ``b_k`` fixed for the precision estimate (same minimum).
+    Iterates with the baseline on the unit sphere (two tangent unknowns),
+    the points always at their optimum for the current orientation, at most
+    ``max_iterations`` Levenberg-Marquardt steps of the five orientation
+    unknowns; then rescales to ``|b_k| = 1`` and forms the normal equations
+    with ``b_k`` fixed for the precision estimate (same minimum).
     """
     s0 = np.linalg.norm(b)
     b = b / s0
@@ -514,7 +519,7 @@ def _refine(xy1, xy2, c1, c2, R2, b, X, fixed_component, max_iterations, tol, no
         if small or decrease <= 1e-15 * cost:
             converged = True
             break
-    k = _fixed(b, fixed_component, notes)
+    k = _fixed(b, fixed_component)
     sk = abs(b[k])
     b, X = b / sk, X / sk
     free = [j for j in range(3) if j != k]
@@ -619,7 +624,7 @@ def relative_orientation(xy1_ideal, xy2_ideal, c1, c2, *, x0y0_1=None, x0y0_2=No
     c_mean = 0.5 * (c1 + c2)
 
     # zero baseline: a pure rotation explains everything
-    R_rot, rms_rot = rotation_only_fit(xy1, xy2, c1, c2)
+    _, rms_rot = rotation_only_fit(xy1, xy2, c1, c2)
     floor = 1e-9 * c_mean
     if sigma_image is not None:
         floor = max(floor, parallax_factor * float(sigma_image))
@@ -668,7 +673,7 @@ def relative_orientation(xy1_ideal, xy2_ideal, c1, c2, *, x0y0_1=None, x0y0_2=No
         if bad.any():
             X[bad] = -np.array([0.0, 0.0, 1.0]) * 10.0 * np.linalg.norm(b)
         short.append(_refine(xy1, xy2, c1, c2, R2, b, X, fixed_component,
-                             min(3, max_iterations), tol, []))
+                             min(3, max_iterations), tol))
     short.sort(key=lambda f: (f.behind > 0, f.cost))
     s2_short = float(sigma_image) ** 2 if sigma_image is not None else \
         (short[0].cost / (n - 5) if n > 5 else 0.0)
@@ -687,7 +692,7 @@ def relative_orientation(xy1_ideal, xy2_ideal, c1, c2, *, x0y0_1=None, x0y0_2=No
         # the most promising start gets the full budget, the others (which
         # only matter if they reach an equally good, distinct solution) 20
         budget = max_iterations if j == 0 else min(max_iterations, 20)
-        f = _refine(xy1, xy2, c1, c2, *st, fixed_component, budget, tol, notes)
+        f = _refine(xy1, xy2, c1, c2, *st, fixed_component, budget, tol)
         fits.append((f, f.k_fixed))
     dof = n - 5
     finite = [fk for fk in fits if np.isfinite(fk[0].cost)]
@@ -728,6 +733,10 @@ def relative_orientation(xy1_ideal, xy2_ideal, c1, c2, *, x0y0_1=None, x0y0_2=No
             distinct_good.append((f, k))
     tie = [f for f, _ in distinct_good[1:] if f.cost - fit.cost <= 9.0 * s2 + floor]
     sigma0 = float(np.sqrt(fit.cost / dof)) if dof > 0 else float("nan")
+    if fit.k_fixed != fixed_component:
+        notes.append(f"baseline component {'xyz'[fit.k_fixed]} held at ±1 "
+                     f"(b_{'xyz'[fixed_component] if fixed_component is not None else 'x'}"
+                     f" is small)")
     ambiguous = False
     if n == 5:
         ambiguous = True
@@ -784,15 +793,13 @@ def _triangulate(xy1, xy2, c1, c2, R2, b):
     return res.X
 
 
-def _fixed(b, fixed_component, notes) -> int:
+def _fixed(b, fixed_component) -> int:
+    """Baseline component to hold at ±1: ``fixed_component`` unless it is
+    less than a fifth of the baseline length (or None): then the largest."""
     nb = np.linalg.norm(b)
     if fixed_component is not None and abs(b[fixed_component]) >= 0.2 * nb:
         return int(fixed_component)
-    k = int(np.argmax(np.abs(b)))
-    msg = f"baseline component {'xyz'[k]} held at ±1 (b_x is small)"
-    if msg not in notes:
-        notes.append(msg)
-    return k
+    return int(np.argmax(np.abs(b)))
 
 
 def _same(f, g, s2, floor, tol=1e-6, k=5.0) -> bool:
