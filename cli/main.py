@@ -24,6 +24,7 @@ import importlib
 import logging
 import sys
 import traceback
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -165,6 +166,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     verbose = args.verbose
+    if not verbose:
+        # numeric warnings of a failing network must not add lines to the
+        # one-line error; -v shows them
+        warnings.simplefilter("ignore", RuntimeWarning)
     try:
         _setup_logging(args)
         return run_command(args)

@@ -25,6 +25,9 @@ import numpy as np
 import scipy.sparse as sp
 
 
+DENSE_LIMIT = 4_000_000   # entries of W (n_reduced x 3 n_points) kept dense
+
+
 class Segments:
     """Sum rows of an (N, ...) array over groups given by integer keys
     (sorting once, then ``np.add.reduceat`` every time)."""
@@ -118,6 +121,9 @@ class Structure:
         # built from sorted row-major keys, checked here)
         coo = self.W_pattern.tocoo()
         assert np.array_equal(coo.row.astype(np.int64) * max(n_e3, 1) + coo.col, uniq)
+        # small problems: W as a dense array (BLAS beats sparse products)
+        self.dense = n_r * n_e3 <= DENSE_LIMIT
+        self.w_flat = uniq
 
     @staticmethod
     def _plan(bi, a, b, rows, keys, cols_a, cols_b):
@@ -131,7 +137,7 @@ class NormalSystem:
     """Assembled normal equations: dense N_cc, sparse W, blocks A, gradient."""
 
     Ncc: np.ndarray       # (n_r, n_r)
-    W: sp.csr_matrix      # (n_r, 3 n_e)
+    W: sp.csr_matrix | np.ndarray   # (n_r, 3 n_e), dense for small problems
     A: np.ndarray         # (n_e, 3, 3)
     g: np.ndarray         # (n_columns,)
     cost: float           # 0.5 * sum r^2 of the whitened residuals
@@ -152,7 +158,7 @@ def assemble(structure: Structure, residuals, jacobians) -> NormalSystem:
     for r, Js, cols in zip(residuals, jacobians, structure.slot_cols):
         cost += 0.5 * float(np.sum(r * r))
         for J, c in zip(Js, cols):
-            g += np.bincount(c.ravel(), weights=np.einsum("nda,nd->na", J, r).ravel(),
+            g += np.bincount(c.ravel(), weights=np.matmul(r[:, None, :], J)[:, 0].ravel(),
                              minlength=lay.n_columns)
     Ncc = np.zeros(n_r * n_r)
     for plan in structure.cc_plans:
@@ -167,13 +173,17 @@ def assemble(structure: Structure, residuals, jacobians) -> NormalSystem:
     data = np.bincount(structure.w_inverse,
                        weights=np.concatenate(w_vals) if w_vals else np.zeros(0),
                        minlength=structure.w_nnz)
-    W = structure.W_pattern.copy()
-    W.data = data
+    if structure.dense:
+        W = np.zeros(structure.W_pattern.shape)
+        W.ravel()[structure.w_flat] = data
+    else:
+        W = structure.W_pattern.copy()
+        W.data = data
     return NormalSystem(Ncc.reshape(n_r, n_r), W, A, g, cost)
 
 
 def _pair_products(plan, jacobians):
     Ja = jacobians[plan.block][plan.a][plan.rows]
     Jb = jacobians[plan.block][plan.b][plan.rows]
-    prod = np.einsum("nda,ndb->nab", Ja, Jb)
+    prod = np.matmul(np.swapaxes(Ja, 1, 2), Jb)      # batched J_a^T J_b
     return plan.segments.sum(prod)

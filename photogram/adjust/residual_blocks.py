@@ -24,7 +24,7 @@ class ResidualBlock:
     def __len__(self) -> int:
         return len(self.sigma)
 
-    def evaluate(self, state):  # pragma: no cover - interface
+    def evaluate(self, state, jacobians=True):  # pragma: no cover - interface
         raise NotImplementedError
 
 
@@ -60,10 +60,14 @@ class ImagePointBlock(ResidualBlock):
                           cam_cols[self.camera]]
         self.labels = labels
 
-    def evaluate(self, state):
+    def evaluate(self, state, jacobians=True):
         io = np.stack([state.io[k] for k in self.cameras])[self.camera]
         R = state.R[self.station]
         angles = matrix_to_opk(R)
+        if not jacobians:
+            e = self.model.residuals(self.xy, state.points[self.point], angles,
+                                     state.X0[self.station], io, jacobians=False)
+            return e, None
         e, jac = self.model.residuals(self.xy, state.points[self.point], angles,
                                       state.X0[self.station], io)
         return e, [jac["X"], np.concatenate([jac["X0"], jac["rotation"]], axis=2), jac["io"]]
@@ -89,7 +93,7 @@ class PointPriorBlock(ResidualBlock):
         self.sigma = np.asarray(sigma, dtype=float)
         self.slot_cols = [layout.point_cols[self.point]]
 
-    def evaluate(self, state):
+    def evaluate(self, state, jacobians=True):
         e = state.points[self.point] - self.xyz
         J = np.broadcast_to(np.eye(3), (len(e), 3, 3)).copy()
         return e, [J]
@@ -124,7 +128,7 @@ class StationPriorBlock(ResidualBlock):
         self.sigma = np.asarray(sigma, dtype=float)   # (N, 6); inf = no prior
         self.slot_cols = [layout.station_cols[self.station]]
 
-    def evaluate(self, state):
+    def evaluate(self, state, jacobians=True):
         n = len(self.station)
         ang, E = _angle_increment_map(state.R[self.station])
         e = np.zeros((n, 6))
@@ -152,7 +156,7 @@ class InteriorPriorBlock(ResidualBlock):
         cols = np.array([layout.camera_cols[k][j] for k, j in zip(self.camera, self.parameter)])
         self.slot_cols = [cols.reshape(-1, 1)]
 
-    def evaluate(self, state):
+    def evaluate(self, state, jacobians=True):
         current = np.array([state.io[k][j] for k, j in zip(self.camera, self.parameter)])
         e = (current - self.value)[:, None]
         return e, [np.ones((len(e), 1, 1))]
@@ -172,7 +176,7 @@ class DistanceBlock(ResidualBlock):
         self.sigma = np.asarray(sigma, dtype=float)[:, None]
         self.slot_cols = [layout.point_cols[self.a], layout.point_cols[self.b]]
 
-    def evaluate(self, state):
+    def evaluate(self, state, jacobians=True):
         d = state.points[self.a] - state.points[self.b]
         length = np.linalg.norm(d, axis=1)
         u = (d / length[:, None])[:, None, :]
@@ -194,7 +198,7 @@ class VerticalBlock(ResidualBlock):
         self.sigma = np.repeat(np.asarray(sigma, dtype=float)[:, None], 2, axis=1)
         self.slot_cols = [layout.point_cols[self.top], layout.point_cols[self.bottom]]
 
-    def evaluate(self, state):
+    def evaluate(self, state, jacobians=True):
         d = state.points[self.top] - state.points[self.bottom]
         h = d[:, 2]
         e = d[:, :2] / h[:, None]

@@ -30,7 +30,7 @@ class Factorization:
 
     Ainv: np.ndarray            # (n_e, 3, 3)
     Ainv_bsr: sp.bsr_matrix
-    Y: sp.csr_matrix            # W A^-1
+    Y: sp.csr_matrix | np.ndarray   # W A^-1
     M: np.ndarray               # reduced (bordered) matrix
     cho: tuple | None           # Cholesky of the scaled S when not bordered
     scale: np.ndarray | None    # Jacobi scaling of the reduced system
@@ -96,8 +96,13 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None):
 
     Ainv = _invert_point_blocks(A, point_labels)
     Ainv_bsr = sp.bsr_matrix((Ainv, np.arange(n_e), np.arange(n_e + 1)), shape=(3 * n_e, 3 * n_e))
-    Y = (system.W @ Ainv_bsr).tocsr()
-    S = Ncc - (Y @ system.W.T).toarray()
+    if isinstance(system.W, np.ndarray):
+        Wd = system.W.reshape(n_r, n_e, 3)
+        Y = np.einsum("rpk,pkm->rpm", Wd, Ainv).reshape(n_r, 3 * n_e)
+        S = Ncc - Y @ system.W.T
+    else:
+        Y = (system.W @ Ainv_bsr).tocsr()
+        S = Ncc - (Y @ system.W.T).toarray()
     rhs_c = -g_c + Y @ g_e
 
     # Jacobi scaling: interior parameters (K1 ~ 1e-8 px^-2) and coordinates

@@ -83,7 +83,7 @@ class Problem:
         """Whitened residuals (and Jacobians) of all blocks at ``state``."""
         rs, Js = [], []
         for k, b in enumerate(self.blocks):
-            e, J = b.evaluate(state)
+            e, J = b.evaluate(state, jacobians)
             w = self.weights(k)
             rs.append(np.where(w > 0, e, 0.0) * w)
             if jacobians:
@@ -126,6 +126,9 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     s.redundancy = problem.redundancy()
     state = problem.state
     cost = problem.cost(state)
+    if not np.isfinite(cost):
+        raise GeometryError(_non_finite_message(problem, state),
+                            hint="check the approximate values (a point at or behind a camera?)")
     s.initial_cost = cost
     s.cost_trace.append(cost)
     lam = opt.initial_lambda if opt.damping == "lm" else 0.0
@@ -182,6 +185,18 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     if s.status == "failed":
         raise GeometryError(s.message, hint="check the approximate values, the datum and gross errors")
     return s
+
+
+def _non_finite_message(problem, state):
+    """Name the observations whose residuals are not finite."""
+    bad = []
+    for blk in problem.blocks:
+        e, _ = blk.evaluate(state, False)
+        rows = np.flatnonzero(~np.all(np.isfinite(e), axis=1))
+        labels = getattr(blk, "labels", None)
+        bad += [f"{blk.name} {labels[i] if labels is not None else i}" for i in rows[:3]]
+    return ("non-finite residuals at the approximate values: " + ", ".join(bad[:5])
+            + (" ..." if len(bad) > 5 else ""))
 
 
 def _parameter_scale(problem, state):

@@ -20,6 +20,7 @@ import numpy as np
 from photogram.adjust.build import build_problem
 from photogram.adjust.datum import check_datum
 from photogram.adjust.solver import SolverOptions, solve
+from photogram.errors import GeometryError
 from photogram.geometry import matrix_to_opk
 from photogram.stats.covariance import (
     camera_covariances, cofactors, high_correlations, point_covariances, station_covariances)
@@ -203,14 +204,40 @@ def run(project, *, command, output=None, fix_interior=False):
     """
     from photogram.project.results import write_results
     folder = Path(output) if output else project.output_folder()
-    log.info("%s: %s -> %s", command, project.path, folder)
+    log.debug("%s: %s -> %s", command, project.path, folder)
     result = adjust(project, fix_interior=fix_interior)
     result.summary["command"] = command
+    _check_finite(result)
     write_results(folder, result.project, result.summary, camera_sigma=result.camera_sigma,
                   station_sigma=result.station_sigma, point_sigma=result.point_sigma,
                   residuals=result.residuals,
                   log_text=_log_text(command, project.path, result.summary))
+    if result.summary["status"] != "converged":
+        raise GeometryError(f"{result.summary['message']}; the unconverged results are in {folder}",
+                            hint="raise [adjustment] max_iterations or improve the approximate values")
     return folder, result
+
+
+def _check_finite(result):
+    """Never write NaN or infinity as an estimate."""
+    p = result.project
+    seen = np.bincount(p.image_points.point, minlength=len(p.points)) > 0
+    arrays = {"points": p.points.xyz[seen], "stations": p.stations.position,
+              "angles": p.stations.angles, "point sigmas": result.point_sigma[seen],
+              "station sigmas": result.station_sigma}
+    bad = [k for k, a in arrays.items() if not np.all(np.isfinite(a))]
+    bad += [f"camera {n}" for n, c in p.cameras.items() if not np.all(np.isfinite(c.values()))]
+    if bad:
+        raise GeometryError(f"the adjustment produced non-finite {', '.join(bad)}",
+                            hint="the network is too weak or the start too far off")
+
+
+def announce(command, folder, summary, args=None):
+    """The one line a successful command prints (unless ``--quiet``)."""
+    if not getattr(args, "quiet", False):
+        print(f"{command}: {summary['status']} after {summary['iterations']} iterations, "
+              f"sigma0 {summary['sigma0']:.4f}, redundancy {summary['redundancy']}; "
+              f"results in {folder}")
 
 
 def _log_text(command, path, summary):

@@ -1,14 +1,9 @@
 """`photogram calibrate PROJECT`: self-calibrating bundle adjustment."""
 
-import logging
-
-from photogram.commands.bundle import calibrate
+from photogram.commands.bundle import announce, calibrate
 
 
 def run(project, args=None):
     folder, result = calibrate(project)
-    s = result.summary
-    logging.getLogger("photogram").info(
-        "calibrate: %s after %d iterations, sigma0 %.4f, redundancy %d; results in %s",
-        s["status"], s["iterations"], s["sigma0"], s["redundancy"], folder)
+    announce("calibrate", folder, result.summary, args)
     return 0

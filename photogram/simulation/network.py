@@ -158,3 +158,22 @@ def frame_network(n_stations=8, n_points=60, sigma=0.3, seed=0, model_name="brow
                           rng=rng, rolls=[0, np.pi / 2, np.pi, -np.pi / 2])
     return observe(model_name, np.asarray(io, float), np.zeros(n_stations, int), R, X0, pts,
                    (640, 480), sigma=sigma, rng=rng)
+
+
+def wall_network(n_stations=100, n_points=10_000, distance=10.0, rays=20, sigma=0.5, seed=0):
+    """A large synthetic network for scaling tests: points on a wall with
+    relief, stations along it at ``distance``, spaced so that each point is
+    seen by about ``rays`` stations (c = 1000 px, 4000 x 3000 px images)."""
+    rng = np.random.default_rng(seed)
+    c, w, h = 1000.0, 4000, 3000
+    window = distance * (w / 2 - 50) / c * 2          # wall width one image sees
+    spacing = window / rays
+    length = spacing * n_stations
+    pts = np.stack([rng.uniform(0, length, n_points), rng.uniform(-0.5, 0.5, n_points),
+                    rng.uniform(-distance * 1.2, distance * 1.2, n_points)], axis=1)
+    X0 = np.stack([spacing * (np.arange(n_stations) + 0.5), np.full(n_stations, -distance),
+                   rng.normal(0, 0.2, n_stations)], axis=1)
+    R = look_at(X0, X0 + [0.0, distance, 0.0])
+    io = np.array([c, w / 2, h / 2, 0, 0, 0, 0, 0, 0, 0])
+    return observe("brown", io, np.zeros(n_stations, int), R, X0, pts, (w, h), sigma=sigma,
+                   rng=rng, margin=5)

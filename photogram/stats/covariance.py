@@ -62,7 +62,8 @@ def cofactors(problem) -> Cofactors:
     n_r = lay.n_reduced
     Minv = fact.reduced_inverse()
     Qcc = Minv[:n_r, :n_r]
-    V_c = fact.Y.T.toarray() if lay.n_eliminated else np.zeros((0, n_r))   # A^-1 W^T
+    Y = fact.Y if isinstance(fact.Y, np.ndarray) else fact.Y.toarray()
+    V_c = Y.T if lay.n_eliminated else np.zeros((0, n_r))   # A^-1 W^T
     if fact.AinvGe is not None:
         V = np.hstack([V_c, fact.AinvGe])
     else:
