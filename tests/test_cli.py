@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import types
+from pathlib import Path
 
 import pytest
 
@@ -86,9 +87,25 @@ def test_engines_not_built_yet(capsys, command):
     assert err == f"photogram {command}: {ENGINES[command]} is not built yet\n"
 
 
-def test_demo_not_built_yet(capsys):
-    assert main(["demo"]) == 2
-    assert capsys.readouterr().err == "photogram demo: the demo is not built yet\n"
+def test_demo_runs_the_lab_and_field_chain(tmp_path, monkeypatch, capsys):
+    import shutil
+
+    import photogram.demo as demo
+    root = Path(demo.__file__).resolve().parents[1]
+    shutil.copytree(root / "projects" / "lab", tmp_path / "projects" / "lab",
+                    ignore=shutil.ignore_patterns("results"))
+    shutil.copytree(root / "projects" / "field", tmp_path / "projects" / "field",
+                    ignore=shutil.ignore_patterns("results"))
+    monkeypatch.setattr(demo, "ROOT", tmp_path)
+    monkeypatch.setattr(demo, "PROJECTS", tmp_path / "projects")
+    all_steps = demo.steps
+    monkeypatch.setattr(demo, "steps", lambda: all_steps()[:2])
+    assert main(["demo"]) == 0
+    out = capsys.readouterr().out
+    assert "calibrate projects/lab/lab.prj: converged" in out
+    assert "orient projects/field/field.prj: converged" in out
+    assert (tmp_path / "projects" / "field" / "results" / "summary.json").is_file()
+
 
 
 @pytest.fixture

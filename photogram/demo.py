@@ -1,0 +1,49 @@
+"""`photogram demo` (and `make demo`): the main job on the bundled example
+projects, in the order a user runs it.
+
+1. ``calibrate projects/lab/lab.prj``   self-calibration of the simulated lab frame
+2. ``orient projects/field/field.prj``  the simulated arena, cameras from step 1
+3. ``calibrate projects/camcal/camcal.prj``  DBAT's real CAMCAL network, when
+   ../shared/data/dbat is present beside the repository
+
+Each step writes its results folder beside its project file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from photogram.commands.bundle import announce, calibrate, orient
+from photogram.errors import InputError
+from photogram.project import read_project
+
+ROOT = Path(__file__).resolve().parents[1]
+PROJECTS = ROOT / "projects"
+
+
+def steps():
+    """(command, function, project path, needs) of the demo, in order."""
+    return [("calibrate", calibrate, PROJECTS / "lab" / "lab.prj", None),
+            ("orient", orient, PROJECTS / "field" / "field.prj", None),
+            ("calibrate", calibrate, PROJECTS / "camcal" / "camcal.prj",
+             ROOT.parent / "shared" / "data" / "dbat" / "camcal")]
+
+
+def run(args=None):
+    if not PROJECTS.is_dir():
+        raise InputError("the example projects are not installed", file=PROJECTS,
+                         hint="run the demo from a source checkout (make demo)")
+    folders = []
+    for command, function, path, needs in steps():
+        if needs is not None and not Path(needs).is_dir():
+            print(f"skipping {path.relative_to(ROOT)}: reference data {needs} not present")
+            continue
+        if not path.is_file():
+            continue
+        folder, result = function(read_project(path))
+        announce(f"{command} {path.relative_to(ROOT)}", folder, result.summary, args)
+        folders.append(folder)
+    print("results: " + ", ".join(str(Path(f).resolve().relative_to(ROOT)) if
+                                  Path(f).resolve().is_relative_to(ROOT) else str(f)
+                                  for f in folders))
+    return 0

@@ -1,0 +1,274 @@
+#!/usr/bin/env python3
+"""Generate the two example projects, projects/lab and projects/field.
+
+All data are SIMULATED (nothing here was measured): the networks of the
+ski-jump paper's laboratory calibration (Fig. 5) and field orientation
+(Fig. 7) are built by :mod:`photogram.simulation.designs` with a fixed seed,
+and written with :func:`photogram.project.write_project`. Running the script
+again gives byte-identical files (``tests/test_designs.py`` checks that the
+committed files are exactly what this script writes).
+
+Usage (from the repository root)::
+
+    .venv/bin/python projects/generate.py              # rewrites projects/lab, projects/field
+    .venv/bin/python projects/generate.py --out /tmp/x # somewhere else
+
+What is written (``<stem>_*.csv`` is write_project's naming)::
+
+    lab/lab.prj                  free-network self-calibration (datum free + scale bar)
+    lab/lab_stations.csv         9 stations, approximate values from a sketch
+    lab/lab_points.csv           50 targets, approximate coordinates
+    lab/lab_image_points.csv     image measurements, sigma 0.33 px
+    lab/truth/*.csv              the true cameras, stations, points, scale bar,
+                                 noise-free image coordinates
+    field/field.prj              alternative 1: orientation with 15 reference
+                                 and 6 tie points; cameras from ../lab/results/cameras.toml
+    field/field-alt2.prj         alternative 2: also the helmet at 10 exposures
+                                 (shares field_stations.csv)
+    field/field_*.csv, field/field-alt2_*.csv
+    field/cameras-nominal.toml   the true (nominal) interior orientation, in the
+                                 results/cameras.toml schema
+    field/truth/*.csv            the true values (alternative 2 covers both)
+
+Two things write_project cannot express are done on its output text: the
+field projects take their cameras ``from`` the lab results (write_project
+writes cameras in full), and field-alt2.prj uses the stations table of
+field.prj. Every file gets a comment header saying that it is simulated.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from photogram.geometry import camera_model
+from photogram.project import write_project
+from photogram.project.atomic import atomic_write_text
+from photogram.project.camera_schema import camera_to_toml
+from photogram.project.tables import format_angle, format_table
+from photogram.project.toml_writer import dumps
+from photogram.simulation import designs
+from photogram.simulation.designs import FIELD_SEED, LAB_SEED, field_design, lab_design
+
+HERE = Path(__file__).resolve().parent
+LAB_CAMERAS = "../lab/results/cameras.toml"
+NOMINAL_CAMERAS = "cameras-nominal.toml"
+
+
+def _simulated(what: str, seed: int) -> str:
+    return (f"SIMULATED data: {what}.\n"
+            f"Written by projects/generate.py (seed {seed}); do not edit by hand: "
+            f"change the generator and run it again.")
+
+
+#: What each written file holds (header comment).
+DESCRIPTIONS = {
+    "lab.prj": "laboratory self-calibration of the cameras K1, K2, K3 on a 3D test frame "
+               "(ski-jump paper, Fig. 5)",
+    "lab_stations.csv": "lab stations, approximate values from a sketch "
+                        "(truth + ~3 cm, ~3 gon)",
+    "lab_points.csv": "lab targets, approximate coordinates (truth + ~1 cm)",
+    "lab_image_points.csv": "lab image measurements (px; noise N(0, 0.33 px))",
+    "field.prj": "field orientation of K1, K2, K3 at a K120-like hill (ski-jump paper, "
+                 "Fig. 7), alternative 1: reference and tie points",
+    "field-alt2.prj": "field orientation of K1, K2, K3 at a K120-like hill (ski-jump "
+                      "paper, Fig. 7), alternative 2: also the helmet at 10 exposures",
+    "field_stations.csv": "field stations from a map (truth + ~1 dm, ~2 gon); "
+                          "used by field.prj and field-alt2.prj",
+    "field_points.csv": "surveyed reference points (truth + N(0, 0.12 dm)) and "
+                        "tie points (unknown), dm",
+    "field_image_points.csv": "field image measurements (px; noise N(0, 0.33 px))",
+    "field-alt2_points.csv": "surveyed reference points (truth + N(0, 0.12 dm)), "
+                             "tie points and helmet positions (unknown), dm",
+    "field-alt2_image_points.csv": "field image measurements with the helmet "
+                                   "(px; noise N(0, 0.33 px))",
+}
+
+
+def _comment(text: str) -> str:
+    return "".join(f"# {line}\n" if line else "#\n" for line in text.splitlines())
+
+
+def _strip_writer_header(text: str) -> str:
+    """Drop write_project's "# written by photogram <version>" line, so that
+    the files do not change with the version number."""
+    lines = text.splitlines(keepends=True)
+    while lines and lines[0].startswith("# written by photogram"):
+        lines.pop(0)
+    return "".join(lines)
+
+
+def _written(project, stem: str) -> dict[str, str]:
+    """The texts write_project produces for ``project`` as ``<stem>.prj``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        write_project(project, Path(tmp) / f"{stem}.prj")
+        return {p.name: p.read_text(encoding="utf-8") for p in sorted(Path(tmp).iterdir())}
+
+
+def _blocks(text: str) -> list[str]:
+    return text.split("\n\n")
+
+
+def _cameras_from(prj: str, path: str, note: str) -> str:
+    """Replace every inline ``[cameras.NAME]`` table by ``from = path``."""
+    out, first = [], True
+    for block in _blocks(prj):
+        head = block.lstrip("\n").splitlines()[0] if block.strip() else ""
+        if head.startswith("[cameras."):
+            comment = _comment(note) if first else ""
+            out.append(f"{comment}{head}\nfrom = \"{path}\"")
+            first = False
+        else:
+            out.append(block)
+    return "\n\n".join(out)
+
+
+def _replace_table_file(prj: str, old: str, new: str) -> str:
+    target = f'file = "{old}"'
+    if target not in prj:
+        raise RuntimeError(f"{old} not found in the written .prj")
+    return prj.replace(target, f'file = "{new}"')
+
+
+def _truth_tables(truth: dict, units: tuple[str, str]) -> dict[str, str]:
+    """CSV texts of the true values (same columns as the input tables)."""
+    angle_unit = units[1]
+    st = truth["stations"]
+    stations = {"station": st["names"], "camera": st["camera"]}
+    for j, c in enumerate(("X0", "Y0", "Z0")):
+        stations[c] = st["X0"][:, j]
+    for j, c in enumerate(("omega", "phi", "kappa")):
+        stations[c] = [format_angle(a, angle_unit) for a in st["angles"][:, j]]
+    pts = truth["points"]
+    points = {"id": pts["ids"], "kind": pts["kind"]}
+    for j, c in enumerate("XYZ"):
+        points[c] = pts["xyz"][:, j]
+    names = camera_model(designs.MODEL).parameter_names
+    cameras = {"camera": list(truth["cameras"])}
+    for p in names:
+        cameras[p] = [float(truth["cameras"][c][p]) for c in truth["cameras"]]
+    xy = np.round(truth["xy_true"], 6)
+    image = {"station": [st["names"][i] for i in truth["station"]],
+             "point": [pts["ids"][i] for i in truth["point"]],
+             "x": xy[:, 0], "y": xy[:, 1]}
+    length, angle = units
+    tables = {
+        "cameras.csv": (cameras, "true interior orientation (px; brown model, "
+                                 "docs/camera-models.md)"),
+        "stations.csv": (stations, f"true stations ({length}; {angle}, world_to_camera "
+                                   f"omega-phi-kappa)"),
+        "points.csv": (points, f"true object points ({length})"),
+        "image_points.csv": (image, "noise-free image coordinates (px); the measurements "
+                                    "are these plus N(0, 0.33 px), rounded to 0.01 px"),
+    }
+    if truth["distances"]:
+        d = truth["distances"]
+        tables["distances.csv"] = (
+            {"from": [r["from"] for r in d], "to": [r["to"] for r in d],
+             "true": [r["true"] for r in d], "value": [r["value"] for r in d],
+             "sigma": [r["sigma"] for r in d]},
+            f"scale bar: true length and the calibrated value given in the project ({length})")
+    return {name: format_table(cols, comment=_simulated(what, truth["seed"]))
+            for name, (cols, what) in tables.items()}
+
+
+def _truth_with_rows(project, truth) -> dict:
+    truth = dict(truth)
+    truth["points"] = dict(truth["points"], kind=[str(k) for k in project.points.kind])
+    truth["station"] = project.image_points.station
+    truth["point"] = project.image_points.point
+    return truth
+
+
+def _with_header(text: str, header: str) -> str:
+    return _comment(header) + _strip_writer_header(text)
+
+
+def lab_files() -> dict[str, str]:
+    project, truth = lab_design(LAB_SEED)
+    files = {}
+    for name, text in _written(project, "lab").items():
+        header = _simulated(DESCRIPTIONS[name], LAB_SEED)
+        if name.endswith(".prj"):
+            header += ("\nRun: photogram calibrate projects/lab/lab.prj  (writes results/, "
+                       "whose cameras.toml\nthe field projects use). See README.md.")
+        files[name] = _with_header(text, header)
+    truth = _truth_with_rows(project, truth)
+    for name, text in _truth_tables(truth, ("m", "gon")).items():
+        files[f"truth/{name}"] = text
+    return files
+
+
+def field_files() -> dict[str, str]:
+    note = (f"interior orientation from the lab calibration, all parameters fixed.\n"
+            f"It exists after `photogram calibrate ../lab/lab.prj`; to use the true "
+            f"(nominal)\nvalues instead, write from = \"{NOMINAL_CAMERAS}\".")
+    files = {}
+    p1, t1 = field_design(FIELD_SEED, alternative=1)
+    p2, t2 = field_design(FIELD_SEED, alternative=2)
+    w1, w2 = _written(p1, "field"), _written(p2, "field-alt2")
+    if w1["field_stations.csv"] != w2["field-alt2_stations.csv"]:
+        raise RuntimeError("the two field alternatives differ in their stations")
+    for name, text in w1.items():
+        header = _simulated(DESCRIPTIONS[name], FIELD_SEED)
+        if name.endswith(".prj"):
+            header += ("\nRun: photogram orient projects/field/field.prj  (after the lab "
+                       "calibration). See README.md.")
+            text = _cameras_from(text, LAB_CAMERAS, note)
+        files[name] = _with_header(text, header)
+    for name, text in w2.items():
+        if name == "field-alt2_stations.csv":
+            continue
+        header = _simulated(DESCRIPTIONS[name], FIELD_SEED)
+        if name.endswith(".prj"):
+            header += ("\nRun: photogram orient projects/field/field-alt2.prj  (after the lab "
+                       "calibration). See README.md.")
+            text = _cameras_from(text, LAB_CAMERAS, note)
+            text = _replace_table_file(text, "field-alt2_stations.csv", "field_stations.csv")
+        files[name] = _with_header(text, header)
+    cams = {n: camera_to_toml(c) for n, c in p1.cameras.items()}
+    files[NOMINAL_CAMERAS] = dumps(
+        {"project": {"name": "lab-truth", "length_unit": "m", "angle_unit": "gon",
+                     "image_unit": "px"},
+         "cameras": cams},
+        header=_simulated("the true interior orientation of the simulation, in the "
+                          "results/cameras.toml schema", FIELD_SEED)
+        + "\nUse it with [cameras.K1] from = \"cameras-nominal.toml\" before the lab "
+          "calibration has run.")
+    truth = _truth_with_rows(p2, t2)
+    for name, text in _truth_tables(truth, ("dm", "gon")).items():
+        files[f"truth/{name}"] = text
+    return files
+
+
+def generate(out: Path = HERE) -> list[Path]:
+    """Write both projects below ``out`` (folders lab/ and field/); returns
+    the files written."""
+    out = Path(out)
+    written = []
+    for folder, files in (("lab", lab_files()), ("field", field_files())):
+        for name, text in files.items():
+            path = out / folder / name
+            path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(path, text)
+            path.chmod(0o644)
+            written.append(path)
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=HERE,
+                        help="folder to write lab/ and field/ into (default: %(default)s)")
+    args = parser.parse_args(argv)
+    for path in generate(args.out):
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
