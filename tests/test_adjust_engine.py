@@ -94,3 +94,39 @@ def test_free_network_with_distance_uses_six_conditions_and_gets_scale():
     h = helmert(st.points, net.points)
     assert abs(h.scale - 1) < 1e-9
     assert np.abs(h.residuals).max() < 1e-9
+
+
+def test_weighted_station_priors_alone_define_the_datum():
+    """Appendix D.2: approximate exterior orientations as weighted
+    observations give the datum without any control point."""
+    net = frame_network(sigma=0.3, seed=8)
+    prj = project_of(net, "control")
+    prj.points.kind[:] = "tie"
+    prj.stations.position = net.X0.copy()
+    prj.stations.angles = net.angles.copy()
+    prj.stations.position_sigma[:] = 0.001
+    prj.stations.angle_sigma[:] = 0.001
+    built = build_problem(prj)
+    check_datum(built.problem, built.present)
+    s = solve(built.problem)
+    assert s.status == "converged"
+    err = built.problem.state.points - net.points
+    assert np.sqrt(np.mean(err ** 2)) < 0.002
+
+
+def test_robust_huber_downweights_a_blunder():
+    from photogram.stats.robust import robust_reweighting
+    net = frame_network(sigma=0.3, seed=9)
+    net.xy[10] += [12.0, -9.0]     # a 50-sigma blunder
+    clean = frame_network(sigma=0.3, seed=9)
+    b_clean = build_problem(project_of(clean, "control"))
+    solve(b_clean.problem)
+    b = build_problem(project_of(net, "control"))
+    solve(b.problem)
+    ls_err = np.abs(b.problem.state.points - b_clean.problem.state.points).max()
+    info = robust_reweighting(b.problem, "huber")
+    rob_err = np.abs(b.problem.state.points - b_clean.problem.state.points).max()
+    k = next(i for i, blk in enumerate(b.problem.blocks) if blk.name == "image points")
+    assert b.problem.robust_weight[k][10, 0] < 0.05
+    assert rob_err < ls_err / 3
+    assert info["downweighted"] >= 1
