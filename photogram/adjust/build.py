@@ -48,7 +48,7 @@ def _missing_approximations(project):
     return bad_st, bad_pt
 
 
-def build_problem(project, fix_interior=False) -> Built:
+def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
     """Build the engine problem of ``project``.
 
     Parameters
@@ -59,6 +59,8 @@ def build_problem(project, fix_interior=False) -> Built:
         first).
     fix_interior : bool
         Hold every interior parameter fixed (``photogram orient``).
+    fix_stations : bool
+        Hold every exterior orientation fixed (``photogram intersect``).
     """
     adj = project.adjustment
     bad_st, bad_pt = _missing_approximations(project)
@@ -95,7 +97,7 @@ def build_problem(project, fix_interior=False) -> Built:
     free_pt[~(seen | coupled)] = False
     free = {"camera": [np.zeros(len(c.parameters), bool) if fix_interior else c.free_mask()
                        for c in cams],
-            "station": np.ones((n_s, 6), dtype=bool),
+            "station": np.full((n_s, 6), not fix_stations),
             "point": free_pt}
     layout = Layout([len(c.parameters) for c in cams], n_s, n_p, coupled, free)
     state = State(pts.xyz.astype(float).copy(), opk_to_matrix(st.angles), st.position.astype(float).copy(),
@@ -130,7 +132,7 @@ def build_problem(project, fix_interior=False) -> Built:
         blocks.append(blk)
 
     has_prior = np.isfinite(st.position_sigma).any(1) | np.isfinite(st.angle_sigma).any(1)
-    if has_prior.any():
+    if has_prior.any() and not fix_stations:
         i = np.flatnonzero(has_prior)
         sig = np.hstack([st.position_sigma[i], st.angle_sigma[i]])
         sig = np.where(np.isfinite(sig), sig, np.inf)

@@ -170,8 +170,31 @@ def _collect(project, built, cof, s0sq, summary):
             "ids": [project.points.ids[i] for i in built.check],
             "differences": d.tolist(),
             "rmse": np.sqrt(np.mean(d ** 2, axis=0)).tolist()}
+    labels, cov = orientation_covariance(cof, problem, project, built.camera_names, s0sq)
     return BundleResult(out, summary, camera_sigma, station_sigma, point_sigma, {},
-                        {"points": P, "stations": S, "cameras": cams})
+                        {"points": P, "stations": S, "cameras": cams,
+                         "orientation_labels": labels, "orientation": cov})
+
+
+def orientation_covariance(cof, problem, project, camera_names, s0sq):
+    """Joint covariance of all interior parameters and exterior orientations
+    (X0 Y0 Z0 in length units, omega phi kappa in radians), with the
+    cross-covariances between stations, for propagation by later commands.
+    """
+    lay = problem.layout
+    cols = np.concatenate([c for c in lay.camera_cols] + [lay.station_cols.ravel()])
+    Q = cof.Qcc[np.ix_(cols, cols)]
+    n_io = sum(len(c) for c in lay.camera_cols)
+    T = np.eye(len(cols))
+    from photogram.adjust.residual_blocks import _angle_increment_map
+    _, E = _angle_increment_map(problem.state.R)
+    for s in range(len(E)):
+        i = n_io + 6 * s + 3
+        T[i:i + 3, i:i + 3] = E[s]
+    labels = [f"{n}.{p}" for n in camera_names for p in project.cameras[n].parameters]
+    labels += [f"{st}.{p}" for st in project.stations.names
+               for p in ("X0", "Y0", "Z0", "omega", "phi", "kappa")]
+    return labels, s0sq * T @ Q @ T.T
 
 
 def _residual_columns(problem, redundancy):
@@ -212,10 +235,29 @@ def run(project, *, command, output=None, fix_interior=False):
                   station_sigma=result.station_sigma, point_sigma=result.point_sigma,
                   residuals=result.residuals,
                   log_text=_log_text(command, project.path, result.summary))
+    _write_covariance(folder / "covariance.npz", result)
     if result.summary["status"] != "converged":
         raise GeometryError(f"{result.summary['message']}; the unconverged results are in {folder}",
                             hint="raise [adjustment] max_iterations or improve the approximate values")
     return folder, result
+
+
+def _write_covariance(path, result):
+    """covariance.npz: ``labels`` and ``matrix`` of the joint covariance of
+    interior and exterior orientation (angles in radians), written
+    atomically."""
+    import io
+    from photogram.project.atomic import atomic_write_bytes
+    buf = io.BytesIO()
+    np.savez(buf, labels=np.array(result.covariances["orientation_labels"]),
+             matrix=result.covariances["orientation"])
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def read_orientation_covariance(folder):
+    """(labels, matrix) written by :func:`run` (see covariance.npz)."""
+    with np.load(Path(folder) / "covariance.npz") as data:
+        return [str(x) for x in data["labels"]], data["matrix"]
 
 
 def _check_finite(result):
