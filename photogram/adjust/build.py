@@ -104,19 +104,19 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
                   [c.values() for c in cams])
 
     blocks = []
-    sigma_default = adj.sigma_image
     obs_cam = station_cam[obs.station]
+    groups = obs.group if obs.group is not None else np.full(len(obs), "", dtype=object)
     for k, name in enumerate(cam_names):
-        rows = np.flatnonzero(obs_cam == k)
-        if not len(rows):
-            continue
-        sig = np.where(np.isfinite(obs.sigma[rows]), obs.sigma[rows], sigma_default)
-        labels = [f"{st.names[s]}/{pts.ids[p]}" for s, p in zip(obs.station[rows], obs.point[rows])]
-        blk = ImagePointBlock(models[k], [k], np.zeros(len(rows), int), obs.station[rows],
-                              obs.point[rows], obs.xy[rows], sig, layout, labels=labels)
-        blk.group = f"image {name}"
-        blk.rows = rows
-        blocks.append(blk)
+        default = adj.sigma_image[name] if isinstance(adj.sigma_image, dict) else adj.sigma_image
+        for group in sorted(set(groups[obs_cam == k])):
+            rows = np.flatnonzero((obs_cam == k) & (groups == group))
+            sig = np.where(np.isfinite(obs.sigma[rows]), obs.sigma[rows], default)
+            labels = [f"{st.names[s]}/{pts.ids[p]}" for s, p in zip(obs.station[rows], obs.point[rows])]
+            blk = ImagePointBlock(models[k], [k], np.zeros(len(rows), int), obs.station[rows],
+                                  obs.point[rows], obs.xy[rows], sig, layout, labels=labels)
+            blk.group = f"image {group}" if group else f"image {name}"
+            blk.rows = rows
+            blocks.append(blk)
 
     if adj.datum == "weighted" and len(control):
         sig = pts.sigma[control].astype(float)

@@ -120,7 +120,7 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
     t_stats = time.perf_counter()
     summary.update({
         "status": s.status, "message": s.message, "iterations": iterations,
-        "sigma0": s.sigma0, "sigma0_px": s.sigma0 * adj.sigma_image,
+        "sigma0": s.sigma0, "sigma0_image": s.sigma0 * _apriori_image_sigma(problem),
         "redundancy": s.redundancy, "initial_cost": s.initial_cost, "final_cost": s.final_cost,
         "cost_trace": s.cost_trace,
         "counts": {"observations": s.n_observations, "unknowns": s.n_unknowns,
@@ -135,6 +135,14 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
         summary["warnings"].append(s.message)
     result.summary = summary
     return result
+
+
+def _apriori_image_sigma(problem):
+    """RMS of the a-priori sigmas of the image observations (image unit), so
+    that sigma0 x this is the a-posteriori image sigma (DBAT's "Sigma0
+    (pixels)")."""
+    sig = [b.sigma[:, 0] for b in problem.blocks if b.name == "image points"]
+    return float(np.sqrt(np.mean(np.concatenate(sig) ** 2))) if sig else float("nan")
 
 
 def _collect(project, built, cof, s0sq, summary):

@@ -140,6 +140,7 @@ class ImagePoints:
     xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
     record: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    group: np.ndarray | None = None   # variance-component group per row ("" = per camera)
 
     def __len__(self) -> int:
         return len(self.station)
@@ -185,7 +186,7 @@ class AdjustmentSettings:
     datum: str = "control"
     max_iterations: int = 50
     tolerance: float = 1e-8
-    sigma_image: float = 1.0          # default a-priori image sigma (image unit)
+    sigma_image: float | dict = 1.0   # default a-priori image sigma (image unit), or per camera
     sigma_control: float | None = None  # default sigma of control coords
     damping: str = "lm"               # "none" | "lm" | "armijo"
     robust: str | None = None         # None | "huber" | "cauchy" ...

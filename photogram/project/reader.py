@@ -96,6 +96,7 @@ def read_project(path: str | Path) -> Project:
     project.adjustment = _read_adjustment(root.table("adjustment", required=False))
     project.output = _read_output(root.table("output", required=False))
     _read_cameras(root.table("cameras"), project)
+    _check_sigma_image(root, project)
     tables = [root.table(n) for n in ("stations", "points", "observations")]
     if _uses_dbat_features(*tables):
         _read_dbat_style(*tables, project)
@@ -134,7 +135,7 @@ def _read_adjustment(sec: Section | None) -> AdjustmentSettings:
         datum=sec.string("datum", adj.datum, choices=DATUMS),
         max_iterations=sec.integer("max_iterations", adj.max_iterations, minimum=1),
         tolerance=sec.number("tolerance", adj.tolerance, positive=True),
-        sigma_image=sec.number("sigma_image", adj.sigma_image, positive=True),
+        sigma_image=_sigma_image(sec, adj.sigma_image),
         sigma_control=sec.number("sigma_control", adj.sigma_control, nonnegative=True),
         damping=sec.string("damping", adj.damping, choices=DAMPINGS),
         robust=None if robust == "none" else robust,
@@ -143,6 +144,30 @@ def _read_adjustment(sec: Section | None) -> AdjustmentSettings:
                                   below=1.0),
         inner_constraints=sec.ids("inner_constraints", adj.inner_constraints),
     )
+
+
+def _sigma_image(sec: Section, default):
+    """``sigma_image = 0.5`` for all cameras, or per camera as an inline
+    table ``sigma_image = { K1 = 0.3, K2 = 0.5 }`` (checked against the
+    cameras once they are read)."""
+    if isinstance(sec.data.get("sigma_image"), dict):
+        sub = sec.table("sigma_image")
+        return {k: sub.number(k, positive=True) for k in sub.data}
+    return sec.number("sigma_image", default, positive=True)
+
+
+def _check_sigma_image(root: Section, project: Project) -> None:
+    sig = project.adjustment.sigma_image
+    if isinstance(sig, dict):
+        sub = root.table("adjustment").table("sigma_image")
+        for name in sig:
+            if name not in project.cameras:
+                raise sub.error(name, f"sigma_image names unknown camera '{name}'",
+                                hint=suggest(name, project.cameras, noun="cameras"))
+        missing = [c for c in project.cameras if c not in sig]
+        if missing:
+            raise sub.error(None, f"sigma_image gives no sigma for camera(s) {', '.join(missing)}",
+                            hint="give every camera a sigma, or one number for all")
 
 
 def _read_output(sec: Section | None) -> OutputSettings:
@@ -294,27 +319,58 @@ def _read_observations(sec: Section, project: Project) -> None:
     unit = sec.string("unit", project.units.image, choices=IMAGE_UNITS)
     path = _table_path(sec, "points", "image points table", project)
     project.sources["image_points"] = path
-    table = read_table(path, required=("station", "point", "x", "y"), optional=("sigma",),
-                       what="image points table")
+    table = read_table(path, required=("station", "point", "x", "y"),
+                       optional=("sigma", "exposure", "group"), what="image points table")
     station = _lookup(table, "station", project.stations.index(), "station", "the stations table")
+    if table.has("exposure"):
+        _add_dynamic_points(table, project)
     point = _lookup(table, "point", project.points.index(), "point", "the points table")
     xy, sigma = _image_xy(table, station, unit, project, sec)
+    group = (np.array(table.text("group", required=False), dtype=object) if table.has("group")
+             else np.full(len(station), "", dtype=object))
     project.image_points = ImagePoints(station=station, point=point, xy=xy, sigma=sigma,
-                                       record=table.records)
+                                       record=table.records, group=group)
     _read_lines(sec, unit, project)
+
+
+def dynamic_id(point: str, exposure: str) -> str:
+    """Id of a point at one exposure (a moving point: a helmet, a joint)."""
+    return f"{point}@{exposure}" if exposure else point
+
+
+def _add_dynamic_points(table: Table, project: Project) -> None:
+    """With an ``exposure`` column, a point measured at an exposure is the
+    point ``id@exposure``; such points are tie points with unknown
+    coordinates unless the points table lists them."""
+    exposure = table.text("exposure", required=False)
+    ids = [dynamic_id(p, e) for p, e in zip(table.text("point"), exposure)]
+    table.replace_text("point", ids)
+    pts = project.points
+    known = pts.index()
+    new = list(dict.fromkeys(i for i, e in zip(ids, exposure) if e and i not in known))
+    if not new:
+        return
+    n = len(new)
+    pts.ids = list(pts.ids) + new
+    pts.kind = np.concatenate([np.asarray(pts.kind, dtype=object), np.full(n, "tie", dtype=object)])
+    pts.xyz = np.vstack([pts.xyz.reshape(-1, 3), np.full((n, 3), np.nan)])
+    pts.sigma = np.vstack([pts.sigma.reshape(-1, 3), np.full((n, 3), np.nan)])
+    pts.record = np.concatenate([np.asarray(pts.record, dtype=int), np.zeros(n, dtype=int)])
 
 
 def _read_lines(sec: Section, unit: str, project: Project) -> None:
     if "lines" in sec:
         path = _table_path(sec, "lines", "image lines table", project)
         project.sources["image_lines"] = path
-        table = read_table(path, required=("station", "line", "x", "y"), optional=("sigma",),
-                           what="image lines table")
+        table = read_table(path, required=("station", "line", "x", "y"),
+                           optional=("sigma", "exposure"), what="image lines table")
         station = _lookup(table, "station", project.stations.index(), "station",
                           "the stations table")
         xy, sigma = _image_xy(table, station, unit, project, sec)
-        project.image_lines = ImageLines(station=station,
-                                         line=np.array(table.text("line"), dtype=object),
+        lines = table.text("line")
+        if table.has("exposure"):
+            lines = [dynamic_id(n, e) for n, e in zip(lines, table.text("exposure", required=False))]
+        project.image_lines = ImageLines(station=station, line=np.array(lines, dtype=object),
                                          xy=xy, sigma=sigma, record=table.records)
 
 

@@ -85,6 +85,12 @@ class Table:
         j = self.header.index(column)
         return [row[j] for row in self.rows]
 
+    def replace_text(self, column: str, values: list[str]) -> None:
+        """Replace the cells of an existing ``column``."""
+        j = self.header.index(column)
+        for row, value in zip(self.rows, values):
+            row[j] = value
+
     def text(self, column: str, *, required: bool = True) -> list[str]:
         """Text cells; with ``required`` an empty cell is an error."""
         cells = self.cells(column)
