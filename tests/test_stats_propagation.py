@@ -1,0 +1,83 @@
+"""Orientation covariance propagated into intersected points: the analytic
+sensitivity against finite differences of re-intersection."""
+
+import copy
+
+import numpy as np
+
+from photogram.adjust.build import build_problem
+from photogram.adjust.solver import SolverOptions, solve
+from photogram.simulation.designs import field_design
+from photogram.stats.propagation import (
+    STATION_PARAMETERS, orientation_sensitivity, propagate_orientation)
+
+
+def intersected(project):
+    built = build_problem(project, fix_interior=True, fix_stations=True)
+    solve(built.problem, SolverOptions(tolerance=1e-15, max_iterations=30))
+    return built
+
+
+def field_points():
+    prj, truth = field_design()
+    # noise-free images: the Gauss-Newton sensitivity is then exact (with
+    # residuals, second-order terms of size |r| make it differ by ~1e-4)
+    prj.image_points.xy = truth["xy_true"].copy()
+    prj.points.xyz = truth["points"]["xyz"].copy()          # start at the truth
+    prj.points.kind[:] = "tie"
+    prj.stations.position = truth["stations"]["X0"].copy()
+    prj.stations.angles = truth["stations"]["angles"].copy()
+    prj.adjustment.datum = "control"
+    return prj
+
+
+def labels_of(prj):
+    cams = list(prj.cameras)
+    lab = [f"{c}.{p}" for c in cams for p in prj.cameras[c].parameters]
+    lab += [f"{s}.{p}" for s in prj.stations.names for p in STATION_PARAMETERS]
+    return lab
+
+
+def test_sensitivity_matches_finite_differences():
+    prj = field_points()
+    built = intersected(prj)
+    labels = labels_of(prj)
+    S = orientation_sensitivity(built.problem, prj, built.camera_names, labels)
+    base = built.problem.state.points.ravel()
+    checks = ["S1.X0", "S2.Z0", "S3.omega", "S1.kappa", "K2.c", "K1.x0", "K3.K1"]
+    for lab in checks:
+        j = labels.index(lab)
+        name, par = lab.split(".")
+        h = {"X0": 1e-3, "Z0": 1e-3, "omega": 1e-6, "kappa": 1e-6, "c": 1e-3,
+             "x0": 1e-3, "K1": 1e-12}[par]
+        fd = []
+        for sign in (1, -1):
+            q = copy.deepcopy(prj)
+            if name in q.cameras:
+                q.cameras[name].parameters[par].value += sign * h
+            else:
+                i = q.stations.names.index(name)
+                k = STATION_PARAMETERS.index(par)
+                if k < 3:
+                    q.stations.position[i, k] += sign * h
+                else:
+                    q.stations.angles[i, k - 3] += sign * h
+            fd.append(intersected(q).problem.state.points.ravel())
+        num = (fd[0] - fd[1]) / (2 * h)
+        assert np.allclose(S[:, j], num, rtol=1e-5, atol=1e-7 * np.abs(num).max()), lab
+
+
+def test_propagated_covariance_is_symmetric_and_grows_with_orientation_noise():
+    prj = field_points()
+    built = intersected(prj)
+    labels = labels_of(prj)
+    S = orientation_sensitivity(built.problem, prj, built.camera_names, labels)
+    sig = np.zeros(len(labels))
+    for i, lab in enumerate(labels):
+        sig[i] = 0.3 if lab.endswith(("X0", "Y0", "Z0")) else (
+            5e-4 if lab.endswith(("omega", "phi", "kappa")) else 0.0)
+    C = propagate_orientation(S, np.diag(sig ** 2))
+    assert np.allclose(C, C.T)
+    C2 = propagate_orientation(S, np.diag((2 * sig) ** 2))
+    assert np.allclose(C2, 4 * C)
+    assert np.all(np.diag(C) > 0)
