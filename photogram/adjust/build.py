@@ -104,6 +104,7 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
                   [c.values() for c in cams])
 
     blocks = []
+    st_names, pt_ids = np.array(st.names, dtype=str), np.array(pts.ids, dtype=str)
     obs_cam = station_cam[obs.station]
     groups = obs.group if obs.group is not None else np.full(len(obs), "", dtype=object)
     for k, name in enumerate(cam_names):
@@ -111,7 +112,8 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
         for group in sorted(set(groups[obs_cam == k])):
             rows = np.flatnonzero((obs_cam == k) & (groups == group))
             sig = np.where(np.isfinite(obs.sigma[rows]), obs.sigma[rows], default)
-            labels = [f"{st.names[s]}/{pts.ids[p]}" for s, p in zip(obs.station[rows], obs.point[rows])]
+            labels = np.char.add(np.char.add(st_names[obs.station[rows]], "/"),
+                                 pt_ids[obs.point[rows]])
             blk = ImagePointBlock(models[k], [k], np.zeros(len(rows), int), obs.station[rows],
                                   obs.point[rows], obs.xy[rows], sig, layout, labels=labels)
             blk.group = f"image {group}" if group else f"image {name}"
