@@ -1,0 +1,175 @@
+"""Figures of the stick model (matplotlib, Agg, written atomically).
+
+* :func:`plot_stick_figure`: the ski-jump paper's Fig. 8: the stick model
+  (P1..P4, the two ski segments, O) of every ``every``-th exposure projected
+  on the XZ plane (side view) and the XY plane (plan view), laid out along
+  the flight at the true positions, with the speed of O annotated.
+* :func:`time_series_figure`: every parameter against time with its ±1 sigma
+  band.
+
+Output is deterministic for equal input: matplotlib's default style (not the
+user's matplotlibrc) and no Software/date metadata in the PNG.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.jump import definitions as defs
+from photogram.project.atomic import atomic_write_bytes
+
+__all__ = ["plot_stick_figure", "time_series_figure"]
+
+_RIGHT, _LEFT, _BODY = "tab:red", "tab:blue", "black"
+
+
+def _new_figure(size):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path: str | Path, dpi: int) -> Path:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def _style():
+    import matplotlib.style
+
+    return matplotlib.style.context("default")
+
+
+def _plan_axes(model, along: str):
+    """Unit vectors (horizontal abscissa, lateral) in world XY and labels."""
+    if along == "x":
+        return np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]), ("X", "Y")
+    if along != "flight":
+        raise InputError(f"unknown along={along!r}", hint='use "x" or "flight"')
+    ok = np.flatnonzero(np.all(np.isfinite(model.O), axis=1))
+    if len(ok) < 2:
+        raise InputError('along="flight" needs O at two exposures at least')
+    h = model.O[ok[-1]] - model.O[ok[0]]
+    h[2] = 0.0
+    if np.linalg.norm(h) == 0:
+        raise InputError('along="flight": O does not move horizontally')
+    h /= np.linalg.norm(h)
+    return h, np.array([-h[1], h[0], 0.0]), ("along flight", "lateral")
+
+
+def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str = "x",
+                      dpi: int = 100, title: str | None = None) -> Path:
+    """The stick model at evenly spaced exposures in side and plan view.
+
+    Parameters
+    ----------
+    model : StickModel
+    path_png : str or Path
+        PNG to write (atomically; the folder must exist).
+    every : int
+        Draw exposures 0, every, 2 every, ...
+    along : "x" or "flight"
+        Abscissa of both views: world X, or the horizontal direction of the
+        flight (O from the first to the last exposure).
+    dpi : int
+    title : str, optional
+
+    Returns
+    -------
+    Path
+    """
+    if int(every) < 1:
+        raise InputError(f"every must be >= 1, got {every}")
+    ex, ey, (lx, ly) = _plan_axes(model, along)
+    unit = model.length_unit
+    idx = [i for i in range(0, len(model), int(every))
+           if np.all(np.isfinite(model.P[i])) and np.all(np.isfinite(model.skis[i]))]
+
+    def side(p):   # (..., 3) -> abscissa, Z
+        return p @ ex, p[..., 2]
+
+    def plan(p):   # (..., 3) -> abscissa, lateral
+        return p @ ex, p @ ey
+
+    with _style():
+        fig = _new_figure((12, 6))
+        ax_s, ax_p = fig.subplots(2, 1, sharex=True)
+        for ax, proj in ((ax_s, side), (ax_p, plan)):
+            for i in idx:
+                P1, P2, P3, P4 = model.P[i]
+                O = model.O[i]
+                for ski, colour in zip(model.skis[i], (_RIGHT, _LEFT)):
+                    ax.plot(*proj(ski), color=colour, lw=1.5)
+                for a, b in ((P1, P2), (P2, P3), (P2, P4), (P3, P4)):
+                    ax.plot(*proj(np.stack([a, b])), color=_BODY, lw=1.2)
+                ax.plot(*proj(model.P[i]), "o", color=_BODY, ms=2.5)
+                ax.plot(*proj(O[None]), "o", mfc="white", mec=_BODY, ms=3.5)
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.grid(True, lw=0.3)
+        for i in idx:
+            v = model.values["v"][i]
+            if np.isfinite(v):
+                x, z = side(model.P[i, 0])
+                ax_s.annotate(f"{v:.1f} {unit}/s", (x, z), xytext=(0, 8),
+                              textcoords="offset points", ha="center", fontsize=7)
+        ax_s.set_ylabel(f"Z [{unit}]")
+        ax_p.set_ylabel(f"{ly} [{unit}]")
+        ax_p.set_xlabel(f"{lx} [{unit}]")
+        ax_s.set_title(title or f"stick model every {every} exposures "
+                       f"({model.fps:g} fps): side view (XZ) and plan (XY)", fontsize=9)
+        ax_p.plot([], [], color=_RIGHT, label="right ski (L1)")
+        ax_p.plot([], [], color=_LEFT, label="left ski (L2)")
+        ax_p.legend(loc="upper right", fontsize=7)
+        fig.tight_layout()
+        return _save(fig, path_png, dpi)
+
+
+def time_series_figure(frame, path_png: str | Path, *, dpi: int = 100) -> Path:
+    """Every parameter of a ``StickModel.to_frame()`` table against time,
+    with ±1 sigma bands where ``sigma_<name>`` columns exist.
+
+    Units are taken from ``frame.attrs`` (``angle_unit``, ``length_unit``;
+    default rad and the unnamed unit).
+    """
+    names = [p for p in defs.PARAMETERS if p in frame.columns]
+    if not names:
+        raise InputError("the table has none of the stick model parameters",
+                         hint=f"expected columns {', '.join(defs.PARAMETERS)}")
+    aunit = frame.attrs.get("angle_unit", "rad")
+    lunit = frame.attrs.get("length_unit", "")
+    t = frame["time"].to_numpy(float) if "time" in frame.columns else np.arange(len(frame))
+    ncol = 2
+    nrow = (len(names) + ncol - 1) // ncol
+    with _style():
+        fig = _new_figure((10, 2.0 * nrow + 0.6))
+        axes = np.atleast_1d(fig.subplots(nrow, ncol, sharex=True)).ravel()
+        for ax, name in zip(axes, names):
+            y = frame[name].to_numpy(float)
+            ax.plot(t, y, color="tab:blue", lw=1.2, marker=".", ms=3)
+            if "sigma_" + name in frame.columns:
+                s = frame["sigma_" + name].to_numpy(float)
+                ax.fill_between(t, y - s, y + s, color="tab:blue", alpha=0.25, lw=0)
+            if name in defs.ANGLE_PARAMETERS:
+                u = aunit
+            elif name == "v":
+                u = f"{lunit}/s"
+            else:
+                u = lunit
+            ax.set_ylabel(f"{name} [{u}]", fontsize=8)
+            ax.tick_params(labelsize=7)
+            ax.grid(True, lw=0.3)
+        for ax in axes[len(names):]:
+            ax.set_visible(False)
+        for ax in axes[max(0, len(names) - ncol):len(names)]:
+            ax.set_xlabel("time [s]" if "time" in frame.columns else "exposure", fontsize=8)
+        fig.suptitle("stick model parameters (band: ±1 sigma)", fontsize=9)
+        fig.tight_layout()
+        return _save(fig, path_png, dpi)
