@@ -44,6 +44,20 @@ def _normalizing_transform(P: np.ndarray) -> np.ndarray:
     return T
 
 
+def _design(P: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The two homogeneous DLT rows per point of ``x̃ ~ H P̃`` (eq. 7.2; the
+    same for a plane-to-image homography): ``P`` (n, k) homogeneous source
+    points, ``x`` (n, 3) homogeneous image points with w = 1; returns the
+    (2n, 3k) design matrix in the elements of ``H`` (3, k), row-major."""
+    n, k = P.shape
+    A = np.zeros((n, 2, 3 * k))
+    A[:, 0, 0:k] = P
+    A[:, 0, 2 * k:3 * k] = -x[:, 0:1] * P
+    A[:, 1, k:2 * k] = P
+    A[:, 1, 2 * k:3 * k] = -x[:, 1:2] * P
+    return A.reshape(2 * n, 3 * k)
+
+
 def _planarity(X: np.ndarray) -> tuple[np.ndarray, float]:
     """Singular values of the centred points and rms distance to their
     best-fitting plane."""
@@ -118,12 +132,7 @@ def dlt(X, xy, *, planarity_tol: float = 1e-3) -> np.ndarray:
     Ti = _normalizing_transform(xy)
     Xn = np.c_[X, np.ones(n)] @ To.T                     # (n, 4)
     xn = np.c_[xy, np.ones(n)] @ Ti.T                    # (n, 3), w = 1
-    A = np.zeros((n, 2, 12))
-    A[:, 0, 0:4] = Xn
-    A[:, 0, 8:12] = -xn[:, 0:1] * Xn
-    A[:, 1, 4:8] = Xn
-    A[:, 1, 8:12] = -xn[:, 1:2] * Xn
-    _, s, Vt = np.linalg.svd(A.reshape(2 * n, 12))
+    _, s, Vt = np.linalg.svd(_design(Xn, xn))
     if s[-2] <= 1e-10 * s[0]:
         raise GeometryError(
             f"DLT solution is not unique for these {n} points (critical "

@@ -21,25 +21,13 @@ coordinates are simply ``(x̄/c, ȳ/c)``, the rotation ``R_cv = D R2 D`` and
 the translation ``t_cv = -D R2 b``, so the essential matrix of the
 computer-vision literature, ``E_cv = [t_cv]x R_cv``, is ``-D R2 [b]x D``.
 
-Closed-form start: the normalized 8-point algorithm (Hartley 1997) with
-``n >= 8`` points and a non-degenerate design matrix, and the 5-point
-algorithm (Nistér 2004, via OpenCV's ``findEssentialMat``) for 5-7 points
-or a critical (e.g. planar) configuration; each essential matrix gives four
-``(R, t)`` of which chirality (points in front of both cameras) keeps one
-(Hartley & Zisserman 2003, result 9.19).
-
-Refinement: least squares of the *image residuals* of both images, i.e.
-the bundle adjustment of the pair with the model points as unknowns
-(equivalent to the Gauss-Helmert adjustment of the coplanarity condition
-with the image coordinates as observations): 5 orientation unknowns
-(rotation increment δ, ``R2 <- small_rotation(δ) R2``, and two baseline
-unknowns, iterated on the unit sphere) and 3 per point. It is solved by
-variable projection (Golub & Pereyra 2003): the points are kept at their
-optimum for the current orientation (3x3 Gauss-Newton per point), the step
-is the Levenberg-Marquardt-damped Schur-complement step of the orientation.
-A joint step over points and orientation overshoots in the long curved
-valley of narrow-field pairs (rotation about y against b_z); this does not.
-The precision is that of the normal equations with ``|b_k| = 1`` held.
+The closed-form starts (normalized 8-point and 5-point essential matrix,
+homography of a planar scene, chirality) are in
+:mod:`photogram.init.relative_start`; the refinement of each start (the
+bundle adjustment of the pair by variable projection, with the model points
+as unknowns) in :mod:`photogram.init.relative_refine`. This module tries
+every start, chooses the best distinct solution, tests for a zero baseline
+and ambiguity, and re-exports the closed-form functions.
 """
 
 from __future__ import annotations
@@ -50,14 +38,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from photogram.errors import GeometryError
-from photogram.init.intersection import intersect_points, max_intersection_angles
+from photogram.geometry.rotations import matrix_to_opk
+from photogram.init.rays import bearings, max_intersection_angles
+from photogram.init.relative_refine import _precision, _refine, _same
+from photogram.init.relative_start import (  # noqa: F401  (FLIP and the closed forms: re-exports)
+    FLIP, _distinct, _starts, decompose_essential, eight_point, essential_candidates,
+    homography_candidates, rotation_only_fit, sampson_errors,
+)
 
 __all__ = ["RelativeOrientationResult", "relative_orientation", "essential_candidates",
            "homography_candidates", "eight_point", "decompose_essential", "sampson_errors",
            "rotation_only_fit"]
-
-#: Camera-frame axis flip between the photogrammetric and the computer-vision frame.
-FLIP = np.diag([1.0, -1.0, -1.0])
 
 
 @dataclass
@@ -129,413 +120,6 @@ class RelativeOrientationResult:
     def baseline(self) -> np.ndarray:
         """Alias of ``X0_2``."""
         return self.X0_2
-
-
-# ---------------------------------------------------------------------------
-# closed-form pieces
-
-
-def _rays(xy, c):
-    """Unit rays in the photogrammetric camera frame, (x̄, -ȳ, -c)/|.|."""
-    d = np.stack([xy[:, 0], -xy[:, 1], -np.broadcast_to(c, xy.shape[:1])], axis=1)
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
-
-
-def rotation_only_fit(xy1, xy2, c1, c2) -> tuple[np.ndarray, float]:
-    """Best pure rotation between two images (zero baseline model).
-
-    The rotation ``R`` minimising ``sum |d2 - R d1|^2`` for the unit rays
-    ``d = (x̄, -ȳ, -c)/|.|`` (Kabsch / orthogonal Procrustes): for a pure
-    rotation about the projection centre the images are related by the
-    infinite homography ``K2 R K1^-1`` and this fit is exact.
-
-    Parameters
-    ----------
-    xy1, xy2 : ndarray (n, 2)
-        Ideal image coordinates reduced to the principal point.
-    c1, c2 : float
-
-    Returns
-    -------
-    R : ndarray (3, 3)
-        Camera-1-to-camera-2 rotation.
-    rms : float
-        RMS residual per image coordinate in image units (angular residual
-        times the mean principal distance).
-    """
-    d1, d2 = _rays(xy1, c1), _rays(xy2, c2)
-    U, _, Vt = np.linalg.svd(d2.T @ d1)
-    S = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    R = U @ S @ Vt
-    ang = np.linalg.norm(np.cross(d1 @ R.T, d2), axis=1)
-    rms = float(np.sqrt(np.mean(ang ** 2) / 2.0)) * 0.5 * (c1 + c2)
-    return R, rms
-
-
-def _normalize2d(u):
-    mu = u.mean(axis=0)
-    dist = np.linalg.norm(u - mu, axis=1).mean()
-    f = np.sqrt(2.0) / dist if dist > 0 else 1.0
-    T = np.array([[f, 0, -f * mu[0]], [0, f, -f * mu[1]], [0, 0, 1.0]])
-    return T
-
-
-def eight_point(u1, u2) -> tuple[np.ndarray, float]:
-    """Normalized 8-point essential matrix (Hartley 1997).
-
-    Solves ``ũ2^T E ũ1 = 0`` for the normalized computer-vision coordinates
-    ``ũ = (x̄/c, ȳ/c, 1)`` after Hartley's conditioning, then projects ``E``
-    onto the essential manifold (singular values 1, 1, 0).
-
-    Parameters
-    ----------
-    u1, u2 : ndarray (n, 2), n >= 8
-
-    Returns
-    -------
-    E : ndarray (3, 3)
-    conditioning : float
-        ``s_8 / s_9`` of the conditioned design matrix: large for a
-        well-determined solution, about 1 when the configuration is critical
-        (e.g. all points on a plane) or the data pure noise.
-    """
-    T1, T2 = _normalize2d(u1), _normalize2d(u2)
-    h1 = np.c_[u1, np.ones(len(u1))] @ T1.T
-    h2 = np.c_[u2, np.ones(len(u2))] @ T2.T
-    A = (h2[:, :, None] * h1[:, None, :]).reshape(len(u1), 9)
-    _, s, Vt = np.linalg.svd(A, full_matrices=False)
-    En = Vt[-1].reshape(3, 3)
-    E = T2.T @ En @ T1
-    U, _, Vt = np.linalg.svd(E)
-    E = U @ np.diag([1.0, 1.0, 0.0]) @ Vt
-    cond = float(s[7] / max(s[8], 1e-300 * s[0])) if len(s) >= 9 else 1.0
-    return E, cond
-
-
-def decompose_essential(E) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The four ``(R_cv, t_cv)`` of an essential matrix ``E = [t]x R``
-    (computer-vision frame, ``|t| = 1``; Hartley & Zisserman result 9.19)."""
-    U, _, Vt = np.linalg.svd(E)
-    if np.linalg.det(U) < 0:
-        U = -U
-    if np.linalg.det(Vt) < 0:
-        Vt = -Vt
-    W = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-    t = U[:, 2]
-    out = []
-    for R in (U @ W @ Vt, U @ W.T @ Vt):
-        for s in (1.0, -1.0):
-            out.append((R, s * t))
-    return out
-
-
-def _cv_to_photogrammetric(R_cv, t_cv):
-    """(R_cv, t_cv) of ``x2 = R_cv x1 + t_cv`` (computer-vision frames) to
-    ``(R2, X0_2)`` in the model frame of the photogrammetric left camera."""
-    R2 = FLIP @ R_cv @ FLIP
-    X0 = -FLIP @ R_cv.T @ t_cv
-    return R2, X0
-
-
-def sampson_errors(E, u1, u2) -> np.ndarray:
-    """Squared Sampson distances of point pairs to the epipolar geometry
-    ``ũ2^T E ũ1 = 0`` (normalized units squared)."""
-    h1 = np.c_[u1, np.ones(len(u1))]
-    h2 = np.c_[u2, np.ones(len(u2))]
-    Ex1 = h1 @ E.T
-    Etx2 = h2 @ E
-    num = np.einsum("ni,ni->n", h2, Ex1) ** 2
-    den = Ex1[:, 0] ** 2 + Ex1[:, 1] ** 2 + Etx2[:, 0] ** 2 + Etx2[:, 1] ** 2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(den > 0, num / den, np.inf)
-
-
-def _five_point(u1, u2, threshold):
-    import cv2
-    Es, _ = cv2.findEssentialMat(np.ascontiguousarray(u1, dtype=np.float64),
-                                 np.ascontiguousarray(u2, dtype=np.float64),
-                                 np.eye(3), method=cv2.RANSAC, prob=0.9999,
-                                 threshold=float(threshold))
-    if Es is None or not np.size(Es):
-        return []
-    return list(np.asarray(Es, dtype=float).reshape(-1, 3, 3))
-
-
-def essential_candidates(u1, u2, *, threshold: float = 1e-3, subsets: int = 10,
-                         keep: int = 3, seed: int = 0) -> list[np.ndarray]:
-    """Essential-matrix candidates for normalized coordinates (n >= 5).
-
-    * the normalized 8-point solution (n >= 8, if not critical);
-    * the best RANSAC hypothesis of OpenCV's 5-point ``findEssentialMat``
-      on all points (``threshold`` in normalized units);
-    * all 5-point solutions of ``subsets`` random 5-point subsets (all of
-      them for n = 5), of which the ``keep`` with the smallest truncated
-      Sampson error over all points are kept. Several candidates matter
-      where the solution is not unique from the data's point of view, e.g.
-      a planar scene (two solutions) or five points (up to ten).
-
-    Parameters
-    ----------
-    u1, u2 : ndarray (n, 2)
-        Normalized computer-vision coordinates ``(x̄/c, ȳ/c)``.
-    threshold : float
-        RANSAC inlier threshold and truncation of the Sampson score.
-    subsets, keep, seed :
-        Number of random minimal subsets, candidates kept from them, and
-        the seed (the result is deterministic).
-
-    Returns
-    -------
-    list of ndarray (3, 3)
-    """
-    cands = []
-    n = len(u1)
-    if n >= 8:
-        E, cond = eight_point(u1, u2)
-        if cond > 3.0:
-            cands.append(E)
-    try:
-        cands.extend(_five_point(u1, u2, threshold)[:10 if n == 5 else 1])
-        if n > 5:
-            rng = np.random.default_rng(seed)
-            pool = []
-            for _ in range(subsets):                  # loop over minimal subsets
-                idx = rng.choice(n, 5, replace=False)
-                pool.extend(_five_point(u1[idx], u2[idx], threshold))
-            if pool:
-                score = np.array([np.minimum(sampson_errors(E, u1, u2), threshold ** 2).sum()
-                                  for E in pool])
-                chosen = []
-                for k in np.argsort(score):
-                    E = pool[k] / np.linalg.norm(pool[k])
-                    if not any(min(np.abs(E - F).max(), np.abs(E + F).max()) < 1e-6
-                               for F in chosen):
-                        chosen.append(E)
-                    if len(chosen) >= keep:
-                        break
-                cands.extend(chosen)
-    except ImportError:                                # pragma: no cover - cv2 optional
-        pass
-    return cands
-
-
-def homography_candidates(u1, u2) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``(R_cv, t_cv)`` (``|t| = 1``) from the decomposition of the
-    homography between the normalized images (Faugeras & Lustman 1988, via
-    OpenCV): the solutions of a planar scene, which the essential matrix
-    determines only up to a twofold ambiguity."""
-    try:
-        import cv2
-    except ImportError:                                # pragma: no cover
-        return []
-    if len(u1) < 4:
-        return []
-    H, _ = cv2.findHomography(np.ascontiguousarray(u1, dtype=np.float64),
-                              np.ascontiguousarray(u2, dtype=np.float64), 0)
-    if H is None:
-        return []
-    _, Rs, ts, _ = cv2.decomposeHomographyMat(H, np.eye(3))
-    out = []
-    for R, t in zip(Rs, ts):
-        t = np.asarray(t, dtype=float).ravel()
-        nt = np.linalg.norm(t)
-        if nt > 1e-12:
-            out.append((np.asarray(R, dtype=float), t / nt))
-    return out
-
-
-# ---------------------------------------------------------------------------
-# refinement of one candidate
-
-
-def _skew(v):
-    z = np.zeros(v.shape[:-1])
-    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
-                     np.stack([v[..., 2], z, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
-
-
-def _small_rotation(d):
-    from photogram.geometry.rotations import small_rotation
-    return np.asarray(small_rotation(np.asarray(d, dtype=float)), dtype=float)
-
-
-@dataclass
-class _Fit:
-    R2: np.ndarray
-    b: np.ndarray
-    X: np.ndarray
-    cost: float
-    r1: np.ndarray
-    r2: np.ndarray
-    behind: int
-    iterations: int
-    converged: bool
-    S: np.ndarray | None
-    Npp_inv: np.ndarray | None
-    Npc: np.ndarray | None
-    k_fixed: int
-
-
-def _proj(Xc, c):
-    """Ideal projection (x̄, ȳ) of camera coordinates and its Jacobian
-    d(x̄, ȳ)/dXc (n, 2, 3); lean version of
-    :func:`photogram.init.intersection.project_ideal` for the inner loops."""
-    iz = 1.0 / Xc[:, 2]
-    u = Xc[:, 0] * iz
-    v = Xc[:, 1] * iz
-    xy = np.stack([-c * u, c * v], axis=1)
-    J = np.zeros((len(Xc), 2, 3))
-    J[:, 0, 0] = -c * iz
-    J[:, 0, 2] = c * u * iz
-    J[:, 1, 1] = c * iz
-    J[:, 1, 2] = -c * v * iz
-    return xy, J
-
-
-def _residuals(xy1, xy2, c1, c2, R2, b, X):
-    """Image residuals ``observed - computed`` of both images."""
-    iz1 = 1.0 / X[:, 2]
-    Xc2 = (X - b) @ R2.T
-    iz2 = 1.0 / Xc2[:, 2]
-    p1 = np.stack([-c1 * X[:, 0] * iz1, c1 * X[:, 1] * iz1], axis=1)
-    p2 = np.stack([-c2 * Xc2[:, 0] * iz2, c2 * Xc2[:, 1] * iz2], axis=1)
-    return xy1 - p1, xy2 - p2
-
-
-def _tangent_basis(b):
-    """Orthonormal basis (3, 2) of the plane perpendicular to the unit b."""
-    a = np.zeros(3)
-    a[int(np.argmin(np.abs(b)))] = 1.0
-    t1 = np.cross(b, a)
-    t1 /= np.linalg.norm(t1)
-    return np.stack([t1, np.cross(b, t1)], axis=1)
-
-
-def _blocks(xy1, xy2, c1, c2, R2, b, X, Tb, r1, r2):
-    """Normal-equation blocks of the pair bundle for the residuals
-    ``r = obs - f``: points (n, 3, 3), points x orientation (n, 3, 5),
-    orientation (5, 5) and the right-hand sides. ``Tb`` (3, 2) maps the two
-    baseline unknowns to ``db``."""
-    _, J1X = _proj(X, c1)                                             # dXc1/dX = I
-    Xc2 = (X - b) @ R2.T
-    _, J2c = _proj(Xc2, c2)
-    J2X = J2c @ R2                                                    # dXc2/dX = R2
-    Jc = np.concatenate([-J2c @ _skew(Xc2),                           # dXc2/dδ = -[Xc2]x
-                         -J2X @ Tb], axis=2)                          # dXc2/db = -R2
-    Npp = np.einsum("nki,nkj->nij", J1X, J1X) + np.einsum("nki,nkj->nij", J2X, J2X)
-    Npc = np.einsum("nki,nkj->nij", J2X, Jc)
-    Ncc = np.einsum("nki,nkj->ij", Jc, Jc)
-    gp = np.einsum("nki,nk->ni", J1X, r1) + np.einsum("nki,nk->ni", J2X, r2)
-    gc = np.einsum("nki,nk->i", Jc, r2)
-    return Npp, Npc, Ncc, gp, gc
-
-
-def _refine(xy1, xy2, c1, c2, R2, b, X, fixed_component, max_iterations, tol):
-    """Bundle of the pair by variable projection (see the module docstring).
-
-    Iterates with the baseline on the unit sphere (two tangent unknowns),
-    the points always at their optimum for the current orientation, at most
-    ``max_iterations`` Levenberg-Marquardt steps of the five orientation
-    unknowns; then rescales to ``|b_k| = 1`` and forms the normal equations
-    with ``b_k`` fixed for the precision estimate (same minimum).
-    """
-    s0 = np.linalg.norm(b)
-    b = b / s0
-    X = X / s0
-
-    def behind(R2, b, X):
-        z1 = X[:, 2]
-        z2 = (X - b) @ R2[2]
-        return int(((z1 >= 0) | (z2 >= 0)).sum())
-
-    def cost_of(R2, b, X):
-        r1, r2 = _residuals(xy1, xy2, c1, c2, R2, b, X)
-        return float((r1 ** 2).sum() + (r2 ** 2).sum()), r1, r2
-
-    def points_opt(R2, b, X):
-        """Optimal points for fixed cameras (Gauss-Newton on each 3x3 block)."""
-        for _ in range(10):
-            Xc2 = (X - b) @ R2.T
-            p1, J1 = _proj(X, c1)
-            p2, J2c = _proj(Xc2, c2)
-            J2 = J2c @ R2
-            r1, r2 = xy1 - p1, xy2 - p2
-            N = np.einsum("nki,nkj->nij", J1, J1) + np.einsum("nki,nkj->nij", J2, J2)
-            g = np.einsum("nki,nk->ni", J1, r1) + np.einsum("nki,nk->ni", J2, r2)
-            try:
-                dX = np.linalg.solve(N, g[:, :, None])[:, :, 0]
-            except np.linalg.LinAlgError:
-                break
-            X = X + dX
-            if not np.all(np.isfinite(X)) or \
-                    np.abs(dX).max() <= 1e-11 * max(1.0, np.abs(X).max()):
-                break
-        return X
-
-    X = points_opt(R2, b, X)
-    cost, r1, r2 = cost_of(R2, b, X)
-    lam = 0.0
-    converged = False
-    it = 0
-    for it in range(1, max_iterations + 1):
-        # variable projection: the points are always at their optimum for the
-        # current orientation, the step is the Schur-complement step of the
-        # five orientation unknowns (Levenberg-Marquardt damped)
-        Tb = _tangent_basis(b)
-        Npp, Npc, Ncc, gp, gc = _blocks(xy1, xy2, c1, c2, R2, b, X, Tb, r1, r2)
-        try:
-            Ninv = np.linalg.inv(Npp)
-        except np.linalg.LinAlgError:
-            break
-        T = np.einsum("nji,njk->nik", Npc, Ninv)
-        S = Ncc - np.einsum("nik,nkj->ij", T, Npc)
-        g = gc - np.einsum("nik,nk->i", T, gp)
-        dS = np.diag(S).copy()
-        accepted = False
-        for _ in range(30):
-            try:
-                dc = np.linalg.solve(S + lam * np.diag(dS), g)
-            except np.linalg.LinAlgError:
-                lam = max(lam * 10.0, 1e-8)
-                continue
-            R2n = _small_rotation(dc[:3]) @ R2
-            bn = b + Tb @ dc[3:]
-            bn /= np.linalg.norm(bn)
-            dp = np.einsum("nij,nj->ni", Ninv, gp - Npc @ dc)
-            Xn = points_opt(R2n, bn, X + dp)
-            costn, r1n, r2n = cost_of(R2n, bn, Xn)
-            if np.isfinite(costn) and costn <= cost * (1 + 1e-12) + 1e-300:
-                accepted = True
-                lam = lam / 10.0 if lam > 1e-8 else 0.0
-                break
-            lam = max(lam * 10.0, 1e-8)
-        if not accepted:
-            converged = True          # no step decreases the cost: at the minimum
-            break
-        small = np.abs(dc).max() < tol
-        decrease = cost - costn
-        R2, b, X, cost, r1, r2 = R2n, bn, Xn, costn, r1n, r2n
-        if small or decrease <= 1e-15 * cost:
-            converged = True
-            break
-    k = _fixed(b, fixed_component)
-    sk = abs(b[k])
-    b, X = b / sk, X / sk
-    free = [j for j in range(3) if j != k]
-    Npp, Npc, _, _, _ = _blocks(xy1, xy2, c1, c2, R2, b, X, np.eye(3)[:, free], r1, r2)
-    Ncc = _blocks(xy1, xy2, c1, c2, R2, b, X, np.eye(3)[:, free], r1, r2)[2]
-    try:
-        Npp_inv = np.linalg.inv(Npp)
-        S = Ncc - np.einsum("nji,njk,nkl->il", Npc, Npp_inv, Npc)
-    except np.linalg.LinAlgError:
-        Npp_inv, S = None, None
-    return _Fit(R2, b, X, cost, r1, r2, behind(R2, b, X), it, converged, S, Npp_inv, Npc,
-                k)
-
-
-# ---------------------------------------------------------------------------
-# the public function
 
 
 def relative_orientation(xy1_ideal, xy2_ideal, c1, c2, *, x0y0_1=None, x0y0_2=None,
@@ -635,36 +219,8 @@ def relative_orientation(xy1_ideal, xy2_ideal, c1, c2, *, x0y0_1=None, x0y0_2=No
             hint="the two images were taken from (nearly) the same position; "
                  "use a pair with a wider baseline")
 
-    u1, u2 = xy1 / c1, xy2 / c2
     thr = 3.0 * float(sigma_image) / c_mean if sigma_image is not None else 1e-3
-    Es = essential_candidates(u1, u2, threshold=thr)
-    poses = [decompose_essential(E) for E in Es]
-    poses += [[(R, t), (R, -t)] for R, t in homography_candidates(u1, u2)]
-    starts = []
-    fallback = None
-    need = max(n - max(1, n // 10), 5)
-    for group in poses:                            # loop over candidate solutions
-        best = None
-        for R_cv, t_cv in group:
-            R2, b = _cv_to_photogrammetric(R_cv, t_cv)
-            X = _triangulate(xy1, xy2, c1, c2, R2, b)
-            z1 = X[:, 2]
-            z2 = (X - b) @ R2[2]
-            front = int(((z1 < 0) & (z2 < 0)).sum())
-            if best is None or front > best[0]:
-                best = (front, R2, b, X)
-        if best is None:
-            continue
-        if best[0] >= need:
-            starts.append(best[1:])
-        elif fallback is None or best[0] > fallback[0]:
-            fallback = best
-    if not starts and fallback is not None:
-        starts.append(fallback[1:])                # judged after refinement
-    if not starts:
-        raise GeometryError(
-            f"relative orientation: no essential matrix found for the {n} points",
-            hint="check the point correspondences and the principal distances")
+    starts = _starts(xy1, xy2, c1, c2, thr)
 
     # a few iterations for every start, then only the distinct ones to the end
     short = []
@@ -752,22 +308,10 @@ def relative_orientation(xy1_ideal, xy2_ideal, c1, c2, *, x0y0_1=None, x0y0_2=No
 
     scale2 = float(sigma_image) ** 2 if sigma_image is not None else \
         (sigma0 ** 2 if np.isfinite(sigma0) else np.nan)
-    if fit.S is not None:
-        try:
-            Sinv = np.linalg.inv(fit.S)
-        except np.linalg.LinAlgError:
-            Sinv = np.linalg.pinv(fit.S)
-        cov = scale2 * Sinv
-        B = np.einsum("nij,njk->nik", fit.Npp_inv, fit.Npc)          # Npp^-1 Npc
-        Qpp = fit.Npp_inv + np.einsum("nik,kl,njl->nij", B, Sinv, B)
-        sigma_X = np.sqrt(scale2 * np.einsum("nii->ni", Qpp))
-    else:
-        cov = np.full((5, 5), np.nan)
-        sigma_X = np.full((n, 3), np.nan)
-    from photogram.geometry.rotations import matrix_to_opk
+    cov, sigma_X = _precision(fit, scale2, n)
     angles2 = np.asarray(matrix_to_opk(fit.R2), dtype=float)
-    d1 = _rays(xy1, c1)
-    d2 = _rays(xy2, c2) @ fit.R2                              # R2^T d2 (rows)
+    d1 = bearings(xy1, c1)
+    d2 = bearings(xy2, c2) @ fit.R2                           # R2^T d2 (rows)
     ang = max_intersection_angles(np.repeat(np.arange(n), 2),
                                   np.stack([d1, d2], axis=1).reshape(-1, 3), n)
     return RelativeOrientationResult(
@@ -778,61 +322,3 @@ def relative_orientation(xy1_ideal, xy2_ideal, c1, c2, *, x0y0_1=None, x0y0_2=No
         candidates=len(distinct_good),
         alternatives=[(f.R2, f.b, float(np.sqrt(f.cost / dof)) if dof > 0 else float("nan"))
                       for f in tie], notes=notes)
-
-
-def _triangulate(xy1, xy2, c1, c2, R2, b):
-    n = len(xy1)
-    idx = np.repeat(np.arange(n), 2)
-    xy = np.stack([xy1, xy2], axis=1).reshape(-1, 2)
-    R = np.stack([np.broadcast_to(np.eye(3), (n, 3, 3)),
-                  np.broadcast_to(R2, (n, 3, 3))], axis=1).reshape(-1, 3, 3)
-    X0 = np.stack([np.zeros((n, 3)), np.broadcast_to(b, (n, 3))], axis=1).reshape(-1, 3)
-    c = np.tile([c1, c2], n)
-    res = intersect_points(idx, xy, R, X0, c, min_angle_deg=0.0, strict=False,
-                           max_iterations=3)
-    return res.X
-
-
-def _fixed(b, fixed_component) -> int:
-    """Baseline component to hold at ±1: ``fixed_component`` unless it is
-    less than a fifth of the baseline length (or None): then the largest."""
-    nb = np.linalg.norm(b)
-    if fixed_component is not None and abs(b[fixed_component]) >= 0.2 * nb:
-        return int(fixed_component)
-    return int(np.argmax(np.abs(b)))
-
-
-def _same(f, g, s2, floor, tol=1e-6, k=5.0) -> bool:
-    """Whether fit ``f`` is the same solution as ``g`` (within ``k`` sigma
-    of ``g``'s precision, or within ``tol`` where that is not available)."""
-    bf = f.b / np.linalg.norm(f.b)
-    bg = g.b / np.linalg.norm(g.b)
-    if bf @ bg <= 0:
-        return False
-    from photogram.geometry import matrix_to_rodrigues
-    delta = np.asarray(matrix_to_rodrigues(f.R2 @ g.R2.T), dtype=float)
-    kf = g.k_fixed
-    db = (f.b / abs(f.b[kf]) - g.b)[[j for j in range(3) if j != kf]]
-    d = np.r_[delta, db]
-    if g.S is not None and s2 > 0:
-        return float(d @ g.S @ d) <= k * k * (s2 + floor)
-    return np.abs(d).max() < tol
-
-
-def _distinct(starts, tol: float = 0.02):
-    """Starts that differ by more than ``tol`` (radians) in rotation or
-    baseline direction (nearby starts lie in the same basin; the first one,
-    from the better closed form, is kept)."""
-    out = []
-    for R2, b, X in starts:
-        bu = b / np.linalg.norm(b)
-        same = False
-        for R, bb, _ in out:
-            ang = np.arccos(np.clip((np.trace(R2 @ R.T) - 1) / 2, -1, 1))
-            bang = np.arccos(np.clip(bu @ (bb / np.linalg.norm(bb)), -1, 1))
-            if ang < tol and bang < tol:
-                same = True
-                break
-        if not same:
-            out.append((R2, b.copy(), X.copy()))
-    return out

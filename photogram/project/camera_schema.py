@@ -17,12 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from photogram.project.model import IMAGE_UNITS, Camera, Parameter
+from photogram.project.text_input import DOCS, suggest
+from photogram.project.toml_source import Section, TomlSource
 from photogram.project.toml_writer import Inline
-from photogram.project.validate import DOCS, Section, TomlSource, suggest
 
 __all__ = ["FALLBACK_PARAMETERS", "FALLBACK_DIMS", "REQUIRED_PARAMETERS", "camera_models",
            "parameter_names", "parameter_dims", "opk_to_matrix", "matrix_to_opk", "invert_opk",
-           "read_camera", "load_cameras_file", "camera_to_toml"]
+           "read_camera", "free_parameters", "load_cameras_file", "camera_to_toml"]
 
 FALLBACK_PARAMETERS: dict[str, tuple[str, ...]] = {
     "brown": ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2"),
@@ -264,12 +265,19 @@ def _convert_unit(sec: Section, camera: Camera, old: str, new: str, ref: str) ->
                   image_size=camera.image_size, pixel_size=pixel, source=camera.source)
 
 
-def _override_free(sec: Section, camera: Camera, name: str, ref: str) -> Camera:
+def free_parameters(sec: Section, camera: Camera) -> list[str]:
+    """The parameters ``free = [...]`` of ``sec`` names, checked against
+    ``camera``'s parameters."""
     free = sec.ids("free", [])
     for p in free:
         if p not in camera.parameters:
             raise sec.error("free", f"unknown parameter '{p}' in free of {sec.label}",
                             hint=suggest(p, camera.parameters, noun="parameters"))
+    return free
+
+
+def _override_free(sec: Section, camera: Camera, name: str, ref: str) -> Camera:
+    free = free_parameters(sec, camera)
     weighted = sec.boolean("weighted", False)
     params = {}
     for p, par in camera.parameters.items():

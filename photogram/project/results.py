@@ -36,8 +36,9 @@ from photogram.project.atomic import atomic_write_text
 from photogram.project.camera_schema import camera_to_toml, load_cameras_file
 from photogram.project.model import Camera, Project
 from photogram.project.tables import format_angle, format_table
+from photogram.project.text_input import decode_utf8
 from photogram.project.toml_writer import dumps
-from photogram.project.validate import decode_utf8, rays_per_point
+from photogram.project.validate import rays_per_point
 from photogram.project.writer import check_targets, point_columns, station_columns
 
 __all__ = ["write_results", "read_results", "Results", "project_counts", "to_json_safe",

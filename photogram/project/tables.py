@@ -28,7 +28,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.project.validate import read_text, suggest
+from photogram.project.text_input import read_text, suggest
 
 __all__ = ["Table", "read_table", "format_table", "format_float",
            "angle_to_rad", "format_angle", "IGNORED_COLUMNS"]

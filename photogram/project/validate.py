@@ -1,396 +1,31 @@
-"""Input checking: reading text files, TOML with line numbers, typed keys,
-and the cross-table checks of a whole project.
+"""The cross-table checks of a whole project (:func:`validate_project`).
 
 Every problem a user can cause becomes one :class:`~photogram.errors.InputError`
-naming the file, the line and how to fix it. TOML line numbers come from
-tomllib's syntax errors or, for semantic errors, from a best-effort index of
-the lines where sections and keys are written (:class:`TomlSource`).
+naming the file, the line and how to fix it. The observation checks are also
+used per file by the reader of DBAT-style projects
+(:mod:`photogram.project.reader_dbat`).
+
+The input-checking tools this module used to hold live in
+:mod:`photogram.project.text_input` (text files, hints) and
+:mod:`photogram.project.toml_source` (TOML with line numbers); they are
+re-exported here.
 """
 
 from __future__ import annotations
 
-import difflib
-import math
-import re
-import tomllib
-from pathlib import Path
-from typing import Any, Iterable
-
 import numpy as np
 
 from photogram.errors import InputError
+from photogram.project.text_input import suggest
+from photogram.project.toml_source import TomlSource
+
+# The input-checking tools moved to text_input and toml_source; they stay
+# importable from here.
+from photogram.project.text_input import DOCS, decode_utf8, read_text  # noqa: F401,E402
+from photogram.project.toml_source import MISSING, Section, type_name  # noqa: F401,E402
 
 __all__ = ["read_text", "suggest", "TomlSource", "Section", "validate_project"]
 
-MISSING = object()
-DOCS = "docs/project-files.md"
-
-
-# --------------------------------------------------------------------------
-# text files
-# --------------------------------------------------------------------------
-
-def read_text(path: Path, what: str = "file") -> str:
-    """Read a UTF-8 text file (an optional BOM is dropped).
-
-    Raises
-    ------
-    InputError
-        The file is missing, a folder, unreadable or not UTF-8; for bad bytes
-        the line of the first one is given.
-    """
-    path = Path(path)
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError(f"{what} not found", file=path,
-                         hint="check the path and the spelling") from None
-    except IsADirectoryError:
-        raise InputError(f"{what} is a folder, not a file", file=path,
-                         hint="give the path of the file itself") from None
-    except OSError as exc:
-        raise InputError(f"cannot read {what}: {exc.strerror}", file=path,
-                         hint="check the file permissions") from None
-    return decode_utf8(data, path)
-
-
-def decode_utf8(data: bytes, path: Path | str) -> str:
-    """Decode ``data`` as UTF-8 or raise an InputError at the bad line."""
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise InputError(
-            f"the file is not UTF-8 text: byte 0x{data[exc.start]:02X} cannot be decoded",
-            file=path, line=line,
-            hint="save it as UTF-8, e.g. as 'CSV UTF-8' in Excel",
-        ) from None
-    return text.removeprefix("\ufeff")
-
-
-def suggest(word: str, options: Iterable[str], *, noun: str = "allowed") -> str:
-    """A hint naming the closest option (difflib) and listing all options."""
-    options = [str(o) for o in options]
-    lower = {o.lower(): o for o in options}
-    close = [lower[word.lower()]] if word.lower() in lower else \
-        difflib.get_close_matches(word, options, n=1, cutoff=0.6)
-    listing = f"{noun}: {', '.join(options)}" if len(options) <= 20 else \
-        f"{len(options)} {noun}, e.g. {', '.join(options[:5])}"
-    return (f"did you mean '{close[0]}'? " if close else "") + listing
-
-
-# --------------------------------------------------------------------------
-# TOML with line numbers
-# --------------------------------------------------------------------------
-
-_LOCATION = re.compile(r"\s*\(at line (\d+), column \d+\)\s*$")
-_AT_END = re.compile(r"\s*\(at end of document\)\s*$")
-_KEY = r'(?:[A-Za-z0-9_-]+|"(?:[^"\\]|\\.)*"|\'[^\']*\')'
-_KEY_PART = re.compile(r'\s*(' + _KEY + r')\s*(?:\.|$)')
-_HEADER = re.compile(r'^\[(\[?)\s*(' + _KEY + r'(?:\s*\.\s*' + _KEY + r')*)\s*\]\]?\s*(#.*)?$')
-_ASSIGN = re.compile(r'^(' + _KEY + r'(?:\s*\.\s*' + _KEY + r')*)\s*=')
-_INLINE_KEY = re.compile(r'[{,]\s*([A-Za-z0-9_-]+)\s*=')
-
-
-def _split_keys(text: str) -> tuple[str, ...] | None:
-    """Split a dotted TOML key into its parts (quotes removed)."""
-    parts, pos = [], 0
-    while pos < len(text):
-        m = _KEY_PART.match(text, pos)
-        if not m:
-            return None
-        key = m.group(1)
-        parts.append(key[1:-1] if key[0] in "\"'" else key)
-        pos = m.end()
-    return tuple(parts)
-
-
-def _index_lines(text: str) -> dict[tuple, int]:
-    """Map key paths to the 1-based line where they are written.
-
-    Array-of-tables entries get their index as a path element:
-    ``("constraints", "distance", 1)`` is the second ``[[constraints.distance]]``.
-    """
-    index: dict[tuple, int] = {}
-    counts: dict[tuple, int] = {}
-    current: tuple = ()
-    for number, raw in enumerate(text.splitlines(), 1):
-        line = raw.strip()
-        header = _HEADER.match(line)
-        if header and (keys := _split_keys(header.group(2))):
-            if header.group(1):
-                i = counts.get(keys, 0)
-                counts[keys] = i + 1
-                index.setdefault(keys, number)
-                keys = keys + (i,)
-            current = keys
-            index.setdefault(current, number)
-            continue
-        assign = _ASSIGN.match(line)
-        if assign and (keys := _split_keys(assign.group(1))):
-            for k in range(1, len(keys) + 1):
-                index.setdefault(current + keys[:k], number)
-            for inner in _INLINE_KEY.finditer(line, assign.end()):
-                index.setdefault(current + keys + (inner.group(1),), number)
-    return index
-
-
-def _syntax_error(exc: tomllib.TOMLDecodeError, path: Path) -> InputError:
-    msg = str(exc)
-    line = None
-    if m := _LOCATION.search(msg):
-        line = int(m.group(1))
-        msg = msg[:m.start()]
-    elif m := _AT_END.search(msg):
-        msg = msg[:m.start()] + " at the end of the file"
-    if "Cannot declare" in msg or "Cannot overwrite" in msg:
-        hint = "each section and each key may appear only once: is a camera or key written twice?"
-    elif "Invalid value" in msg:
-        hint = 'text needs double quotes, e.g. datum = "control"'
-    else:
-        hint = f"see {DOCS} for the syntax"
-    return InputError(f"TOML syntax error: {msg}", file=path, line=line, hint=hint)
-
-
-class TomlSource:
-    """A parsed TOML file that can say on which line a key is written.
-
-    Parameters
-    ----------
-    path : Path
-        The file (as it should appear in messages).
-    text : str
-        Its text.
-    data : dict
-        The parsed document.
-    """
-
-    def __init__(self, path: Path, text: str, data: dict):
-        self.path = Path(path)
-        self.text = text
-        self.data = data
-        self._lines = _index_lines(text)
-
-    @classmethod
-    def load(cls, path: Path, what: str = "project file") -> "TomlSource":
-        """Read and parse ``path``; syntax errors carry tomllib's line."""
-        text = read_text(path, what)
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise _syntax_error(exc, Path(path)) from None
-        return cls(Path(path), text, data)
-
-    def line_of(self, keypath: Iterable) -> int | None:
-        """Line of ``keypath``, else of its closest written parent."""
-        keypath = tuple(keypath)
-        while keypath:
-            if keypath in self._lines:
-                return self._lines[keypath]
-            keypath = keypath[:-1]
-        return None
-
-    def root(self) -> "Section":
-        """The whole document as a :class:`Section`."""
-        return Section(self, (), self.data, f"{self.path.name}")
-
-
-def type_name(value: Any) -> str:
-    """How a TOML value's type is called in messages."""
-    if isinstance(value, bool):
-        return "true/false"
-    if isinstance(value, int):
-        return "an integer"
-    if isinstance(value, float):
-        return "a number"
-    if isinstance(value, str):
-        return f'a string ("{value}")'
-    if isinstance(value, list):
-        text = repr(value)
-        return f"the array {text}" if len(text) <= 40 else "an array"
-    if isinstance(value, dict):
-        return "a table"
-    return type(value).__name__
-
-
-class Section:
-    """One TOML table with typed, checked access to its keys.
-
-    Parameters
-    ----------
-    source : TomlSource
-        The file, for line numbers.
-    keypath : tuple
-        Path of this table in the document.
-    data : dict
-        The table's content.
-    label : str
-        How messages name it, e.g. ``[cameras.K1]``.
-    """
-
-    def __init__(self, source: TomlSource, keypath: tuple, data: dict, label: str):
-        self.source, self.keypath, self.data, self.label = source, keypath, data, label
-
-    def __contains__(self, key: str) -> bool:
-        return key in self.data
-
-    def error(self, key: str | None, what: str, hint: str | None = None) -> InputError:
-        """An InputError at the line of ``key`` (or of this section)."""
-        path = self.keypath + ((key,) if key is not None else ())
-        return InputError(what, file=self.source.path,
-                          line=self.source.line_of(path), hint=hint)
-
-    def check_keys(self, allowed: Iterable[str], required: Iterable[str] = (),
-                   *, noun: str = "key") -> None:
-        """Reject unknown keys (with a suggestion) and missing required ones."""
-        allowed = list(allowed)
-        for key in self.data:
-            if key not in allowed:
-                raise self.error(key, f"unknown {noun} '{key}' in {self.label}",
-                                 hint=suggest(key, allowed))
-        for key in required:
-            if key not in self.data:
-                raise self.error(None, f"{self.label} has no {key}",
-                                 hint=f"add {key} = ...; see {DOCS}")
-
-    def _get(self, key: str, default: Any) -> Any:
-        if key in self.data:
-            return self.data[key]
-        if default is MISSING:
-            raise self.error(None, f"{self.label} has no {key}",
-                             hint=f"add {key} = ...; see {DOCS}")
-        return default
-
-    def _wrong_type(self, key: str, want: str, example: str) -> InputError:
-        value = self.data[key]
-        return self.error(key, f"{key} in {self.label} must be {want}, not {type_name(value)}",
-                          hint=f"e.g. {key} = {example}")
-
-    def table(self, key: str, *, required: bool = True) -> "Section | None":
-        """The sub-table ``key`` (None if absent and not required)."""
-        if key not in self.data:
-            if required:
-                raise self.error(None, f"missing section [{self._dotted(key)}]",
-                                 hint=f"add a [{self._dotted(key)}] section; see {DOCS}")
-            return None
-        if not isinstance(self.data[key], dict):
-            raise self.error(key, f"{self._dotted(key)} must be a section [{self._dotted(key)}], "
-                                  f"not {type_name(self.data[key])}",
-                             hint=f"write it as [{self._dotted(key)}] followed by its keys")
-        return Section(self.source, self.keypath + (key,), self.data[key],
-                       f"[{self._dotted(key)}]")
-
-    def table_array(self, key: str) -> list["Section"]:
-        """Entries of an array of tables ``[[key]]`` (a single table counts as one)."""
-        value = self.data.get(key, [])
-        if isinstance(value, dict):
-            return [self.table(key)]
-        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            raise self._wrong_type(key, "an array of tables", f"[[{self._dotted(key)}]]")
-        name = self._dotted(key)
-        return [Section(self.source, self.keypath + (key, i), v, f"[[{name}]] #{i + 1}")
-                for i, v in enumerate(value)]
-
-    def _dotted(self, key: str) -> str:
-        parts = [str(k) for k in self.keypath if not isinstance(k, int)] + [key]
-        return ".".join(parts)
-
-    def string(self, key: str, default: Any = MISSING, *,
-               choices: Iterable[str] | None = None) -> Any:
-        """A string value, optionally one of ``choices``."""
-        value = self._get(key, default)
-        if key not in self.data:
-            return value
-        if not isinstance(value, str):
-            example = f'"{next(iter(choices))}"' if choices else '"text"'
-            raise self._wrong_type(key, "a string", example)
-        if choices is not None and value not in choices:
-            raise self.error(key, f"unknown {key} '{value}' in {self.label}",
-                             hint=suggest(value, choices, noun="use one of"))
-        return value
-
-    def ident(self, key: str, default: Any = MISSING) -> Any:
-        """An id: a string, or an integer taken as its decimal text."""
-        value = self._get(key, default)
-        if key not in self.data:
-            return value
-        if isinstance(value, bool) or not isinstance(value, (str, int)):
-            raise self._wrong_type(key, "an id (text or integer)", '"P17"')
-        value = str(value).strip()
-        if not value:
-            raise self.error(key, f"{key} in {self.label} is empty", hint="give an id")
-        return value
-
-    def number(self, key: str, default: Any = MISSING, *, positive: bool = False,
-               nonnegative: bool = False, below: float | None = None) -> Any:
-        """A finite number (integers are accepted)."""
-        value = self._get(key, default)
-        if key not in self.data:
-            return value
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self._wrong_type(key, "a number", "1.5")
-        value = float(value)
-        if not math.isfinite(value):
-            raise self.error(key, f"{key} in {self.label} must be a finite number, not {value}",
-                             hint="nan and inf are not allowed")
-        if positive and value <= 0 or nonnegative and value < 0 or \
-                below is not None and value >= below:
-            want = "> 0" if positive else ">= 0" if nonnegative else ""
-            want = " and ".join(w for w in (want, f"< {below}" if below is not None else "") if w)
-            raise self.error(key, f"{key} in {self.label} must be {want}, not {value!r}",
-                             hint=f"see {DOCS}")
-        return value
-
-    def integer(self, key: str, default: Any = MISSING, *, minimum: int | None = None) -> Any:
-        """An integer, optionally at least ``minimum``."""
-        value = self._get(key, default)
-        if key not in self.data:
-            return value
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self._wrong_type(key, "an integer", "50")
-        if minimum is not None and value < minimum:
-            raise self.error(key, f"{key} in {self.label} must be at least {minimum}, not {value}",
-                             hint=f"see {DOCS}")
-        return value
-
-    def boolean(self, key: str, default: Any = MISSING) -> Any:
-        """true or false."""
-        value = self._get(key, default)
-        if key in self.data and not isinstance(value, bool):
-            raise self._wrong_type(key, "true or false", "true")
-        return value
-
-    def ids(self, key: str, default: Any = MISSING) -> Any:
-        """An array of ids (strings or integers), returned as strings."""
-        value = self._get(key, default)
-        if key not in self.data:
-            return value
-        if not isinstance(value, list) or any(
-                isinstance(v, bool) or not isinstance(v, (str, int)) for v in value):
-            raise self._wrong_type(key, "an array of ids", '["P1", "P2"]')
-        return [str(v).strip() for v in value]
-
-    def numbers(self, key: str, length: int, default: Any = MISSING, *,
-                integer: bool = False) -> Any:
-        """An array of ``length`` positive numbers (integers if ``integer``)."""
-        value = self._get(key, default)
-        if key not in self.data:
-            return value
-        kinds = (int,) if integer else (int, float)
-        example = "[1920, 1080]" if integer else "[0.0055, 0.0055]"
-        if not isinstance(value, list) or len(value) != length or any(
-                isinstance(v, bool) or not isinstance(v, kinds) for v in value):
-            raise self._wrong_type(
-                key, f"an array of {length} {'integers' if integer else 'numbers'}", example)
-        if any(not math.isfinite(v) or v <= 0 for v in value):
-            raise self.error(key, f"{key} in {self.label} must be positive, not {value}",
-                             hint=f"e.g. {key} = {example}")
-        return tuple(int(v) if integer else float(v) for v in value)
-
-
-# --------------------------------------------------------------------------
-# cross-table checks
-# --------------------------------------------------------------------------
 
 def _records(obs, rows: np.ndarray) -> np.ndarray:
     return obs.record[rows] if len(obs.record) == len(obs) else np.zeros(len(rows), int)
@@ -430,48 +65,76 @@ def validate_project(project, source: TomlSource | None = None) -> list[str]:
     return warnings
 
 
+def repeated_observation(station, point, n_points: int) -> tuple[int, int] | None:
+    """``(row, first_row)`` of the first observation that repeats the
+    (station, point) of an earlier one, or None."""
+    key = station.astype(np.int64) * (n_points + 1) + point
+    _, counts = np.unique(key, return_counts=True)
+    if np.all(counts == 1):
+        return None
+    seen: dict = {}
+    for row, k in enumerate(key):
+        if k in seen:
+            return row, seen[k]
+        seen[k] = row
+    return None
+
+
 def _check_duplicate_observations(project) -> None:
     obs = project.image_points
     if not len(obs):
         return
-    key = obs.station.astype(np.int64) * (len(project.points) + 1) + obs.point
-    _, first, counts = np.unique(key, return_index=True, return_counts=True)
-    if np.all(counts == 1):
+    found = repeated_observation(obs.station, obs.point, len(project.points))
+    if found is None:
         return
-    seen = set()
-    for row, k in enumerate(key):
-        if k in seen:
-            rec = _records(obs, np.array([row]))[0]
-            station = project.stations.names[obs.station[row]]
-            point = project.points.ids[obs.point[row]]
-            raise InputError(f"point {point} is measured twice in station {station}",
-                             file=project.sources.get("image_points"), line=_line(rec),
-                             hint="keep one measurement per point and image")
-        seen.add(k)
+    row = found[0]
+    rec = _records(obs, np.array([row]))[0]
+    station = project.stations.names[obs.station[row]]
+    point = project.points.ids[obs.point[row]]
+    raise InputError(f"point {point} is measured twice in station {station}",
+                     file=project.sources.get("image_points"), line=_line(rec),
+                     hint="keep one measurement per point and image")
+
+
+def observation_rays(point, station, n_points: int) -> np.ndarray:
+    """Number of distinct stations observing each of ``n_points`` points."""
+    pairs = np.unique(np.stack([point, station], axis=1), axis=0) \
+        if len(point) else np.zeros((0, 2), int)
+    return np.bincount(pairs[:, 0], minlength=n_points) if len(pairs) \
+        else np.zeros(n_points, int)
 
 
 def rays_per_point(project) -> np.ndarray:
     """Number of distinct stations observing each point."""
     obs = project.image_points
-    pairs = np.unique(np.stack([obs.point, obs.station], axis=1), axis=0) \
-        if len(obs) else np.zeros((0, 2), int)
-    return np.bincount(pairs[:, 0], minlength=len(project.points)) if len(pairs) \
-        else np.zeros(len(project.points), int)
+    return observation_rays(obs.point, obs.station, len(project.points))
+
+
+def check_single_rays(project, point, station, rays, where) -> None:
+    """Raise for the first tie or check point seen from one station only.
+
+    ``point``, ``station``: the observations' indices; ``rays`` from
+    :func:`observation_rays`; ``where(row)`` gives the ``(file, line)`` of an
+    observation row for the message.
+    """
+    for i in np.flatnonzero(rays == 1):
+        kind = project.points.kind[i]
+        if kind in ("tie", "check"):
+            row = int(np.flatnonzero(point == i)[0])
+            file, line = where(row)
+            raise InputError(
+                f"point {project.points.ids[i]} is seen in 1 image (station "
+                f"{project.stations.names[station[row]]}); a {kind} point "
+                f"needs at least 2 rays", file=file, line=line,
+                hint="measure it in another image or remove it")
 
 
 def _check_rays(project, warnings: list[str]) -> None:
     rays = rays_per_point(project)
     obs = project.image_points
-    for i, (pid, kind) in enumerate(zip(project.points.ids, project.points.kind)):
-        if rays[i] == 1 and kind in ("tie", "check"):
-            row = int(np.flatnonzero(obs.point == i)[0])
-            station = project.stations.names[obs.station[row]]
-            raise InputError(
-                f"point {pid} is seen in 1 image (station {station}); a {kind} point "
-                f"needs at least 2 rays",
-                file=project.sources.get("image_points"),
-                line=_line(_records(obs, np.array([row]))[0]),
-                hint="measure it in another image or remove it")
+    check_single_rays(project, obs.point, obs.station, rays,
+                      lambda row: (project.sources.get("image_points"),
+                                   _line(_records(obs, np.array([row]))[0])))
     unused = [pid for pid, r in zip(project.points.ids, rays) if r == 0]
     if unused:
         warnings.append(f"{len(unused)} point(s) are not measured in any image "
