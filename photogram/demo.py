@@ -3,7 +3,9 @@ projects, in the order a user runs it.
 
 1. ``calibrate projects/lab/lab.prj``   self-calibration of the simulated lab frame
 2. ``orient projects/field/field.prj``  the simulated arena, cameras from step 1
-3. ``calibrate projects/camcal/camcal.prj``  DBAT's real CAMCAL network, when
+3. ``intersect projects/jumps/jumps.prj``  the simulated jump: jumper points,
+   ski lines and the stick model, orientation covariance propagated
+4. ``calibrate projects/camcal/camcal.prj``  DBAT's real CAMCAL network, when
    ../shared/data/dbat is present beside the repository
 
 Each step writes its results folder beside its project file.
@@ -14,6 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from photogram.commands.bundle import announce, calibrate, orient
+from photogram.commands.intersect import intersect_and_write
 from photogram.errors import InputError
 from photogram.project import read_project
 
@@ -25,6 +28,7 @@ def steps():
     """(command, function, project path, needs) of the demo, in order."""
     return [("calibrate", calibrate, PROJECTS / "lab" / "lab.prj", None),
             ("orient", orient, PROJECTS / "field" / "field.prj", None),
+            ("intersect", intersect_and_write, PROJECTS / "jumps" / "jumps.prj", None),
             ("calibrate", calibrate, PROJECTS / "camcal" / "camcal.prj",
              ROOT.parent / "shared" / "data" / "dbat" / "camcal")]
 

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Generate the two example projects, projects/lab and projects/field.
+"""Generate the simulated example projects, projects/lab, projects/field
+and projects/jumps.
 
 All data are SIMULATED (nothing here was measured): the networks of the
 ski-jump paper's laboratory calibration (Fig. 5) and field orientation
@@ -29,6 +30,12 @@ What is written (``<stem>_*.csv`` is write_project's naming)::
     field/cameras-nominal.toml   the true (nominal) interior orientation, in the
                                  results/cameras.toml schema
     field/truth/*.csv            the true values (alternative 2 covers both)
+    jumps/jumps.prj              the intersect step: a jump at 30 fps in the field
+                                 stations; cameras from the lab, stations from the
+                                 field results
+    jumps/jumper_points.csv      exposure, station, point (P1..P4), x, y
+    jumps/ski_lines.csv          exposure, station, line (L1, L2), x, y
+    jumps/truth/*.csv            the true jumper points, skis and angles
 
 Two things write_project cannot express are done on its output text: the
 field projects take their cameras ``from`` the lab results (write_project
@@ -245,12 +252,100 @@ def field_files() -> dict[str, str]:
     return files
 
 
+JUMPS_PRJ = """[project]
+name = "jumps"
+length_unit = "dm"
+angle_unit = "gon"
+image_unit = "px"
+rotation = "omega-phi-kappa"
+rotation_direction = "world_to_camera"
+
+# interior orientation from the lab calibration, exterior from the field
+# orientation (run photogram calibrate and photogram orient first)
+[cameras.K1]
+from = "../lab/results/cameras.toml"
+
+[cameras.K2]
+from = "../lab/results/cameras.toml"
+
+[cameras.K3]
+from = "../lab/results/cameras.toml"
+
+[stations]
+file = "../field/results/stations.csv"
+
+# jumper points P1 helmet, P2 hip, P3 right and P4 left binding, and points
+# measured along the right (L1) and left (L2) ski, per exposure (30 fps)
+[observations]
+points = "jumper_points.csv"
+lines = "ski_lines.csv"
+
+[adjustment]
+sigma_image = 0.33
+
+[intersect]
+fps = 30
+points = ["P1", "P2", "P3", "P4"]
+skis = ["L1", "L2"]
+ski_length = 2.63                     # m
+binding_fraction = 0.43               # binding from the ski tail
+orientation = ["../lab/results", "../field/results"]   # propagate their covariance
+swap_skis = false
+
+[output]
+folder = "results"
+"""
+
+
+def jumps_files() -> dict[str, str]:
+    """The simulated jump: ~14 m of early flight at 30 fps in the field
+    stations (photogram.simulation.jump)."""
+    from photogram.simulation.jump import JUMP_SEED, jump_project
+    project, truth = jump_project(noise=True)
+    pts, lines = truth["points_table"], truth["lines_table"]
+    header = _simulated("a ski jump (24 exposures at 30 fps) seen by the field stations; "
+                        "jumper points and ski lines with noise N(0, 0.33 px)", JUMP_SEED)
+    files = {"jumps.prj": _comment(header + "\nRun: photogram intersect projects/jumps/jumps.prj "
+                                            "(after calibrate and orient). See README.md.")
+             + JUMPS_PRJ}
+    rows = ["exposure,station,point,x,y"] + [
+        f"{e},{s},{p},{x:.2f},{y:.2f}" for e, s, p, (x, y) in
+        zip(pts["exposure"], pts["station"], pts["point"], pts["xy"])]
+    files["jumper_points.csv"] = _comment(header) + "\n".join(rows) + "\n"
+    rows = ["exposure,station,line,x,y"] + [
+        f"{e},{s},{l},{x:.2f},{y:.2f}" for e, s, l, (x, y) in
+        zip(lines["exposure"], lines["station"], lines["line"], lines["xy"])]
+    files["ski_lines.csv"] = _comment(header) + "\n".join(rows) + "\n"
+    th = _comment(_simulated("the TRUE jumper points (dm) the jump was simulated from", JUMP_SEED))
+    rows = ["exposure,point,X,Y,Z"]
+    for e in range(len(truth["times"])):
+        for k, name in enumerate(("P1", "P2", "P3", "P4")):
+            X = truth["P"][e, k]
+            rows.append(f"{e + 1:03d},{name},{X[0]:.6f},{X[1]:.6f},{X[2]:.6f}")
+    files["truth/jumper_points.csv"] = th + "\n".join(rows) + "\n"
+    th = _comment(_simulated("the TRUE skis (dm): tail and tip of L1 (right) and L2 (left), "
+                             "and the true angles (gon) of the construction", JUMP_SEED))
+    rows = ["exposure,line,X_tail,Y_tail,Z_tail,X_tip,Y_tip,Z_tip"]
+    for e in range(len(truth["times"])):
+        for j, name in enumerate(("L1", "L2")):
+            a, b = truth["ski_tail"][e, j], truth["ski_tip"][e, j]
+            rows.append(f"{e + 1:03d},{name}," + ",".join(f"{v:.6f}" for v in (*a, *b)))
+    files["truth/skis.csv"] = th + "\n".join(rows) + "\n"
+    g = 200.0 / np.pi
+    rows = ["exposure,alpha,beta,delta_phi"] + [
+        f"{e + 1:03d},{truth['legs'][e] * g:.8f},{truth['trunk'][e] * g:.8f},"
+        f"{truth['v_angle'][e] * g:.8f}" for e in range(len(truth["times"]))]
+    files["truth/angles.csv"] = th + "\n".join(rows) + "\n"
+    return files
+
+
 def generate(out: Path = HERE) -> list[Path]:
-    """Write both projects below ``out`` (folders lab/ and field/); returns
-    the files written."""
+    """Write the projects below ``out`` (folders lab/, field/ and jumps/);
+    returns the files written."""
     out = Path(out)
     written = []
-    for folder, files in (("lab", lab_files()), ("field", field_files())):
+    for folder, files in (("lab", lab_files()), ("field", field_files()),
+                          ("jumps", jumps_files())):
         for name, text in files.items():
             path = out / folder / name
             path.parent.mkdir(parents=True, exist_ok=True)

@@ -216,6 +216,6 @@ CASES = [
                     replace(d / "lab.prj", 'points = "image_points.csv"',
                             'points = "image_points.csv"\nunit = "px"')),
          "lab.prj", 'unit = "px"', ("camera K1 has no pixel_size",)),
-    Case("missing section", _e("lab.prj", '[points]\nfile = "points.csv"', ""), "lab.prj",
-         None, ("missing section [points]",)),
+    Case("missing section", _e("lab.prj", '[stations]\nfile = "stations.csv"', ""), "lab.prj",
+         None, ("missing section [stations]",)),
 ]

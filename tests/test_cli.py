@@ -5,6 +5,7 @@ from __future__ import annotations
 import types
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import photogram
@@ -14,7 +15,7 @@ from photogram_cli.main import COMMANDS, Command, main
 
 from project_cases import DATA, make_project
 
-ENGINES = {"intersect": "the adjustment engine", "montecarlo": "the Monte Carlo engine",
+ENGINES = {"montecarlo": "the Monte Carlo engine",
            "simulate": "the simulator", "report": "the report generator",
            "mocap": "the motion-capture pipeline"}
 
@@ -183,3 +184,31 @@ def test_calibrate_writes_results_where_asked(tmp_path, capsys):
     for name in ("cameras.toml", "stations.csv", "points.csv", "residuals.csv", "log.txt"):
         assert (out / name).is_file()
     assert not (DATA / "lab" / "results").exists()
+
+
+def test_intersect_writes_the_jump_results(tmp_path, capsys):
+    """photogram intersect on the generated jumps project, with the true
+    (nominal) cameras and stations so that it runs before calibrate/orient."""
+    import shutil
+
+    import pandas as pd
+    root = Path(photogram.__file__).resolve().parents[1] / "projects"
+    for name in ("jumps", "field"):
+        shutil.copytree(root / name, tmp_path / name, ignore=shutil.ignore_patterns("results*"))
+    prj = tmp_path / "jumps" / "jumps.prj"
+    text = prj.read_text()
+    text = text.replace("../lab/results/cameras.toml", "../field/cameras-nominal.toml")
+    text = text.replace("../field/results/stations.csv", "../field/truth/stations.csv")
+    text = text.replace('orientation = ["../lab/results", "../field/results"]', "")
+    prj.write_text(text)
+    out = tmp_path / "out"
+    assert main(["intersect", str(prj), "--output", str(out)]) == 0
+    assert "intersect: 24 exposures" in capsys.readouterr().out
+    frame = pd.read_csv(out / "exposures.csv")
+    assert len(frame) == 24 and {"alpha", "sigma_alpha", "v", "sigma_v"} <= set(frame.columns)
+    truth = pd.read_csv(tmp_path / "jumps" / "truth" / "angles.csv", comment="#")
+    z = (frame["alpha"] - truth["alpha"]) / frame["sigma_alpha"]
+    assert np.all(np.abs(z) < 4.5)
+    for name in ("points3d.csv", "lines3d.csv", "jump.trc", "stick.png", "timeseries.png",
+                 "summary.json"):
+        assert (out / name).stat().st_size > 0

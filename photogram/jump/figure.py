@@ -99,9 +99,24 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
     def plan(p):   # (..., 3) -> abscissa, lateral
         return p @ ex, p @ ey
 
+    # equal scales in both panels: the panel heights follow the data ranges
+    # (a steep descent needs a tall side view), with a common abscissa range
+    pts = np.concatenate([model.P[idx].reshape(-1, 3), model.skis[idx].reshape(-1, 3)])
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    xs, zs = side(pts)
+    _, ys = plan(pts)
+    pad = 0.05 * (np.ptp(xs) + 1e-9)
+    xr = np.ptp(xs) + 2 * pad
+    zr, yr = np.ptp(zs) + 2 * pad, max(np.ptp(ys) + 2 * pad, 0.15 * xr)
+    height = float(np.clip(11.0 * (zr + yr) / xr + 1.5, 4.0, 14.0))
     with _style():
-        fig = _new_figure((12, 6))
-        ax_s, ax_p = fig.subplots(2, 1, sharex=True)
+        fig = _new_figure((12, height))
+        ax_s, ax_p = fig.subplots(2, 1, gridspec_kw={"height_ratios": [zr, yr]})
+        ax_s.set_xlim(xs.min() - pad, xs.max() + pad)
+        ax_p.set_xlim(xs.min() - pad, xs.max() + pad)
+        ax_s.set_ylim(zs.min() - pad, zs.max() + pad)
+        ymid = 0.5 * (ys.min() + ys.max())
+        ax_p.set_ylim(ymid - yr / 2, ymid + yr / 2)
         for ax, proj in ((ax_s, side), (ax_p, plan)):
             for i in idx:
                 P1, P2, P3, P4 = model.P[i]
@@ -112,7 +127,7 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
                     ax.plot(*proj(np.stack([a, b])), color=_BODY, lw=1.2)
                 ax.plot(*proj(model.P[i]), "o", color=_BODY, ms=2.5)
                 ax.plot(*proj(O[None]), "o", mfc="white", mec=_BODY, ms=3.5)
-            ax.set_aspect("equal", adjustable="datalim")
+            ax.set_aspect("equal", adjustable="box")
             ax.grid(True, lw=0.3)
         for i in idx:
             v = model.values["v"][i]

@@ -196,6 +196,27 @@ class AdjustmentSettings:
 
 
 @dataclass
+class IntersectSettings:
+    """``[intersect]``: the ski-jump intersection step (photogram intersect).
+
+    ``points`` are the jumper points P1 (helmet), P2 (hip), P3 (right
+    binding), P4 (left binding); ``skis`` the right and left ski lines;
+    ``orientation`` earlier results folders whose covariance.npz files are
+    propagated into the points (e.g. the lab's for the interior and the
+    field's for the exterior orientation; None: image noise only);
+    ``ski_length`` in metres.
+    """
+
+    fps: float = 30.0
+    points: tuple = ("P1", "P2", "P3", "P4")
+    skis: tuple = ("L1", "L2")
+    ski_length: float = 2.63
+    binding_fraction: float = 0.43
+    orientation: list | None = None
+    swap_skis: bool = False
+
+
+@dataclass
 class OutputSettings:
     folder: str = "results"
 
@@ -218,6 +239,7 @@ class Project:
     verticals: list[VerticalConstraint] = field(default_factory=list)
     adjustment: AdjustmentSettings = field(default_factory=AdjustmentSettings)
     output: OutputSettings = field(default_factory=OutputSettings)
+    intersect: IntersectSettings = field(default_factory=IntersectSettings)
     sources: dict[str, Path] = field(default_factory=dict)  # table -> file
     warnings: list[str] = field(default_factory=list)  # found by the reader
 

@@ -19,7 +19,7 @@ from photogram.project.camera_schema import invert_opk, read_camera  # noqa: F40
 from photogram.project.model import (  # noqa: F401  (also re-exported)
     ANGLE_UNITS, DAMPINGS, DATUMS, IMAGE_UNITS, LENGTH_UNITS, POINT_KINDS,
     ROBUST_FUNCTIONS, ROTATION_DIRECTIONS, AdjustmentSettings, DistanceConstraint,
-    ImageLines, ImagePoints, OutputSettings, Points, Project, Stations, Units,
+    ImageLines, ImagePoints, IntersectSettings, OutputSettings, Points, Project, Stations, Units,
     VerticalConstraint,
 )
 from photogram.project.reader_dbat import _camera_from_dbat, _read_dbat_style, _uses_dbat_features
@@ -41,8 +41,10 @@ from photogram.project.reader_tables import (  # noqa: F401,E402  (re-exports)
 __all__ = ["read_project", "SECTIONS", "STATION_COLUMNS", "POINT_COLUMNS"]
 
 SECTIONS = ("project", "cameras", "stations", "points", "observations",
-            "constraints", "adjustment", "output")
-REQUIRED_SECTIONS = ("project", "cameras", "stations", "points", "observations")
+            "constraints", "adjustment", "output", "intersect")
+REQUIRED_SECTIONS = ("project", "cameras", "stations", "observations")
+INTERSECT_KEYS = ("fps", "points", "skis", "ski_length", "binding_fraction", "orientation",
+                  "swap_skis")
 PROJECT_KEYS = ("name", "length_unit", "angle_unit", "image_unit", "rotation",
                 "rotation_direction")
 ADJUSTMENT_KEYS = ("datum", "max_iterations", "tolerance", "sigma_image", "sigma_control",
@@ -95,14 +97,20 @@ def read_project(path: str | Path) -> Project:
     _read_project_section(root.table("project"), project)
     project.adjustment = _read_adjustment(root.table("adjustment", required=False))
     project.output = _read_output(root.table("output", required=False))
+    project.intersect = _read_intersect(root.table("intersect", required=False), prj)
     _read_cameras(root.table("cameras"), project)
     _check_sigma_image(root, project)
-    tables = [root.table(n) for n in ("stations", "points", "observations")]
+    tables = [root.table(n, required=n != "points") for n in ("stations", "points", "observations")]
+    if tables[1] is None:      # no fixed points: only moving ones (exposures)
+        tables[1] = Section(src, ("points",), {}, "[points]")
+        no_points = True
+    else:
+        no_points = False
     if _uses_dbat_features(*tables):
         _read_dbat_style(*tables, project)
     else:
         project.stations = _read_stations(tables[0], project)
-        project.points = _read_points(tables[1], project)
+        project.points = Points() if no_points else _read_points(tables[1], project)
         _read_observations(tables[2], project)
     _read_constraints(root.table("constraints", required=False), project)
     project.warnings = project.warnings + validate_project(project, src)
@@ -112,6 +120,33 @@ def read_project(path: str | Path) -> Project:
 # --------------------------------------------------------------------------
 # settings
 # --------------------------------------------------------------------------
+
+def _read_intersect(sec: Section | None, prj: Path) -> IntersectSettings:
+    """``[intersect]`` (see :class:`IntersectSettings`)."""
+    out = IntersectSettings()
+    if sec is None:
+        return out
+    sec.check_keys(INTERSECT_KEYS)
+    points = tuple(sec.ids("points", list(out.points)))
+    skis = tuple(sec.ids("skis", list(out.skis)))
+    if len(points) != 4:
+        raise sec.error("points", f"points in [intersect] must name 4 points, not {len(points)}",
+                        hint='points = ["P1", "P2", "P3", "P4"] (helmet, hip, right and left binding)')
+    if len(skis) != 2:
+        raise sec.error("skis", f"skis in [intersect] must name 2 lines, not {len(skis)}",
+                        hint='skis = ["L1", "L2"] (right and left ski)')
+    fraction = sec.number("binding_fraction", out.binding_fraction, positive=True, below=1.0)
+    orientation = None
+    if "orientation" in sec:
+        value = sec.data["orientation"]
+        folders = sec.ids("orientation") if isinstance(value, list) else [sec.string("orientation")]
+        orientation = [str(Path(f) if Path(f).is_absolute() else prj.parent / f) for f in folders]
+    return IntersectSettings(fps=sec.number("fps", out.fps, positive=True), points=points,
+                             skis=skis, ski_length=sec.number("ski_length", out.ski_length,
+                                                              positive=True),
+                             binding_fraction=fraction, orientation=orientation,
+                             swap_skis=sec.boolean("swap_skis", out.swap_skis))
+
 
 def _read_project_section(sec: Section, project: Project) -> None:
     sec.check_keys(PROJECT_KEYS)

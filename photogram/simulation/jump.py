@@ -123,3 +123,46 @@ def jump_observations(seed=JUMP_SEED, n_exposures=N_EXPOSURES, fps=FPS, sigma=SI
              "line": np.array(SKI_LINES)[l], "xy_true": xy,
              "xy": xy + rng.normal(0, sigma, xy.shape), "X_true": X}
     return truth, points, lines, st
+
+
+def jump_project(seed=JUMP_SEED, noise=True, n_exposures=N_EXPOSURES, fps=FPS):
+    """The simulated jump as an in-memory Project with the TRUE orientation
+    (field stations, nominal cameras), moving points ``P1@001`` ... and ski
+    lines ``L1@001`` ...; ``noise=False`` gives exact image coordinates.
+
+    Returns ``(project, truth)``.
+    """
+    from photogram.project.model import (
+        AdjustmentSettings, ImageLines, ImagePoints, IntersectSettings, Points, Project,
+        Stations, Units)
+    from photogram.simulation.designs import CAMERAS, _camera
+    truth, pts, lines, st = jump_observations(seed, n_exposures, fps)
+    key = "xy" if noise else "xy_true"
+    names = list(st["names"])
+    s_index = {n: i for i, n in enumerate(names)}
+    ids = [f"{p}@{e}" for p, e in zip(pts["point"], pts["exposure"])]
+    uniq = list(dict.fromkeys(ids))
+    p_index = {n: i for i, n in enumerate(uniq)}
+    project = Project(
+        name="jumps", units=Units(length="dm", angle="gon", image="px"),
+        cameras={c: _camera(c, CAMERAS[c]) for c in CAMERAS},
+        stations=Stations(names=names, camera=list(st["camera"]), position=st["X0"].copy(),
+                          angles=st["angles"].copy(), position_sigma=np.full((3, 3), np.nan),
+                          angle_sigma=np.full((3, 3), np.nan)),
+        points=Points(ids=uniq, kind=np.full(len(uniq), "tie", dtype=object),
+                      xyz=np.full((len(uniq), 3), np.nan), sigma=np.full((len(uniq), 3), np.nan),
+                      record=np.zeros(len(uniq), dtype=int)),
+        image_points=ImagePoints(station=np.array([s_index[s] for s in pts["station"]]),
+                                 point=np.array([p_index[i] for i in ids]), xy=pts[key].copy(),
+                                 sigma=np.full(len(ids), np.nan),
+                                 record=np.arange(len(ids)) + 2),
+        image_lines=ImageLines(station=np.array([s_index[s] for s in lines["station"]]),
+                               line=np.array([f"{l}@{e}" for l, e in
+                                              zip(lines["line"], lines["exposure"])], dtype=object),
+                               xy=lines[key].copy(), sigma=np.full(len(lines["line"]), np.nan),
+                               record=np.arange(len(lines["line"])) + 2),
+        adjustment=AdjustmentSettings(sigma_image=SIGMA_IMAGE),
+        intersect=IntersectSettings(fps=fps, ski_length=SKI_LENGTH / 10.0,
+                                    binding_fraction=BINDING_FRACTION))
+    truth["points_table"], truth["lines_table"], truth["stations"] = pts, lines, st
+    return project, truth

@@ -1,0 +1,132 @@
+"""`photogram intersect PROJECT`: jumper points and ski lines per exposure,
+the left/right ski check and the stick model with propagated sigmas.
+
+Writes into the output folder: ``exposures.csv`` (every stick-model
+parameter with its sigma, one row per exposure), ``points3d.csv`` (jumper
+points with sigmas), ``lines3d.csv`` (ski lines: point, direction, sigmas,
+segment), ``jump.trc`` (OpenSim markers, Y up), ``stick.png`` (the paper's
+Fig. 8), ``timeseries.png``, and the standard ``summary.json``,
+``points.csv``, ``residuals.csv``, ``log.txt``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from photogram.errors import InputError
+from photogram.io.trc import write_trc
+from photogram.jump.figure import plot_stick_figure, time_series_figure
+from photogram.jump.pipeline import intersect_jump, split_id
+from photogram.project.atomic import atomic_write_text
+
+
+def _orientation(project):
+    """(labels, matrix) summed over the results folders named in
+    ``[intersect] orientation`` (e.g. the lab's for the interior and the
+    field's for the exterior orientation), or None."""
+    from photogram.commands.bundle import read_orientation_covariance
+    where = project.intersect.orientation
+    if where is None:
+        return None
+    folders = list(where)
+    labels, blocks = [], []
+    for folder in folders:
+        path = Path(folder) / "covariance.npz"
+        if not path.is_file():
+            raise InputError("no covariance.npz in the orientation results folder", file=path,
+                             hint="run photogram orient (or calibrate) first, or remove "
+                                  "[intersect] orientation")
+        lab, mat = read_orientation_covariance(folder)
+        labels.append(lab)
+        blocks.append(mat)
+    union = list(dict.fromkeys(l for lab in labels for l in lab))
+    index = {l: i for i, l in enumerate(union)}
+    total = np.zeros((len(union), len(union)))
+    for lab, mat in zip(labels, blocks):
+        ix = np.array([index[l] for l in lab])
+        total[np.ix_(ix, ix)] += mat
+    return union, total
+
+
+def _points_table(result, unit):
+    rows = []
+    for e, exposure in enumerate(result.exposures):
+        for k, name in enumerate(result.project.intersect.points):
+            s = np.sqrt(np.clip(np.diag(result.cov_P[e])[3 * k:3 * k + 3], 0, None))
+            rows.append({"exposure": exposure, "time": result.times[e], "point": name,
+                         "X": result.P[e, k, 0], "Y": result.P[e, k, 1], "Z": result.P[e, k, 2],
+                         "sX": s[0], "sY": s[1], "sZ": s[2]})
+    return pd.DataFrame(rows)
+
+
+def _lines_table(result):
+    rows = []
+    for (exposure, ski), res in result.lines.items():
+        L = res.line
+        seg = res.segment
+        rows.append({"exposure": exposure, "line": ski,
+                     "X": L.point[0], "Y": L.point[1], "Z": L.point[2],
+                     "dX": L.direction[0], "dY": L.direction[1], "dZ": L.direction[2],
+                     "sigma_angle_rad": L.sigma_angle if L.covariance is not None else np.nan,
+                     "sigma_position": L.sigma_position if L.covariance is not None else np.nan,
+                     "stations": " ".join(res.stations), "sigma0": res.sigma0,
+                     "X1": seg[0, 0], "Y1": seg[0, 1], "Z1": seg[0, 2],
+                     "X2": seg[1, 0], "Y2": seg[1, 1], "Z2": seg[1, 2]})
+    return pd.DataFrame(rows)
+
+
+def _write_csv(path, frame):
+    atomic_write_text(path, frame.to_csv(index=False, float_format="%.10g"))
+
+
+def write_jump(folder, result, project):
+    """All files of the intersect step (atomically)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    unit = project.units.angle
+    _write_csv(folder / "exposures.csv", result.model.to_frame(angle_unit=unit))
+    _write_csv(folder / "points3d.csv", _points_table(result, project.units.length))
+    _write_csv(folder / "lines3d.csv", _lines_table(result))
+    to_m = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001}[project.units.length]
+    markers = {name: result.P[:, k] * to_m for k, name in enumerate(project.intersect.points)}
+    markers["O"] = result.model.O * to_m
+    for j, ski in enumerate(project.intersect.skis):
+        markers[f"{ski}_tail"] = result.model.skis[:, j, 0] * to_m
+        markers[f"{ski}_tip"] = result.model.skis[:, j, 1] * to_m
+    write_trc(folder / "jump.trc", result.times, markers, units="m")
+    plot_stick_figure(result.model, folder / "stick.png")
+    time_series_figure(result.model.to_frame(angle_unit=unit), folder / "timeseries.png")
+
+
+def intersect_and_write(project, output=None):
+    """Intersect the project and write its results folder; returns
+    ``(folder, result)`` with ``result.summary`` as in summary.json."""
+    from photogram.project.results import write_results
+    result = intersect_jump(project, _orientation(project))
+    folder = Path(output) if output else project.output_folder()
+    s = result.summary
+    summary = {"status": s["status"], "iterations": s["iterations"], "sigma0": s["sigma0"],
+               "redundancy": s["redundancy"], "command": "intersect",
+               "exposures": s["exposures"], "ski_checks": s["ski_checks"],
+               "swapped_skis": s["swapped_skis"], "warnings": s["warnings"],
+               "orientation_covariance": project.intersect.orientation}
+    write_results(folder, result.project, summary, point_sigma=result.point_sigma,
+                  log_text=json.dumps(summary, indent=1, default=str) + "\n")
+    write_jump(folder, result, project)
+    result.summary = summary
+    return folder, result
+
+
+def run(project, args=None):
+    """Command-line entry: intersect, write, print one line."""
+    folder, result = intersect_and_write(project)
+    if not getattr(args, "quiet", False):
+        s = result.summary
+        swapped = sum(1 for v in s["swapped_skis"].values() if v)
+        print(f"intersect: {s['exposures']} exposures, sigma0 {s['sigma0']:.4f}, "
+              f"{swapped} exposure(s) with interchanged skis; results in {folder}")
+    return 0

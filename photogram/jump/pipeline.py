@@ -1,0 +1,204 @@
+"""The ski-jump intersection step (ski-jump paper, section 4, step 3 and
+appendix C): with the interior and exterior orientation held fixed, the
+jumper points of every exposure are intersected by the one engine, the ski
+lines by :mod:`photogram.lines`, the left/right labels of the skis checked
+over the three views, and the stick model derived with propagated sigmas.
+
+Moving points are read with an ``exposure`` column (a point ``P1`` at
+exposure ``007`` is ``P1@007``, a ski line ``L1@007``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from photogram.adjust.build import build_problem
+from photogram.adjust.datum import check_datum
+from photogram.adjust.solver import SolverOptions, solve
+from photogram.errors import InputError
+from photogram.jump.stick import stick_model
+from photogram.lines import cameras_from_project, intersect_line_from_points
+from photogram.lines.skis import check_ski_labels, swap_labels
+from photogram.stats.covariance import cofactors, point_covariances
+from photogram.stats.propagation import orientation_sensitivity, propagate_orientation
+
+
+@dataclass
+class JumpResult:
+    """Everything the intersect step estimates."""
+
+    exposures: list                 # exposure ids, in time order
+    times: np.ndarray               # s
+    P: np.ndarray                   # (n, 4, 3) jumper points
+    cov_P: np.ndarray               # (n, 12, 12)
+    lines: dict                     # (exposure, ski) -> LineIntersection
+    ski_checks: dict                # exposure -> SkiCheck
+    model: object                   # StickModel
+    project: object                 # the project with the estimated points
+    point_sigma: np.ndarray = None  # (n_points, 3) of every point of the project
+    summary: dict = field(default_factory=dict)
+
+
+def split_id(ident: str) -> tuple[str, str]:
+    """``"P1@007"`` -> ``("P1", "007")``; ids without an exposure -> (id, "")."""
+    name, _, exposure = str(ident).partition("@")
+    return name, exposure
+
+
+def _exposure_order(exposures):
+    """Exposure ids in time order, and their frame numbers (numeric ids are
+    frame numbers; others are taken in order of appearance)."""
+    ids = list(dict.fromkeys(exposures))
+    try:
+        frames = np.array([int(e) for e in ids])
+        order = np.argsort(frames, kind="stable")
+        return [ids[i] for i in order], frames[order]
+    except ValueError:
+        return ids, np.arange(len(ids))
+
+
+def intersect_points(project, orientation=None):
+    """Intersect every point of the project with fixed orientation.
+
+    Returns
+    -------
+    project : Project with the estimated coordinates
+    cov : (n_points, 3, 3) covariance from the image sigmas, plus the
+        orientation's contribution when ``orientation = (labels, matrix)``
+    joint : (3 n_points, 3 n_points) or None, the orientation part (points
+        of different exposures are correlated through it)
+    summary : dict (status, iterations, sigma0, redundancy)
+    """
+    from photogram.commands.bundle import approximate_if_needed
+    summary = {"warnings": []}
+    project = approximate_if_needed(project, summary)
+    built = build_problem(project, fix_interior=True, fix_stations=True)
+    check_datum(built.problem, built.present)
+    s = solve(built.problem, SolverOptions(max_iterations=project.adjustment.max_iterations,
+                                           tolerance=project.adjustment.tolerance))
+    cof = cofactors(built.problem)
+    cov = point_covariances(cof)                  # a-priori image sigmas (sigma0 = 1)
+    joint = None
+    if orientation is not None:
+        labels, matrix = orientation
+        S = orientation_sensitivity(built.problem, project, built.camera_names, labels)
+        joint = propagate_orientation(S, matrix)
+        n = len(project.points)
+        idx = np.arange(n)
+        cov = cov + joint.reshape(n, 3, n, 3)[idx, :, idx, :]
+    out = _copy_with_points(project, built.problem.state.points)
+    summary.update({"status": s.status, "iterations": s.iterations, "sigma0": s.sigma0,
+                    "redundancy": s.redundancy, "message": s.message})
+    return out, cov, joint, summary
+
+
+def _copy_with_points(project, xyz):
+    import copy
+    out = copy.deepcopy(project)
+    out.points.xyz = np.asarray(xyz, dtype=float).copy()
+    return out
+
+
+def _lines_by_exposure(project):
+    """``{exposure: {station: {ski: xy (k, 2)}}}`` from the image lines."""
+    il = project.image_lines
+    names = project.stations.names
+    out: dict = {}
+    for lab in dict.fromkeys(il.line.tolist()):
+        ski, exposure = split_id(lab)
+        rows = il.line == lab
+        for s in np.unique(il.station[rows]):
+            m = rows & (il.station == s)
+            out.setdefault(exposure, {}).setdefault(names[int(s)], {})[ski] = il.xy[m]
+    return out
+
+
+def _station_sigmas(project):
+    sig = project.adjustment.sigma_image
+    cams = project.stations.camera
+    return {n: (sig[c] if isinstance(sig, dict) else sig)
+            for n, c in zip(project.stations.names, cams)}
+
+
+def intersect_jump(project, orientation=None) -> JumpResult:
+    """The whole intersect step for a project with exposures.
+
+    Parameters
+    ----------
+    project : Project
+        Cameras and stations with their (adjusted) orientation; jumper
+        points and ski lines measured with an exposure column; settings in
+        ``project.intersect``.
+    orientation : (labels, matrix), optional
+        Covariance of the orientation to propagate into the points
+        (covariance.npz of calibrate/orient results).
+    """
+    cfg = project.intersect
+    adjusted, cov, joint, summary = intersect_points(project, orientation)
+    pidx = adjusted.points.index()
+    moving = [split_id(i) for i in adjusted.points.ids if "@" in i]
+    exposures, frames = _exposure_order([e for _, e in moving])
+    if not exposures:
+        raise InputError("no exposures: the image points table has no 'exposure' column",
+                         file=project.sources.get("image_points"),
+                         hint="add a column exposure with the frame number of every measurement")
+    n = len(exposures)
+    P = np.full((n, 4, 3), np.nan)
+    cov_P = np.zeros((n, 12, 12))
+    for k, name in enumerate(cfg.points):
+        for e, exposure in enumerate(exposures):
+            i = pidx.get(f"{name}@{exposure}")
+            if i is not None:
+                P[e, k] = adjusted.points.xyz[i]
+                cov_P[e, 3 * k:3 * k + 3, 3 * k:3 * k + 3] = cov[i]
+    if joint is not None:                                  # within-exposure correlations
+        n_p = len(adjusted.points)
+        J = joint.reshape(n_p, 3, n_p, 3)
+        for e, exposure in enumerate(exposures):
+            ids = [pidx.get(f"{nm}@{exposure}") for nm in cfg.points]
+            for a, ia in enumerate(ids):
+                for b, ib in enumerate(ids):
+                    if ia is not None and ib is not None and a != b:
+                        cov_P[e, 3 * a:3 * a + 3, 3 * b:3 * b + 3] = J[ia, :, ib, :]
+
+    cameras = cameras_from_project(adjusted)
+    sig = _station_sigmas(project)
+    by_exposure = _lines_by_exposure(project)
+    checks, lines = {}, {}
+    d = np.full((n, 2, 3), np.nan)
+    c = np.full((n, 2, 3), np.nan)
+    cov_d = np.zeros((n, 2, 3, 3))
+    for e, exposure in enumerate(exposures):
+        views = by_exposure.get(exposure)
+        if not views:
+            continue
+        complete = {st: v for st, v in views.items() if all(s in v for s in cfg.skis)}
+        if len(complete) >= 3:
+            check = check_ski_labels(complete, cameras, sig, labels=tuple(cfg.skis),
+                                     exposure=exposure)
+            checks[exposure] = check
+            if check.status == "swapped":
+                summary["warnings"].append(check.message)
+                if cfg.swap_skis:
+                    views = {**views, **swap_labels(complete, check)}
+        for j, ski in enumerate(cfg.skis):
+            pts = {st: v[ski] for st, v in views.items() if ski in v}
+            res = intersect_line_from_points(pts, cameras, sig, label=f"{ski}@{exposure}")
+            lines[(exposure, ski)] = res
+            d[e, j] = res.line.direction
+            c[e, j] = res.line.point
+            if res.line.covariance is not None:
+                cov_d[e, j] = res.line.covariance_plucker[:3, :3]
+    times = (frames - frames[0]) / cfg.fps
+    model = stick_model(P, d[:, 0], d[:, 1], fps=cfg.fps, times=times,
+                        length_unit=project.units.length, ski_length=cfg.ski_length,
+                        binding_fraction=cfg.binding_fraction, c1=c[:, 0], c2=c[:, 1],
+                        forward="flight", cov_points=cov_P, cov_dirs=cov_d)
+    summary["exposures"] = n
+    summary["swapped_skis"] = {e: ch.swapped for e, ch in checks.items() if ch.status == "swapped"}
+    summary["ski_checks"] = {e: ch.status for e, ch in checks.items()}
+    point_sigma = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0, None))
+    return JumpResult(exposures, times, P, cov_P, lines, checks, model, adjusted, point_sigma,
+                      summary)
