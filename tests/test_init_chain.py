@@ -15,6 +15,7 @@ from photogram.init.chain import ChainReport, approximate, to_ideal
 from photogram.init.helmert import helmert
 from photogram.init.intersection import project_ideal
 from photogram.project.model import Camera, ImagePoints, Parameter, Points, Project, Stations
+from photogram.simulation.network import look_at as simulated_look_at
 
 DBAT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "dbat"
 CAMCAL = DBAT / "camcal"
@@ -26,11 +27,8 @@ TARGET = np.array([0.25, 0.25, 0.15])
 
 
 def look_at(X0, target=TARGET, up=(0.0, 0.0, 1.0)):
-    r3 = np.asarray(X0, float) - target
-    r3 /= np.linalg.norm(r3)
-    r1 = np.cross(up, r3)
-    r1 /= np.linalg.norm(r1)
-    return np.array([r1, np.cross(r3, r1), r3])
+    """World-to-camera rotation of one camera at X0 looking at target."""
+    return simulated_look_at(X0, target, up)[0]
 
 
 def ring_stations(n=6, radius=3.0, height=1.0, phase=0.0):

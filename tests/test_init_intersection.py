@@ -7,18 +7,15 @@ import pytest
 from photogram.errors import GeometryError
 from photogram.init.intersection import (intersect, intersect_points, max_intersection_angles,
                                          project_ideal, ray_directions)
+from photogram.simulation.network import look_at as simulated_look_at
 
 C = 1420.0                      # px, 640 x 480 images
 TARGET = np.array([0.25, 0.25, 0.15])
 
 
 def look_at(X0, target=TARGET, up=(0.0, 0.0, 1.0)):
-    """World-to-camera rotation of a camera at X0 looking at target (-z axis)."""
-    r3 = np.asarray(X0, float) - target
-    r3 /= np.linalg.norm(r3)
-    r1 = np.cross(up, r3)
-    r1 /= np.linalg.norm(r1)
-    return np.array([r1, np.cross(r3, r1), r3])
+    """World-to-camera rotation of one camera at X0 looking at target."""
+    return simulated_look_at(X0, target, up)[0]
 
 
 def three_cameras():

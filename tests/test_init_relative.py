@@ -11,17 +11,15 @@ from photogram.geometry import matrix_to_rodrigues
 from photogram.init.intersection import project_ideal
 from photogram.init.relative import (decompose_essential, eight_point, relative_orientation,
                                      rotation_only_fit)
+from photogram.simulation.network import look_at as simulated_look_at
 
 C = 1420.0
 TARGET = np.array([0.25, 0.25, 0.15])
 
 
 def look_at(X0, target=TARGET, up=(0.0, 0.0, 1.0)):
-    r3 = np.asarray(X0, float) - target
-    r3 /= np.linalg.norm(r3)
-    r1 = np.cross(up, r3)
-    r1 /= np.linalg.norm(r1)
-    return np.array([r1, np.cross(r3, r1), r3])
+    """World-to-camera rotation of one camera at X0 looking at target."""
+    return simulated_look_at(X0, target, up)[0]
 
 
 STATIONS = np.array([[-1.5, -2.5, 1.5], [0.3, -3.2, 2.0], [2.2, -1.8, 1.2]])
