@@ -252,13 +252,16 @@ def run(project, *, command, output=None, fix_interior=False):
 
 def _write_covariance(path, result):
     """covariance.npz: ``labels`` and ``matrix`` of the joint covariance of
-    interior and exterior orientation (angles in radians), written
-    atomically."""
+    interior and exterior orientation (angles in radians), and
+    ``point_ids`` with ``point_covariance`` (n, 3, 3) of every point (for
+    error ellipses); written atomically."""
     import io
     from photogram.project.atomic import atomic_write_bytes
     buf = io.BytesIO()
     np.savez(buf, labels=np.array(result.covariances["orientation_labels"]),
-             matrix=result.covariances["orientation"])
+             matrix=result.covariances["orientation"],
+             point_ids=np.array(result.project.points.ids, dtype=str),
+             point_covariance=result.covariances["points"])
     atomic_write_bytes(path, buf.getvalue())
 
 
