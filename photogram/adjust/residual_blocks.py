@@ -72,12 +72,6 @@ class ImagePointBlock(ResidualBlock):
                                       state.X0[self.station], io)
         return e, [jac["X"], np.concatenate([jac["X0"], jac["rotation"]], axis=2), jac["io"]]
 
-    def project(self, state):
-        """Forward projection of the observed points (for reports)."""
-        io = np.stack([state.io[k] for k in self.cameras])[self.camera]
-        return self.model.project(state.points[self.point], matrix_to_opk(state.R[self.station]),
-                                  state.X0[self.station], io)
-
 
 class PointPriorBlock(ResidualBlock):
     """Reference coordinates as weighted observations (appendix D.1,
