@@ -1,5 +1,22 @@
-"""Readers and writers of foreign formats (DBAT, ...).
+"""Readers and writers of foreign formats (docs/interoperability.md).
 
-Each format lives in its own module (``photogram.io.dbat``, ...) and builds
-or reads the dataclasses of :mod:`photogram.project.model`.
+Each format lives in its own module and builds or reads the dataclasses of
+:mod:`photogram.project.model`:
+
+=====================  ==========================================================
+``dbat``               DBAT tables and camera XML (read in place by .prj files)
+``dbat_script``        DBAT XML scripts -> project
+``pmexport``           PhotoModeler text exports (DBAT's loadpm layout) -> project
+``pose2sim``           Pose2Sim / anipose calibration TOML, both ways
+``opencv_fs``          OpenCV FileStorage calibration (YAML/XML/JSON), both ways
+``colmap``             COLMAP text models, both ways
+``bal``                BAL problem files and the engine's BAL mode
+``bal_import``         BAL problems (read by ``bal``) -> project
+``ply``                object points with sigmas (PLY)
+``trc``                OpenSim marker files
+``trajectories``       TRC, C3D, OpenSim .mot and CSV from intersect results
+``targets``            chessboard / ChArUco / circle-grid images -> calibration project
+``exchange``           what they share: OpenCV views, project folders, results
+``formats``            the registry behind ``photogram import`` / ``photogram export``
+=====================  ==========================================================
 """

@@ -1,0 +1,548 @@
+"""What the converters share: OpenCV-style views, project folders, results.
+
+Every foreign camera format of the computer-vision world (Pose2Sim/anipose,
+OpenCV FileStorage, COLMAP, BAL) describes a camera station as intrinsics
+``K``, distortion coefficients and an OpenCV pose ``x_cv = R_cv X + t_cv``
+(camera looking along +z, y down). :class:`View` holds exactly that; the
+conversion to photogram's photogrammetric pose is
+(docs/camera-models.md, section 1)::
+
+    R = diag(1,-1,-1) R_cv        X0 = -R_cv^T t_cv
+
+and a camera of model ``opencv`` (fx fy cx cy k1 k2 p1 p2 k3) is OpenCV's
+own model, so intrinsics convert without loss. A ``brown`` camera is fitted
+(:func:`photogram.geometry.fit_distortion`) on export and the misfit is
+reported.
+
+Import side: :func:`build_project` and :func:`save_project` (a new project
+folder; existing files are never replaced; every file written atomically).
+Export side: :func:`load_source` reads a results folder (or a .prj) back into
+a :class:`~photogram.project.model.Project` with the a-posteriori sigmas, and
+:func:`views_of` turns its stations into :class:`View` objects.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.project.atomic import atomic_write_bytes, atomic_write_text
+from photogram.project.model import (LENGTH_UNITS, Camera, ImagePoints, Parameter, Points,
+                                     Project, Stations, Units)
+
+__all__ = ["View", "LineText", "opencv_camera", "cv_to_station", "station_to_cv",
+           "build_project", "save_project", "save_calibration", "load_source", "views_of",
+           "opencv_intrinsics", "write_new_text", "write_new_bytes", "check_new_file",
+           "ExportSource"]
+
+log = logging.getLogger("photogram")
+
+OPENCV_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
+FLIP = np.diag([1.0, -1.0, -1.0])
+
+
+@dataclass
+class View:
+    """One camera station in OpenCV terms.
+
+    ``K`` (3, 3), ``dist`` OpenCV's coefficient vector (k1, k2, p1, p2[, k3]),
+    ``R_cv``/``t_cv`` the world-to-camera pose of the OpenCV camera frame;
+    ``image_size`` (width, height) in px or None.
+    """
+
+    name: str
+    camera: str
+    K: np.ndarray
+    dist: np.ndarray
+    R_cv: np.ndarray
+    t_cv: np.ndarray
+    image_size: tuple[int, int] | None = None
+    extra: dict = field(default_factory=dict)
+
+    def project(self, X) -> np.ndarray:
+        """Pixel coordinates of world points (n, 3) by cv2.projectPoints."""
+        import cv2
+        from photogram.geometry import matrix_to_rodrigues
+        X = np.asarray(X, dtype=float).reshape(-1, 1, 3)
+        xy, _ = cv2.projectPoints(X, matrix_to_rodrigues(self.R_cv), self.t_cv.reshape(3, 1),
+                                  self.K, self.dist)
+        return xy.reshape(-1, 2)
+
+
+class LineText:
+    """The lines of a text file with 1-based numbers, for readers that must
+    name the line of every error."""
+
+    def __init__(self, path, what: str):
+        self.path = Path(path)
+        self.what = what
+        try:
+            data = self.path.read_bytes()
+        except OSError as exc:
+            raise InputError(f"cannot read {what}: {exc.strerror or exc}", file=self.path) \
+                from None
+        try:
+            text = data.decode("utf-8-sig")
+        except UnicodeDecodeError as exc:
+            line = data[:exc.start].count(b"\n") + 1
+            raise InputError(f"{what} is not UTF-8 text", file=self.path, line=line) from None
+        self.lines = text.splitlines()
+
+    def error(self, line: int | None, what: str, hint: str | None = None) -> InputError:
+        return InputError(what, file=self.path, line=line, hint=hint)
+
+    def numbers(self, line: int, fields, count: int | None = None, what: str = "values",
+                minimum: int | None = None, allow_nan: bool = False) -> list[float]:
+        """Parse ``fields`` (strings) as floats; wrong count or text is an error."""
+        if count is not None and len(fields) != count:
+            raise self.error(line, f"expected {count} {what}, found {len(fields)}",
+                             hint="the file is truncated or not in the expected layout")
+        if minimum is not None and len(fields) < minimum:
+            raise self.error(line, f"expected at least {minimum} {what}, found {len(fields)}",
+                             hint="the file is truncated or not in the expected layout")
+        out = []
+        for f in fields:
+            try:
+                v = float(f)
+            except ValueError:
+                raise self.error(line, f"{f!r} is not a number ({what})") from None
+            if not np.isfinite(v) and not (allow_nan and np.isnan(v)):
+                raise self.error(line, f"{f!r} is not a finite number ({what})")
+            out.append(v)
+        return out
+
+
+# --------------------------------------------------------------------------
+# cameras and poses
+# --------------------------------------------------------------------------
+
+def opencv_camera(name: str, K, dist, image_size=None, *, source: str | None = None,
+                  file=None, line=None, free: bool = False) -> Camera:
+    """A camera of model ``opencv`` from a camera matrix and OpenCV's
+    distortion vector.
+
+    ``dist`` may have 0, 4, 5, 8, 12 or 14 coefficients; beyond k3 (the
+    rational and thin-prism terms) they must be zero, since the ``opencv``
+    model does not have them. A skewed ``K`` (``K[0, 1] != 0``) is refused.
+    """
+    K = np.asarray(K, dtype=float)
+    if K.shape != (3, 3):
+        raise InputError(f"camera {name}: the camera matrix must be 3 x 3, got {K.shape}",
+                         file=file, line=line)
+    if not np.all(np.isfinite(K)):
+        raise InputError(f"camera {name}: the camera matrix holds NaN or infinity",
+                         file=file, line=line)
+    if abs(K[0, 1]) > 1e-12 * abs(K[0, 0]) or np.any(K[1:, 0] != 0) or K[2, 1] != 0 \
+            or K[2, 2] != 1:
+        raise InputError(f"camera {name}: the camera matrix is not [[fx, 0, cx], [0, fy, cy], "
+                         f"[0, 0, 1]] (skew or scaling)", file=file, line=line,
+                         hint="photogram's opencv model has no skew; normalise K[2, 2] to 1")
+    d = np.zeros(5)
+    dist = np.asarray(dist if dist is not None else [], dtype=float).ravel()
+    if dist.size not in (0, 4, 5, 8, 12, 14):
+        raise InputError(f"camera {name}: {dist.size} distortion coefficients; OpenCV uses "
+                         f"4, 5, 8, 12 or 14", file=file, line=line)
+    if dist.size > 5 and np.any(dist[5:] != 0):
+        raise InputError(f"camera {name}: rational or thin-prism distortion (k4 ... ) is not "
+                         f"supported", file=file, line=line,
+                         hint="recalibrate with k1, k2, p1, p2, k3 only")
+    d[:min(5, dist.size)] = dist[:5]
+    values = [K[0, 0], K[1, 1], K[0, 2], K[1, 2], *d]
+    size = None if image_size is None else (int(round(image_size[0])), int(round(image_size[1])))
+    params = {n: Parameter(value=float(v), free=free) for n, v in zip(OPENCV_NAMES, values)}
+    return Camera(name=name, model="opencv", parameters=params, image_size=size, source=source)
+
+
+def cv_to_station(R_cv, t_cv) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV pose -> (omega-phi-kappa radians of the world-to-camera R, X0)."""
+    from photogram.geometry import matrix_to_opk, photogrammetric_pose
+    R, X0 = photogrammetric_pose(np.asarray(R_cv, float), np.asarray(t_cv, float).ravel())
+    return matrix_to_opk(R), np.asarray(X0, float).ravel()
+
+
+def station_to_cv(angles, X0) -> tuple[np.ndarray, np.ndarray]:
+    """(angles, X0) of a station -> OpenCV (R_cv, t_cv)."""
+    from photogram.geometry import opencv_pose, opk_to_matrix
+    R_cv, t_cv = opencv_pose(opk_to_matrix(np.asarray(angles, float)), np.asarray(X0, float))
+    return np.asarray(R_cv, float), np.asarray(t_cv, float).ravel()
+
+
+def opencv_intrinsics(camera: Camera, image_unit: str = "px",
+                      tolerance: float = 0.01) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(K, dist(5), misfit_px)`` of a camera in OpenCV terms.
+
+    ``opencv`` cameras convert exactly (misfit 0). ``brown`` cameras are
+    converted by the exact pinhole part plus a least-squares fit of k1, k2,
+    p1, p2, k3 over the format (:func:`photogram.geometry.fit_distortion`);
+    the RMS misfit in px is returned and logged when above ``tolerance``.
+    Cameras in mm are converted to px with their pixel size.
+    """
+    from photogram.geometry import (brown_to_opencv, camera_model, fit_distortion,
+                                    rescale_parameters)
+    values = camera.values()
+    if image_unit == "mm":
+        if camera.pixel_size is None or camera.pixel_size[0] != camera.pixel_size[1]:
+            raise InputError(f"camera {camera.name} is in mm and needs a square pixel_size "
+                             f"to be exported in pixels")
+        values = rescale_parameters(camera.model, values, 1.0 / camera.pixel_size[0])
+    misfit = 0.0
+    if camera.model == "opencv":
+        p = values
+    elif camera.model == "brown":
+        pin = brown_to_opencv(values, strict=False)
+        if np.any(values[3:8] != 0) or values[9] != 0:
+            if camera.image_size is None:
+                raise InputError(f"camera {camera.name} (brown) needs image_size to fit "
+                                 f"OpenCV's distortion over the format")
+            p, misfit = fit_distortion("brown", values, "opencv", camera.image_size,
+                                       target_params=pin)
+            p = np.asarray(p, float)
+        else:
+            p = pin
+        if misfit > tolerance:
+            log.warning("camera %s: brown -> opencv distortion fit leaves %.3g px RMS",
+                        camera.name, misfit)
+    elif camera.model == "bal":
+        # xy = f (1 + k1 r2 + k2 r2^2) t about the image centre: OpenCV with cx = cy = 0
+        p = np.array([values[0], values[0], 0.0, 0.0, values[1], values[2], 0.0, 0.0, 0.0])
+    else:
+        camera_model(camera.model)
+        raise InputError(f"camera {camera.name}: model {camera.model} cannot be exported")
+    K = np.array([[p[0], 0.0, p[2]], [0.0, p[1], p[3]], [0.0, 0.0, 1.0]])
+    return K, np.array(p[4:9], float), float(misfit)
+
+
+# --------------------------------------------------------------------------
+# projects
+# --------------------------------------------------------------------------
+
+def _nan3(n: int) -> np.ndarray:
+    return np.full((n, 3), np.nan)
+
+
+def build_project(name: str, cameras: dict[str, Camera], *, stations=(), station_camera=(),
+                  angles=None, X0=None, point_ids=(), kinds=None, xyz=None, point_sigma=None,
+                  obs_station=(), obs_point=(), obs_xy=None, obs_sigma=None,
+                  length_unit: str = "m", angle_unit: str = "deg", image_unit: str = "px",
+                  datum: str = "free", sigma_image: float = 1.0) -> Project:
+    """A :class:`Project` from plain lists (ids as text, angles in radians,
+    world-to-camera; observations by station and point id)."""
+    names = [str(s) for s in stations]
+    n = len(names)
+    st = Stations(names=names, camera=[str(c) for c in station_camera],
+                  position=_nan3(n) if X0 is None else np.asarray(X0, float).reshape(n, 3),
+                  angles=_nan3(n) if angles is None else np.asarray(angles, float).reshape(n, 3),
+                  position_sigma=_nan3(n), angle_sigma=_nan3(n),
+                  record=np.zeros(n, dtype=int))
+    ids = [str(p) for p in point_ids]
+    m = len(ids)
+    pts = Points(ids=ids, kind=np.array(kinds if kinds is not None else ["tie"] * m,
+                                         dtype=object),
+                 xyz=_nan3(m) if xyz is None else np.asarray(xyz, float).reshape(m, 3),
+                 sigma=_nan3(m) if point_sigma is None else
+                 np.asarray(point_sigma, float).reshape(m, 3),
+                 record=np.zeros(m, dtype=int))
+    sidx = {s: i for i, s in enumerate(names)}
+    pidx = {p: i for i, p in enumerate(ids)}
+    k = len(obs_station)
+    obs = ImagePoints(
+        station=np.array([sidx[str(s)] for s in obs_station], dtype=int),
+        point=np.array([pidx[str(p)] for p in obs_point], dtype=int),
+        xy=np.zeros((0, 2)) if obs_xy is None else np.asarray(obs_xy, float).reshape(k, 2),
+        sigma=np.full(k, np.nan) if obs_sigma is None else np.asarray(obs_sigma, float),
+        record=np.zeros(k, dtype=int))
+    project = Project(name=name, units=Units(length=length_unit, angle=angle_unit,
+                                             image=image_unit),
+                      cameras=dict(cameras), stations=st, points=pts, image_points=obs)
+    project.adjustment.datum = datum
+    project.adjustment.sigma_image = float(sigma_image)
+    return project
+
+
+def save_project(project: Project, folder, name: str | None = None) -> Path:
+    """Write ``project`` as ``FOLDER/NAME.prj`` with its tables beside it.
+
+    The folder is created if needed. Nothing is replaced: an existing file
+    of the same name, or another .prj in the folder (a folder holds one
+    project), is an error. Every file is written atomically, the .prj last.
+    """
+    from photogram.project.writer import write_project
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise InputError("is a file, not a folder", file=folder,
+                         hint="give a new or empty folder with --to")
+    others = sorted(folder.glob("*.prj")) if folder.is_dir() else []
+    if others:
+        raise InputError(f"the folder already holds a project ({others[0].name})", file=folder,
+                         hint="import into a new folder; existing files are never replaced")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the folder: {exc.strerror}", file=folder) from None
+    stem = _safe_stem(name or project.name or folder.name)
+    project.name = project.name or stem
+    return write_project(project, folder / f"{stem}.prj", overwrite=False)
+
+
+def save_calibration(project: Project, folder, name: str | None = None) -> Path:
+    """Write a project that has cameras and stations but no measurements yet
+    (a calibration from Pose2Sim, OpenCV, ...).
+
+    A .prj cannot be read without image points, so the folder gets what a
+    results folder gives a later project (docs/interoperability.md):
+
+    * ``cameras.toml``: the cameras (``[cameras.NAME] from = "cameras.toml"``),
+    * ``stations.csv``: the stations with their orientation (degrees,
+      world-to-camera, the project's length unit),
+    * ``NAME.prj`` taking both, with an empty ``points.csv`` and
+      ``image_points.csv`` (header only) to be filled with measurements;
+      ``photogram check`` says so until they are.
+
+    Exports read such a folder directly (:func:`load_source`). Nothing is
+    replaced; every file is written atomically, the .prj last.
+    """
+    import photogram
+    from photogram.project.camera_schema import camera_to_toml
+    from photogram.project.tables import format_table
+    from photogram.project.toml_writer import dumps
+    from photogram.project.writer import project_section, station_columns
+    folder = Path(folder)
+    others = sorted(folder.glob("*.prj")) if folder.is_dir() else []
+    if folder.exists() and not folder.is_dir():
+        raise InputError("is a file, not a folder", file=folder,
+                         hint="give a new or empty folder with --to")
+    if others:
+        raise InputError(f"the folder already holds a project ({others[0].name})", file=folder,
+                         hint="import into a new folder; existing files are never replaced")
+    stem = _safe_stem(name or project.name or folder.name)
+    project.name = project.name or stem
+    project.rotation_direction = "world_to_camera"
+    files = {"cameras.toml": None, "stations.csv": None, "points.csv": None,
+             "image_points.csv": None, f"{stem}.prj": None}
+    for f in files:
+        if (folder / f).exists():
+            raise InputError("file exists", file=folder / f,
+                             hint="import into a new folder; existing files are never replaced")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the folder: {exc.strerror}", file=folder) from None
+    sec = project_section(project)
+    sec.pop("rotation", None)
+    sec["software_version"] = photogram.__version__
+    doc = {"project": sec,
+           "cameras": {n: camera_to_toml(c) for n, c in project.cameras.items()}}
+    src = {c.source for c in project.cameras.values() if c.source}
+    files["cameras.toml"] = dumps(doc, header="cameras imported by photogram " +
+                                  photogram.__version__ +
+                                  (f" from {sorted(src)[0]}" if src else ""))
+    files["stations.csv"] = format_table(station_columns(project))
+    files["points.csv"] = format_table({"id": [], "kind": [], "X": [], "Y": [], "Z": []},
+                                       comment="object points: id,kind (control/check/tie),X,Y,Z")
+    files["image_points.csv"] = format_table(
+        {"station": [], "point": [], "x": [], "y": [], "sigma": []},
+        comment="image measurements (px): add one row per measured point")
+    prj = {"project": project_section(project),
+           "cameras": {n: {"from": "cameras.toml"} for n in project.cameras},
+           "stations": {"file": "stations.csv"}, "points": {"file": "points.csv"},
+           "observations": {"points": "image_points.csv"},
+           "adjustment": {"datum": "control"}, "output": {"folder": "results"}}
+    files[f"{stem}.prj"] = dumps(prj, header="imported by photogram: cameras and stations "
+                                             "are in cameras.toml and stations.csv;\n"
+                                             "add object points and image measurements "
+                                             "before running a command")
+    for f, text in files.items():
+        atomic_write_text(folder / f, text)
+    return folder / f"{stem}.prj"
+
+
+def _safe_stem(name: str) -> str:
+    import re
+    s = re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("._")
+    return s or "project"
+
+
+def check_new_file(path, force: bool = False) -> Path:
+    """Refuse to replace an existing file unless ``force``; the folder must exist."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError("is a folder", file=path, hint="give the path of the file to write")
+    if path.exists() and not force:
+        raise InputError("file exists", file=path,
+                         hint="choose another name, or pass --force to replace it")
+    if not path.parent.is_dir():
+        raise InputError("the folder does not exist", file=path.parent, hint="create it first")
+    return path
+
+
+def write_new_text(path, text: str, force: bool = False) -> Path:
+    """:func:`check_new_file`, then write atomically."""
+    return atomic_write_text(check_new_file(path, force), text)
+
+
+def write_new_bytes(path, data: bytes, force: bool = False) -> Path:
+    return atomic_write_bytes(check_new_file(path, force), data)
+
+
+# --------------------------------------------------------------------------
+# export sources: results folders (or projects)
+# --------------------------------------------------------------------------
+
+@dataclass
+class ExportSource:
+    """What an exporter reads: a project with estimated values, the
+    a-posteriori sigmas (NaN where unknown) and where it came from."""
+
+    project: Project
+    point_sigma: np.ndarray
+    station_sigma: np.ndarray
+    folder: Path
+    summary: dict = field(default_factory=dict)
+    results: object = None                     # photogram.project.Results or None
+
+    @property
+    def metres(self) -> float:
+        """Metres per length unit of the project."""
+        return LENGTH_UNITS[self.project.units.length]
+
+
+def load_source(path) -> ExportSource:
+    """Read a results folder (summary.json, cameras.toml, stations.csv,
+    points.csv) or a project (.prj, or a folder holding one) for export.
+
+    Angles are converted to radians, world-to-camera; the a-posteriori
+    sigmas come from the ``est_s*`` columns.
+    """
+    path = Path(path)
+    if path.is_dir() and (path / "summary.json").is_file():
+        return _from_results(path)
+    from photogram.project import read_project
+    if not path.exists():
+        raise InputError("not found", file=path,
+                         hint="give a results folder (with summary.json) or a .prj")
+    folder = path if path.is_dir() else path.parent
+    try:
+        project = read_project(path)
+    except InputError:
+        if (folder / "cameras.toml").is_file() and (folder / "stations.csv").is_file():
+            return _from_calibration(folder)
+        raise
+    n, m = len(project.stations), len(project.points)
+    return ExportSource(project=project, point_sigma=np.full((m, 3), np.nan),
+                        station_sigma=np.full((n, 6), np.nan), folder=project.folder)
+
+
+def _from_calibration(folder: Path) -> ExportSource:
+    """A folder with cameras.toml and stations.csv (see :func:`save_calibration`)."""
+    import tomllib
+    from photogram.project.camera_schema import load_cameras_file
+    from photogram.project.tables import read_table
+    unit, cameras = load_cameras_file(folder / "cameras.toml")
+    info = tomllib.loads((folder / "cameras.toml").read_text(encoding="utf-8-sig")).get(
+        "project", {})
+    angle = info.get("angle_unit", "deg")
+    table = read_table(folder / "stations.csv", required=("station", "camera"),
+                       optional=("X0", "Y0", "Z0", "omega", "phi", "kappa"),
+                       what="stations table")
+    names, cams = table.text("station"), table.text("camera")
+    for k, c in enumerate(cams):
+        if c not in cameras:
+            raise table.error(k, f"unknown camera '{c}' for station {names[k]}",
+                              hint="the camera must be in cameras.toml")
+    X0 = np.column_stack([table.floats(c) for c in ("X0", "Y0", "Z0")])
+    ang = np.column_stack([table.angles(c, angle) for c in ("omega", "phi", "kappa")])
+    if info.get("rotation_direction") == "camera_to_world":
+        from photogram.project import invert_opk
+        ang = invert_opk(ang)
+    project = build_project(str(info.get("name") or folder.name), cameras, stations=names,
+                            station_camera=cams, angles=ang, X0=X0,
+                            length_unit=info.get("length_unit", "m"), angle_unit=angle,
+                            image_unit=unit)
+    n = len(names)
+    return ExportSource(project=project, point_sigma=np.zeros((0, 3)),
+                        station_sigma=np.full((n, 6), np.nan), folder=folder)
+
+
+def _column(frame, name, n, default=np.nan) -> np.ndarray:
+    if name in frame.columns:
+        return frame[name].to_numpy(dtype=float)
+    return np.full(n, default)
+
+
+def _from_results(folder: Path) -> ExportSource:
+    from photogram.geometry import to_radians
+    from photogram.project import invert_opk, read_results
+    res = read_results(folder)
+    info = res.summary.get("project") or {}
+    length = info.get("length_unit", "m")
+    angle = info.get("angle_unit", "deg")
+    direction = info.get("rotation_direction", "world_to_camera")
+    if length not in LENGTH_UNITS:
+        raise InputError(f"unknown length unit {length!r} in summary.json",
+                         file=folder / "summary.json")
+    st = res.stations
+    n = len(st)
+    names = [str(s) for s in st["station"]] if n else []
+    cams = [str(c) for c in st["camera"]] if n else []
+    X0 = np.column_stack([_column(st, c, n) for c in ("X0", "Y0", "Z0")]) if n else \
+        np.zeros((0, 3))
+    ang = np.column_stack([_column(st, c, n) for c in ("omega", "phi", "kappa")]) if n else \
+        np.zeros((0, 3))
+    ang = to_radians(ang, angle)
+    if direction == "camera_to_world" and n:
+        ang = invert_opk(ang)
+    ssig = np.column_stack([_column(st, c, n) for c in
+                            ("est_sX0", "est_sY0", "est_sZ0")] +
+                           [to_radians(_column(st, c, n), angle)
+                            for c in ("est_somega", "est_sphi", "est_skappa")]) if n else \
+        np.zeros((0, 6))
+    pt = res.points
+    m = len(pt)
+    ids = [str(p) for p in pt["id"]] if m else []
+    kinds = [str(k) for k in pt["kind"]] if m else []
+    xyz = np.column_stack([_column(pt, c, m) for c in "XYZ"]) if m else np.zeros((0, 3))
+    prior = np.column_stack([_column(pt, "s" + c, m) for c in "XYZ"]) if m else np.zeros((0, 3))
+    psig = np.column_stack([_column(pt, "est_s" + c, m) for c in "XYZ"]) if m else \
+        np.zeros((0, 3))
+    project = build_project(str(info.get("name") or folder.parent.name), res.cameras,
+                            stations=names, station_camera=cams, angles=ang, X0=X0,
+                            point_ids=ids, kinds=kinds, xyz=xyz, point_sigma=prior,
+                            length_unit=length, angle_unit=angle, image_unit=res.image_unit)
+    if info.get("path"):
+        project.path = Path(info["path"])
+    return ExportSource(project=project, point_sigma=psig, station_sigma=ssig, folder=folder,
+                        summary=res.summary, results=res)
+
+
+def views_of(project: Project, *, stations=None, tolerance: float = 0.01) -> list[View]:
+    """The stations of ``project`` as OpenCV :class:`View` objects.
+
+    Raises
+    ------
+    InputError
+        A station without an orientation, or a camera that cannot be
+        expressed in OpenCV terms.
+    """
+    st = project.stations
+    wanted = set(stations) if stations is not None else None
+    intrinsics = {}
+    views = []
+    for i, name in enumerate(st.names):
+        if wanted is not None and name not in wanted:
+            continue
+        if not (np.all(np.isfinite(st.position[i])) and np.all(np.isfinite(st.angles[i]))):
+            raise InputError(f"station {name} has no orientation to export",
+                             file=project.path,
+                             hint="export a results folder of calibrate, orient or intersect")
+        cam = project.cameras[st.camera[i]]
+        if cam.name not in intrinsics:
+            intrinsics[cam.name] = opencv_intrinsics(cam, project.units.image, tolerance)
+        K, dist, misfit = intrinsics[cam.name]
+        R_cv, t_cv = station_to_cv(st.angles[i], st.position[i])
+        views.append(View(name=name, camera=cam.name, K=K, dist=dist, R_cv=R_cv, t_cv=t_cv,
+                          image_size=cam.image_size, extra={"misfit_px": misfit}))
+    return views

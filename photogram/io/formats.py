@@ -1,0 +1,184 @@
+"""The registry of foreign formats: what ``photogram import`` and
+``photogram export`` can read and write (docs/interoperability.md).
+
+``import_project(format, source, to, **options) -> Path`` writes a new
+project folder (never replacing a file) and returns its .prj;
+``export_results(format, source, to, force=False) -> list[Path]`` writes
+the files of one format from a results folder (or a project).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from photogram.errors import InputError
+
+__all__ = ["IMPORT_FORMATS", "EXPORT_FORMATS", "import_project", "export_results"]
+
+log = logging.getLogger("photogram")
+
+#: format -> what it reads (for the help text)
+IMPORT_FORMATS = {
+    "dbat": "DBAT XML script (camcaldemo.xml, sxb.xml) with its tables",
+    "pmexport": "PhotoModeler text export (the layout DBAT's loadpm reads)",
+    "pose2sim": "Pose2Sim / anipose calibration TOML (Calib_*.toml)",
+    "opencv": "OpenCV FileStorage calibration (YAML/XML/JSON)",
+    "colmap": "COLMAP text model (folder with cameras.txt, images.txt, points3D.txt)",
+    "bal": "Bundle Adjustment in the Large problem (.txt, .bz2; read by photogram.io.bal)",
+    "images": "folder of planar-target images (--target) -> a calibration project",
+}
+EXPORT_FORMATS = {
+    "pose2sim": "Pose2Sim / anipose calibration TOML",
+    "opencv": "OpenCV FileStorage (one file per station; a folder for several)",
+    "colmap": "COLMAP text model (a folder)",
+    "ply": "object points with their sigmas (ASCII PLY)",
+    "trc": "trajectories for OpenSim (.trc, metres, Y up)",
+    "c3d": "trajectories as C3D (mm, Z up, residual and camera mask)",
+    "mot": "stick-model angles for OpenSim (.mot, degrees)",
+    "csv": "trajectories as one CSV row per exposure (metres, Z up)",
+}
+ALIASES = {"anipose": "pose2sim", "photomodeler": "pmexport", "yaml": "opencv",
+           "targets": "images"}
+
+
+def _format(name: str, table: dict) -> str:
+    key = ALIASES.get(str(name).lower(), str(name).lower())
+    if key not in table:
+        from photogram.project.text_input import suggest
+        raise InputError(f"unknown format {name!r}", hint=suggest(key, list(table), noun="formats"))
+    return key
+
+
+def import_project(fmt: str, source, to, *, name: str | None = None, target: str | None = None,
+                   model: str = "opencv") -> Path:
+    """Read ``source`` in format ``fmt`` and write a new project into the
+    folder ``to``; returns the .prj written.
+
+    Raises
+    ------
+    InputError
+        Unknown format, malformed source (file and line), existing files.
+    """
+    from photogram.io import exchange
+    key = _format(fmt, IMPORT_FORMATS)
+    source = Path(source)
+    if key != "images" and target is not None:
+        raise InputError("--target is only used with the images format")
+    if key == "dbat":
+        from photogram.io.dbat_script import dbat_script_project
+        return exchange.save_project(dbat_script_project(source, name), to, name)
+    if key == "pmexport":
+        from photogram.io.pmexport import pmexport_project
+        return exchange.save_project(pmexport_project(source, name), to, name)
+    if key == "pose2sim":
+        from photogram.io.pose2sim import pose2sim_project
+        return exchange.save_calibration(pose2sim_project(source, name), to, name)
+    if key == "opencv":
+        from photogram.io.opencv_fs import opencv_project
+        return exchange.save_calibration(opencv_project(source, name), to, name)
+    if key == "colmap":
+        from photogram.io.colmap import colmap_project
+        return exchange.save_project(colmap_project(source, name), to, name)
+    if key == "images":
+        if not target:
+            raise InputError("the images format needs --target",
+                             hint="e.g. --target chessboard:9x6:0.025 (inner corners, square "
+                                  "size in m)")
+        from photogram.io.targets import images_project
+        return exchange.save_project(images_project(source, target, model=model, name=name),
+                                     to, name)
+    return _import_bal(source, to, name)
+
+
+def _import_bal(source: Path, to, name):
+    try:
+        from photogram.io.bal import read_bal  # noqa: F401  (the engine's reader)
+    except ImportError:
+        raise InputError("BAL import is not available yet (photogram.io.bal is not built)",
+                         file=source) from None
+    from photogram.io.bal_import import bal_project
+    from photogram.io.exchange import save_project
+    return save_project(bal_project(source, name), to, name)
+
+
+def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
+    """Write the results in ``source`` (a results folder, or a project) in
+    format ``fmt`` to ``to``; returns the files written.
+
+    Raises
+    ------
+    InputError
+        Unknown format, incomplete source (e.g. stations without an
+        orientation), existing files (unless ``force``).
+    """
+    key = _format(fmt, EXPORT_FORMATS)
+    to = Path(to)
+    if key in ("trc", "c3d", "mot", "csv"):
+        from photogram.io import trajectories as tr
+        traj = tr.load_trajectories(source)
+        writer = {"trc": tr.write_trc_export, "c3d": tr.write_c3d, "mot": tr.write_mot,
+                  "csv": tr.write_trajectory_csv}[key]
+        return [writer(to, traj, force=force)]
+    from photogram.io.exchange import load_source, views_of
+    src = load_source(source)
+    project = src.project
+    if key == "ply":
+        from photogram.io.ply import write_ply
+        return [write_ply(to, project.points.ids, project.points.xyz, src.point_sigma,
+                          project.points.kind, unit=project.units.length, force=force,
+                          comment=f"from {src.folder}")]
+    views = views_of(project)
+    if not views:
+        raise InputError("no stations to export", file=source)
+    if key == "pose2sim":
+        from photogram.io.pose2sim import write_pose2sim
+        if project.units.length != "m":
+            log.warning("Pose2Sim expects metres; the translations are in %s",
+                        project.units.length)
+        return [write_pose2sim(to, views, force=force,
+                               error=float(src.summary.get("sigma0_image") or 0.0))]
+    if key == "opencv":
+        from photogram.io.opencv_fs import write_opencv
+        return write_opencv(to, views, force=force)
+    from photogram.io.colmap import write_colmap
+    obs, error = _observations(src)
+    folder = write_colmap(to, views, project.points.ids, project.points.xyz, obs, error,
+                          force=force)
+    return [folder / f for f in ("cameras.txt", "images.txt", "points3D.txt")]
+
+
+def _observations(src):
+    """(view index, point index, x, y) of every image point, and the mean
+    image residual per point (0 where unknown), in px."""
+    project = src.project
+    sidx = project.stations.index()
+    pidx = project.points.index()
+    n = len(project.points)
+    err_sum, err_n = np.zeros(n), np.zeros(n)
+    if src.results is not None:
+        res = src.results.residuals
+        obs = []
+        if len(res) and {"station", "point", "x", "y"} <= set(res.columns):
+            vx = res["vx"].to_numpy(float) if "vx" in res.columns else np.zeros(len(res))
+            vy = res["vy"].to_numpy(float) if "vy" in res.columns else np.zeros(len(res))
+            for s, p, x, y, a, b in zip(res["station"], res["point"], res["x"], res["y"],
+                                        vx, vy):
+                if str(s) in sidx and str(p) in pidx:
+                    i = pidx[str(p)]
+                    obs.append((sidx[str(s)], i, float(x), float(y)))
+                    err_sum[i] += np.hypot(a, b)
+                    err_n[i] += 1
+        if src.project.units.image != "px":
+            raise InputError("COLMAP export needs image coordinates in px",
+                             file=src.folder, hint="use image_unit = \"px\"")
+    else:
+        ip = project.image_points
+        if project.units.image != "px":
+            raise InputError("COLMAP export needs image coordinates in px", file=project.path)
+        obs = [(int(s), int(p), float(x), float(y)) for s, p, (x, y) in
+               zip(ip.station, ip.point, ip.xy)]
+    error = np.where(err_n > 0, err_sum / np.maximum(err_n, 1), 0.0)
+    return obs, error
