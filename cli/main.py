@@ -56,13 +56,22 @@ COMMANDS: dict[str, Command] = {
     "montecarlo": Command("photogram.commands.montecarlo:run", "the Monte Carlo engine",
                           "precision of the results by Monte Carlo simulation"),
     "simulate": Command("photogram.commands.simulate:run", "the simulator",
-                        "synthetic image observations for a planned network"),
+                        "synthetic image observations for a planned network",
+                        needs_project=False),
     "report": Command("photogram.commands.report:run", "the report generator",
-                      "report of the results folder of a project"),
+                      "rebuild report.pdf (the accuracy report) of a results folder",
+                      needs_project=False),
     "mocap": Command("photogram.commands.mocap:run", "the motion-capture pipeline",
                      "track and reconstruct the jumper's markers frame by frame"),
     "demo": Command("photogram.demo:run", "the demo",
                     "run the built-in demonstration", needs_project=False),
+    "import": Command("photogram.commands.convert:run_import", "the importers",
+                      "read a DBAT, PhotoModeler, Pose2Sim, OpenCV, COLMAP project or a "
+                      "folder of target images into a new project folder",
+                      needs_project=False),
+    "export": Command("photogram.commands.convert:run_export", "the exporters",
+                      "write a results folder as Pose2Sim, OpenCV, COLMAP, PLY, TRC, C3D, "
+                      ".mot or CSV", needs_project=False),
 }
 
 
@@ -80,10 +89,41 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
     if name == "check":
         sub.add_argument("--force", action="store_true",
                          help="with --output: replace existing files")
+    if name == "report":
+        # optional in the parser, checked by the command (exit 2 with a hint)
+        sub.add_argument("folder", nargs="?", type=Path, metavar="RESULTS",
+                         help="a results folder (the output folder of calibrate, orient, "
+                              "intersect)")
+    if name == "simulate":
+        # optional in the parser, checked by the command (exit 2 with a hint)
+        sub.add_argument("design", nargs="?", type=Path, metavar="DESIGN",
+                         help="the network design file (.toml), e.g. "
+                              "projects/designs/situation-b.toml")
+        sub.add_argument("--force", action="store_true", help="replace existing files")
     if name in ("montecarlo", "simulate"):
         sub.add_argument("--seed", type=int, default=None, help="random seed")
     if name == "montecarlo":
-        sub.add_argument("--runs", type=int, default=1000, help="number of simulations")
+        sub.add_argument("--runs", type=int, default=None,
+                         help="number of simulations (default: [montecarlo] runs)")
+        sub.add_argument("--workers", type=int, default=None,
+                         help="local worker processes (default: [montecarlo] workers, 1)")
+        sub.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                         help="run on a Dask cluster, e.g. tcp://127.0.0.1:8786")
+    if name in ("import", "export"):
+        # optional in the parser, checked by the command (exit 2 with a hint)
+        sub.add_argument("format", nargs="?", metavar="FORMAT",
+                         help="see docs/interoperability.md")
+        sub.add_argument("source", nargs="?", type=Path, metavar="SRC" if name == "import"
+                         else "RESULTS", help="file or folder to read")
+        sub.add_argument("--to", type=Path, metavar="DIR" if name == "import" else "PATH",
+                         help="new project folder" if name == "import" else "file to write")
+    if name == "import":
+        sub.add_argument("--name", help="project name (default: from the source)")
+        sub.add_argument("--target", help="images: the target, e.g. chessboard:9x6:0.025")
+        sub.add_argument("--model", choices=("opencv", "brown"), default="opencv",
+                         help="images: camera model of the calibration project")
+    if name == "export":
+        sub.add_argument("--force", action="store_true", help="replace existing files")
 
 
 def build_parser() -> argparse.ArgumentParser:

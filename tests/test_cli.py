@@ -15,9 +15,7 @@ from photogram_cli.main import COMMANDS, Command, main
 
 from project_cases import DATA, make_project
 
-ENGINES = {"montecarlo": "the Monte Carlo engine",
-           "simulate": "the simulator", "report": "the report generator",
-           "mocap": "the motion-capture pipeline"}
+ENGINES = {"mocap": "the motion-capture pipeline"}
 
 
 def test_version(capsys):
@@ -86,6 +84,12 @@ def test_engines_not_built_yet(capsys, command):
     assert main([command, str(DATA / "lab" / "lab.prj")]) == 2
     out, err = capsys.readouterr()
     assert err == f"photogram {command}: {ENGINES[command]} is not built yet\n"
+
+
+def test_montecarlo_needs_a_montecarlo_section(capsys):
+    assert main(["montecarlo", str(DATA / "lab" / "lab.prj")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(str(DATA / "lab" / "lab.prj")) and "no [montecarlo] section" in err
 
 
 def test_demo_runs_the_lab_and_field_chain(tmp_path, monkeypatch, capsys):

@@ -72,6 +72,6 @@ def test_console_process_bad_input(tmp_path):
 
 def test_console_process_not_built(tmp_path):
     make_project(tmp_path)
-    proc = _run("montecarlo", "lab/lab.prj", cwd=tmp_path)
+    proc = _run("mocap", "lab/lab.prj", cwd=tmp_path)
     assert proc.returncode == 2
-    assert proc.stderr == "photogram montecarlo: the Monte Carlo engine is not built yet\n"
+    assert proc.stderr == "photogram mocap: the motion-capture pipeline is not built yet\n"

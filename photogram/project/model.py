@@ -221,6 +221,48 @@ class OutputSettings:
     folder: str = "results"
 
 
+PERTURBATIONS = ("image", "reference", "interior", "constraints")
+TRUTHS = ("adjusted", "simulation")
+
+
+@dataclass
+class MonteCarloSettings:
+    """``[montecarlo]``: the chain a Monte-Carlo simulation repeats
+    (``photogram montecarlo``, docs/montecarlo.md).
+
+    Exactly one of ``orient`` (bundle with the interior orientation held
+    fixed) and ``calibrate`` (interior parameters free as that project says)
+    names the adjustment step; ``intersect`` optionally the intersect step
+    that takes its orientation. Paths are absolute (resolved against the
+    .prj folder by the reader). ``perturb`` lists what is drawn per run:
+    image coordinates, reference coordinates, the interior orientation
+    (from ``interior_covariance``, a results folder with covariance.npz;
+    default: the folder of the cameras file of the adjustment step) and
+    constraint observations (distances, verticality). ``truth`` is the
+    adjusted solution or the simulation truth (``truth/`` beside each
+    project, as ``photogram simulate`` and projects/generate.py write it).
+    ``points`` are ids (``*`` wildcards) of adjustment points to collect
+    (e.g. helmet tie points); ``align`` removes from them a translation and
+    a rotation about the vertical per run (``"none"`` or ``"plan"``) before
+    their scatter is taken. ``scheduler`` is the address of a Dask
+    cluster (``tcp://host:port``; None: local processes).
+    """
+
+    orient: str | None = None
+    calibrate: str | None = None
+    intersect: str | None = None
+    perturb: tuple = ("image", "reference")
+    interior_covariance: str | None = None
+    truth: str = "adjusted"
+    points: tuple = ()
+    align: str = "none"
+    runs: int = 1000
+    seed: int = 0
+    chunk: int = 50
+    workers: int = 1
+    scheduler: str | None = None
+
+
 @dataclass
 class Project:
     """A whole photogrammetric project, as read from a .prj file."""
@@ -240,6 +282,8 @@ class Project:
     adjustment: AdjustmentSettings = field(default_factory=AdjustmentSettings)
     output: OutputSettings = field(default_factory=OutputSettings)
     intersect: IntersectSettings = field(default_factory=IntersectSettings)
+    montecarlo: MonteCarloSettings | None = None
+    mocap: object | None = None        # MocapSettings (photogram.project.reader_mocap)
     sources: dict[str, Path] = field(default_factory=dict)  # table -> file
     warnings: list[str] = field(default_factory=list)  # found by the reader
 

@@ -22,6 +22,7 @@ from photogram.project.model import (  # noqa: F401  (also re-exported)
     ImageLines, ImagePoints, IntersectSettings, OutputSettings, Points, Project, Stations, Units,
     VerticalConstraint,
 )
+from photogram.project.model import PERTURBATIONS, TRUTHS, MonteCarloSettings
 from photogram.project.reader_dbat import _camera_from_dbat, _read_dbat_style, _uses_dbat_features
 from photogram.project.reader_tables import (_read_observations, _read_points, _read_stations,
                                              _source_table)
@@ -41,12 +42,14 @@ from photogram.project.reader_tables import (  # noqa: F401,E402  (re-exports)
 __all__ = ["read_project", "SECTIONS", "STATION_COLUMNS", "POINT_COLUMNS"]
 
 SECTIONS = ("project", "cameras", "stations", "points", "observations",
-            "constraints", "adjustment", "output", "intersect")
+            "constraints", "adjustment", "output", "intersect", "montecarlo", "mocap")
 REQUIRED_SECTIONS = ("project", "cameras", "stations", "observations")
 INTERSECT_KEYS = ("fps", "points", "skis", "ski_length", "binding_fraction", "orientation",
                   "swap_skis")
 PROJECT_KEYS = ("name", "length_unit", "angle_unit", "image_unit", "rotation",
                 "rotation_direction")
+MONTECARLO_KEYS = ("orient", "calibrate", "intersect", "perturb", "interior_covariance", "truth",
+                   "points", "align", "runs", "seed", "chunk", "workers", "scheduler")
 ADJUSTMENT_KEYS = ("datum", "max_iterations", "tolerance", "sigma_image", "sigma_control",
                    "damping", "robust", "variance_components", "snooping_alpha",
                    "inner_constraints")
@@ -91,10 +94,24 @@ def read_project(path: str | Path) -> Project:
     src = TomlSource.load(prj, what="project file")
     root = src.root()
     root.check_keys(SECTIONS, noun="section")
-    for name in REQUIRED_SECTIONS:
+    if "mocap" in root.data:        # a motion-capture project (docs/mocap.md)
+        from photogram.project.reader_mocap import read_mocap_project
+        return read_mocap_project(prj, src, root)
+    # a Monte-Carlo chain file: [project], [montecarlo], [output] and no tables
+    chain_only = "montecarlo" in root.data and "cameras" not in root.data
+    for name in ("project",) if chain_only else REQUIRED_SECTIONS:
         root.table(name)
     project = Project(path=prj, sources={"project": prj})
     _read_project_section(root.table("project"), project)
+    project.montecarlo = _read_montecarlo(root.table("montecarlo", required=False), prj)
+    if chain_only:
+        for name in ("stations", "points", "observations", "constraints", "intersect"):
+            if name in root.data:
+                raise root.error(name, f"[{name}] in a Monte-Carlo chain file without [cameras]",
+                                 hint="the tables belong in the projects that [montecarlo] names")
+        project.adjustment = _read_adjustment(root.table("adjustment", required=False))
+        project.output = _read_output(root.table("output", required=False))
+        return project
     project.adjustment = _read_adjustment(root.table("adjustment", required=False))
     project.output = _read_output(root.table("output", required=False))
     project.intersect = _read_intersect(root.table("intersect", required=False), prj)
@@ -146,6 +163,61 @@ def _read_intersect(sec: Section | None, prj: Path) -> IntersectSettings:
                                                               positive=True),
                              binding_fraction=fraction, orientation=orientation,
                              swap_skis=sec.boolean("swap_skis", out.swap_skis))
+
+
+def _read_montecarlo(sec: Section | None, prj: Path) -> MonteCarloSettings | None:
+    """``[montecarlo]`` (see :class:`MonteCarloSettings`); step projects
+    must exist."""
+    if sec is None:
+        return None
+    sec.check_keys(MONTECARLO_KEYS)
+    out = MonteCarloSettings()
+
+    def path(key, folder=False):
+        if key not in sec:
+            return None
+        value = Path(sec.string(key))
+        full = value if value.is_absolute() else prj.parent / value
+        ok = full.is_dir() if folder else full.is_file() or full.is_dir()
+        if not ok:
+            what = "results folder" if folder else "project"
+            raise sec.error(key, f"{key} in {sec.label}: {what} {value} not found",
+                            hint="the path is relative to the folder of this file"
+                                 + ("; run photogram calibrate first" if folder else ""))
+        return str(full)
+
+    steps = [k for k in ("orient", "calibrate") if k in sec]
+    if len(steps) != 1:
+        raise sec.error(steps[1] if len(steps) > 1 else None,
+                        f"{sec.label} needs exactly one of orient and calibrate, not "
+                        f"{' and '.join(steps) or 'none'}",
+                        hint='e.g. orient = "../field/field.prj" (interior fixed) or '
+                             'calibrate = "network.prj" (interior as that project says)')
+    perturb = sec.ids("perturb", list(out.perturb))
+    for p in perturb:
+        if p not in PERTURBATIONS:
+            raise sec.error("perturb", f"unknown perturbation '{p}' in {sec.label}",
+                            hint=suggest(p, PERTURBATIONS, noun="use any of"))
+    if not perturb:
+        raise sec.error("perturb", f"perturb in {sec.label} is empty",
+                        hint='e.g. perturb = ["image", "reference"]')
+    scheduler = sec.string("scheduler", None)
+    if scheduler is not None and not scheduler.startswith(("tcp://", "tls://", "inproc://")):
+        raise sec.error("scheduler", f"scheduler in {sec.label} must be an address like "
+                                     f"tcp://HOST:PORT, not '{scheduler}'",
+                        hint="remove it to run in local processes")
+    return MonteCarloSettings(
+        orient=path("orient"), calibrate=path("calibrate"), intersect=path("intersect"),
+        perturb=tuple(dict.fromkeys(perturb)),
+        interior_covariance=path("interior_covariance", folder=True),
+        truth=sec.string("truth", out.truth, choices=TRUTHS),
+        points=tuple(sec.ids("points", list(out.points))),
+        align=sec.string("align", out.align, choices=("none", "plan")),
+        runs=sec.integer("runs", out.runs, minimum=1),
+        seed=sec.integer("seed", out.seed, minimum=0),
+        chunk=sec.integer("chunk", out.chunk, minimum=1),
+        workers=sec.integer("workers", out.workers, minimum=1),
+        scheduler=scheduler)
 
 
 def _read_project_section(sec: Section, project: Project) -> None:

@@ -1,0 +1,95 @@
+"""Monte-Carlo accuracy of a photogrammetric chain (``photogram montecarlo``).
+
+A ``[montecarlo]`` section names the chain (an ``orient`` or ``calibrate``
+project, optionally an ``intersect`` project), what to perturb and how many
+runs; :func:`run_montecarlo` builds the chain once (:class:`Chain`: truth
+world, lean adjustment and intersect kernels), propagates its covariance to
+first order, runs the trials in chunks (this process, local processes or a
+Dask cluster, resumable) and writes the comparison of empirical and
+propagated sigmas. See docs/montecarlo.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from pathlib import Path
+
+from photogram.errors import InputError
+
+__all__ = ["run_montecarlo", "Chain", "Runner"]
+
+log = logging.getLogger("photogram")
+
+
+def __getattr__(name):          # lazy: the kernels import scipy and pandas
+    if name == "Chain":
+        from photogram.montecarlo.chain import Chain
+        return Chain
+    if name == "Runner":
+        from photogram.montecarlo.execute import Runner
+        return Runner
+    raise AttributeError(name)
+
+
+def settings_of(project, *, runs=None, seed=None, workers=None, scheduler=None, chunk=None):
+    """The project's ``[montecarlo]`` settings with command-line overrides."""
+    s = project.montecarlo
+    if s is None:
+        raise InputError("the project has no [montecarlo] section", file=project.path,
+                         hint='add [montecarlo] with orient = "..." (see docs/montecarlo.md)')
+    changes = {}
+    for key, value in (("runs", runs), ("seed", seed), ("workers", workers),
+                       ("scheduler", scheduler), ("chunk", chunk)):
+        if value is not None:
+            changes[key] = value
+    for key in ("runs", "workers", "chunk"):
+        if key in changes and int(changes[key]) < 1:
+            raise InputError(f"--{key} must be at least 1, not {changes[key]}",
+                             hint=f"e.g. --{key} 1000" if key == "runs" else None)
+    if "seed" in changes and int(changes["seed"]) < 0:
+        raise InputError(f"--seed must be >= 0, not {changes['seed']}")
+    if changes.get("scheduler") is not None and \
+            not str(changes["scheduler"]).startswith(("tcp://", "tls://", "inproc://")):
+        raise InputError(f"--scheduler must be an address like tcp://HOST:PORT, "
+                         f"not '{changes['scheduler']}'")
+    return dataclasses.replace(s, **changes)
+
+
+def run_montecarlo(project, *, runs=None, seed=None, workers=None, scheduler=None,
+                   chunk=None, output=None, progress=True, on_chunk=None):
+    """Run (or resume) the Monte-Carlo simulation of a chain project.
+
+    Returns ``(folder, summary)``; the files are described in
+    :mod:`photogram.montecarlo.report`.
+    """
+    from photogram.montecarlo.chain import Chain
+    from photogram.montecarlo.execute import Runner
+    from photogram.montecarlo.report import write_report
+    from photogram.project.atomic import atomic_write_text
+    s = settings_of(project, runs=runs, seed=seed, workers=workers, scheduler=scheduler,
+                    chunk=chunk)
+    folder = Path(output) if output else project.output_folder()
+    folder.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    chain = Chain(s)
+    sigma_prop, sigma_cmd = chain.propagate()
+    t_setup = time.perf_counter() - t0
+    runner = Runner(chain, folder, runs=s.runs, seed=s.seed, chunk=s.chunk, workers=s.workers,
+                    scheduler=s.scheduler, progress=progress, on_chunk=on_chunk)
+    samples, failed, info = runner.run()
+    info.update({"seed": s.seed, "setup_seconds": t_setup})
+    summary = write_report(folder, chain, samples, failed, sigma_prop, sigma_cmd, info)
+    lines = [f"photogram montecarlo {project.path}",
+             f"runs: {summary['runs']} ({summary['failed']} failed), seed {s.seed}, "
+             f"perturb {', '.join(s.perturb)}, truth {s.truth}",
+             f"engine: {info['engine']}, workers {s.workers}, chunk {s.chunk}; "
+             f"{info['runs_computed']} computed, {info['runs_resumed']} resumed, "
+             f"{info['seconds']:.2f} s"]
+    for g, h in summary["headline"].items():
+        r = h["ratio"]
+        lines.append(f"{g}: sigma_mc / sigma_prop median {r['median']:.3f} "
+                     f"({r['min']:.3f} .. {r['max']:.3f})")
+    atomic_write_text(folder / "log.txt", "\n".join(lines) + "\n")
+    return folder, summary

@@ -1,0 +1,163 @@
+"""First-order propagation through a Monte-Carlo chain.
+
+Every random input of a run is a standard normal number times a sigma (the
+whitened residuals of the adjustment's observations, and ``z`` of the
+interior draw ``io = io_true + L z``). Linearized at the truth, every output
+is a linear function of these numbers, ``d out = Phi z``, and its sigma is
+the norm of its row of ``Phi``:
+
+* adjustment step: ``dtheta = -Q J^T (eps + Jio L z)`` (Q the cofactors of
+  the unknowns, J the whitened Jacobian, Jio its derivative w.r.t. the fixed
+  interior orientation);
+* intersect step (points, lines, stick model) with the orientation fixed:
+  ``d out = G dtheta_orientation + (image noise)`` with ``G`` by central
+  differences through the lean intersect step, and the image part from the
+  intersect's own cofactors (points: 3x3 per point, lines: 4x4 per line,
+  the stick model by :func:`photogram.jump.propagate.propagate`).
+
+``sigma_prop`` counts only the perturbed kinds and the correlations the chain
+creates (the stations of ``orient`` move with the drawn interior
+orientation). ``sigma_cmd`` is what the commands report for the same truth
+(a-priori sigma0 = 1): ``orient``'s covariance of the stations (interior
+fixed), the calibration's covariance of the interior orientation, and for
+the intersect step the two summed as independent (as ``photogram intersect``
+does with the covariance.npz files of ``[intersect] orientation``) with the
+ski directions from their image noise only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from photogram.jump.definitions import PARAMETERS
+from photogram.montecarlo.chain import perturb_orientation, station_rows
+
+__all__ = ["propagate"]
+
+
+def _s_transform(rows, X):
+    """Remove a translation and a rotation about Z (least squares over the
+    points X (n, 3)) from rows (3 n, M) of point coordinates."""
+    n = len(X)
+    c = X - X.mean(0)
+    T = np.zeros((n, 3, 4))
+    T[:, [0, 1, 2], [0, 1, 2]] = 1.0
+    T[:, 0, 3], T[:, 1, 3] = -c[:, 1], c[:, 0]
+    T = T.reshape(3 * n, 4)
+    return rows - T @ np.linalg.solve(T.T @ T, T.T @ rows)
+
+
+def _stage2_vector(chain, io, R, X0):
+    li = chain.intersect
+    out = li.solve(io, R, X0, li.inputs_points, li.inputs_lines, chain.X2,
+                   (chain.LP2, chain.LD2))
+    m = out.model
+    v = np.concatenate([out.P.ravel(), np.stack([m.values[q] for q in PARAMETERS], 1).ravel()])
+    return v
+
+
+def _stage2(chain, Phi_theta, Phi_theta_cmd, thetas):
+    """Rows of the intersect outputs: orientation part (Phi) and the image
+    variances, for the chain and for the commands."""
+    b, li = chain.bundle, chain.intersect
+    io, R, X0 = b.start.io, b.start.R, b.start.X0
+    f0 = _stage2_vector(chain, io, R, X0)
+    n2 = len(f0)
+    n_angle = chain.outputs.angle[-n2:]
+    G = np.zeros((n2, len(thetas)))
+    for i, which in enumerate(thetas):
+        s = max(np.linalg.norm(Phi_theta[i]), np.linalg.norm(Phi_theta_cmd[i]))
+        if s == 0:
+            continue
+        h = 1e-3 * s
+        fp = _stage2_vector(chain, *perturb_orientation(io, R, X0, which, h, chain.shape_io))
+        fm = _stage2_vector(chain, *perturb_orientation(io, R, X0, which, -h, chain.shape_io))
+        d = fp - fm
+        d[n_angle] = np.angle(np.exp(1j * d[n_angle]))
+        G[:, i] = d / (2 * h)
+    orient = G @ Phi_theta
+    orient_cmd = G @ Phi_theta_cmd
+    # image noise of the intersect step (at the truth)
+    X, covX = li.intersect_points(io, R, X0, li.inputs_points, chain.X2, covariance=True)
+    LP, LD, covL, _ = li.intersect_lines(io, R, X0, li.inputs_lines, (chain.LP2, chain.LD2),
+                                         covariance=True)
+    E = chain.n_exposures
+    u, v = local_basis_batch_of(LD)
+    B = np.stack([u, v], -1)                                     # (L, 3, 2)
+    cov_d = (B @ covL[:, :2, :2] @ np.swapaxes(B, 1, 2)).reshape(E, 2, 3, 3)
+    cov_p = covX[li.jumper_index]                                # (E, 4, 3, 3)
+    P = X[li.jumper_index]
+    LPe, LDe = LP.reshape(E, 2, 3), LD.reshape(E, 2, 3)
+    img_model = li.stick(P, LPe, LDe, cov_points=cov_p, cov_dirs=cov_d)
+    var_img = np.concatenate([np.diagonal(cov_p, axis1=2, axis2=3).ravel(),
+                              np.diagonal(img_model.cov, axis1=1, axis2=2).ravel()])
+    # the commands: points with image + orientation (within an exposure
+    # correlated), directions image only, stick model per exposure
+    Cp = np.zeros((E, 12, 12))
+    for k in range(4):
+        Cp[:, 3 * k:3 * k + 3, 3 * k:3 * k + 3] = cov_p[:, k]
+    Op = orient_cmd[:12 * E].reshape(E, 12, -1)
+    Cp = Cp + Op @ np.swapaxes(Op, 1, 2)
+    cmd_model = li.stick(P, LPe, LDe, cov_points=Cp, cov_dirs=cov_d)
+    var_cmd = np.concatenate([np.diagonal(Cp, axis1=1, axis2=2).ravel(),
+                              np.diagonal(cmd_model.cov, axis1=1, axis2=2).ravel()])
+    return orient, var_img, var_cmd
+
+
+def local_basis_batch_of(D):
+    from photogram.montecarlo.intersect import local_basis_batch
+    return local_basis_batch(D)
+
+
+def propagate(chain):
+    """``(sigma_prop, sigma_cmd)`` for every output of the chain (internal
+    units, in the order of ``chain.outputs``)."""
+    b = chain.bundle
+    f = chain.perturb
+    J, Q, Jio = b.linearize(b.start, b.inputs)
+    A = -Q @ J.T                                         # (n, m) per whitened observation
+    m = A.shape[1]
+    L = chain.io_L
+    Aio = -Q @ (J.T @ (Jio @ L)) if L.shape[1] else np.zeros((b.n, 0))
+    use = np.isin(b.sources, list(f)).astype(float)
+    Phi = np.hstack([A * use[None, :], Aio * ("interior" in f)])
+    Phi_cmd = np.hstack([A, np.zeros_like(Aio)])
+    M = Phi.shape[1]
+    K, p = chain.shape_io
+    # interior orientation used by the run, all K p parameters
+    io_rows = np.zeros((K * p, M))
+    io_cmd = np.zeros((K * p, M))
+    if chain.fix_interior:
+        io_rows[:, m:] = L * ("interior" in f)
+        io_cmd[:, m:] = L
+    else:
+        free = b.io_free.ravel()
+        io_rows[free] = Phi[b.io_cols[b.io_free]]
+        io_cmd[free] = Phi_cmd[b.io_cols[b.io_free]]
+    rows = [station_rows(b, Phi, b.start.R), io_rows[chain.io_random]]
+    cmd = [station_rows(b, Phi_cmd, b.start.R), io_cmd[chain.io_random]]
+    if len(chain.collect):
+        pr = Phi[b.point_cols[chain.collect].ravel()]
+        pc = Phi_cmd[b.point_cols[chain.collect].ravel()]
+        if chain.settings.align == "plan":
+            X = b.start.X[chain.collect]
+            pr, pc = _s_transform(pr, X), _s_transform(pc, X)
+        rows.append(pr)
+        cmd.append(pc)
+    var = np.concatenate([np.sum(r * r, axis=1) for r in rows])
+    var_cmd = np.concatenate([np.sum(r * r, axis=1) for r in cmd])
+    if chain.intersect is not None:
+        S = len(b.station_names)
+        thetas = [int(i) for i in chain.io_random] + [("station", s, q)
+                                                       for s in range(S) for q in range(6)]
+        st_rows = Phi[b.station_cols.ravel()]
+        st_cmd = Phi_cmd[b.station_cols.ravel()]
+        Phi_theta = np.vstack([io_rows[chain.io_random], st_rows])
+        # the commands: the calibration's and the orientation's covariance
+        # as independent blocks (calibrate: one joint covariance)
+        Phi_theta_cmd = np.vstack([io_cmd[chain.io_random], st_cmd])
+        orient, var_img, var_cmd2 = _stage2(chain, Phi_theta, Phi_theta_cmd, thetas)
+        var2 = np.sum(orient * orient, axis=1) + var_img * ("image" in f)
+        var = np.concatenate([var, var2])
+        var_cmd = np.concatenate([var_cmd, var_cmd2])
+    return np.sqrt(var), np.sqrt(var_cmd)

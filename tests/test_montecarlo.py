@@ -1,0 +1,285 @@
+"""photogram montecarlo: the lean kernels against the library, seeding and
+engines (1 and 2 local workers, Dask), resume after an interruption, the
+agreement of Monte-Carlo and propagated sigmas, bad input.
+
+The small network (4 stations, 14 points, 6 of them weighted reference
+points) keeps every Monte-Carlo run at about a millisecond.
+"""
+
+from __future__ import annotations
+
+import json
+import textwrap
+
+import numpy as np
+import pytest
+
+from photogram.errors import InputError
+from photogram.project import read_project, write_project
+from photogram.simulation.network import frame_network, to_project
+
+
+def _network(folder):
+    net = frame_network(n_stations=4, n_points=14, sigma=0.3, seed=3)
+    project = to_project(net, control=range(6), point_sigma=0.001, sigma_image=0.3,
+                         name="net", rng=np.random.default_rng(1))
+    project.adjustment.datum = "weighted"
+    folder.mkdir(parents=True, exist_ok=True)
+    write_project(project, folder / "net.prj")
+    return folder / "net.prj"
+
+
+def _chain_file(folder, body, name="mc.prj"):
+    path = folder / name
+    path.write_text(textwrap.dedent(f"""\
+        [project]
+        name = "mc"
+
+        [montecarlo]
+        {textwrap.dedent(body).strip()}
+
+        [output]
+        folder = "out"
+        """).replace("\n        ", "\n"), encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def net(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("mc")
+    _network(folder)
+    return folder
+
+
+def _chain_project(folder, runs=40, chunk=10, extra=""):
+    path = _chain_file(folder, f"""
+        orient = "net.prj"
+        perturb = ["image", "reference"]
+        points = ["P*"]
+        runs = {runs}
+        seed = 7
+        chunk = {chunk}
+        {extra}
+        """)
+    return read_project(path)
+
+
+def _samples(folder):
+    import pandas as pd
+    return pd.read_csv(folder / "samples.csv")
+
+
+# ---------------------------------------------------------------------------
+# kernels
+
+def test_lean_bundle_reproduces_the_engine(net):
+    from photogram.commands.bundle import adjust
+    from photogram.montecarlo.bundle import LeanBundle
+    from photogram.stats.covariance import cofactors, station_covariances
+    from photogram.adjust.build import build_problem
+    project = read_project(net / "net.prj")
+    result = adjust(project, fix_interior=True)
+    lean = LeanBundle(result.project, fix_interior=True)
+    inputs = lean.inputs.copy()
+    inputs.reference = project.points.xyz[lean.control]     # the given reference values
+    start = lean.start.copy()
+    start.X0 += 0.01
+    state, _ = lean.solve(inputs, start=start)
+    assert np.abs(state.X0 - result.project.stations.position).max() < 2e-6   # engine tol
+    assert np.abs(state.X[lean.free_points]
+                  - result.project.points.xyz[lean.free_points]).max() < 2e-6
+    _, Q, _ = lean.linearize(state, inputs)
+    built = build_problem(result.project, fix_interior=True)
+    S = station_covariances(cofactors(built.problem), built.problem.state.R)
+    sig = np.sqrt(np.diag(Q))[lean.station_cols[:, :3]]
+    assert np.allclose(sig, np.sqrt(np.diagonal(S, axis1=1, axis2=2))[:, :3], rtol=1e-4)
+
+
+def test_lean_intersect_reproduces_the_pipeline():
+    from photogram.jump.pipeline import intersect_points
+    from photogram.lines import cameras_from_project, intersect_line_from_points
+    from photogram.montecarlo.intersect import LeanIntersect
+    from photogram.geometry import opk_to_matrix
+    from photogram.simulation.jump import jump_project
+    project, _ = jump_project(n_exposures=4)
+    lean = LeanIntersect(project, list(project.cameras), list(project.stations.names))
+    io = np.array([c.values() for c in project.cameras.values()])
+    R, X0 = opk_to_matrix(project.stations.angles), project.stations.position
+    adjusted, cov, _, _ = intersect_points(project)
+    X, covX = lean.intersect_points(io, R, X0, lean.inputs_points,
+                                    lean.triangulate(io, R, X0, lean.inputs_points),
+                                    covariance=True)
+    assert np.abs(X - adjusted.points.xyz).max() < 1e-6
+    assert np.allclose(covX, cov, rtol=1e-6)
+    P, D, C, chi2 = lean.intersect_lines(io, R, X0, lean.inputs_lines, covariance=True)
+    cams = cameras_from_project(project)
+    il = project.image_lines
+    for n in (0, 5):                            # L1@001, L2@003
+        ski, e = ("L1", "L2")[n % 2], lean.exposures[n // 2]
+        rows = il.line == f"{ski}@{e}"
+        pts = {project.stations.names[s]: il.xy[rows & (il.station == s)]
+               for s in np.unique(il.station[rows])}
+        ref = intersect_line_from_points(pts, cams, 0.33)
+        d = D[n] * np.sign(D[n] @ ref.line.direction)
+        assert np.abs(d - ref.line.direction).max() < 1e-9
+        assert np.abs(P[n] - ref.line.point).max() < 1e-7
+        assert np.allclose(C[n], ref.line.covariance, rtol=1e-6)
+        assert chi2[n] == pytest.approx(ref.chi2, rel=1e-8)
+
+
+def test_seeds_of_a_run_do_not_depend_on_the_number_of_runs():
+    from photogram.montecarlo.execute import seeds_for
+    a, b = seeds_for(5, 10), seeds_for(5, 1000)
+    for i in range(10):
+        assert np.array_equal(a[i].generate_state(4), b[i].generate_state(4))
+
+
+# ---------------------------------------------------------------------------
+# agreement with propagation
+
+def test_monte_carlo_sigmas_agree_with_propagated_sigmas(net, tmp_path):
+    """N = 500 runs: sigma_mc / sigma has a relative standard error of
+    1 / sqrt(2 (N - 1)) = 3.2 %, so 10 % is 3.1 standard errors (two-sided
+    probability 0.2 % per quantity, for the fixed seed a deterministic
+    check); the median over all 66 quantities is within 3 %. The network is
+    well conditioned, so linearization errors are far below that."""
+    from photogram.montecarlo import run_montecarlo
+    project = _chain_project(net, runs=500, chunk=100)
+    _, summary = run_montecarlo(project, output=tmp_path, progress=False)
+    import pandas as pd
+    table = pd.read_csv(tmp_path / "summary.csv")
+    assert summary["failed"] == 0
+    assert len(table) == 4 * 6 + 14 * 3                  # stations, points
+    assert np.all(np.abs(table.ratio - 1) < 0.10), table[np.abs(table.ratio - 1) >= 0.1]
+    assert abs(np.median(table.ratio) - 1) < 0.03
+    lo, hi = summary["ratio_band_95"]
+    assert lo == pytest.approx(1 - 1.96 / np.sqrt(2 * 499), abs=0.005)
+    assert hi == pytest.approx(1 + 1.96 / np.sqrt(2 * 499), abs=0.005)
+    assert (tmp_path / "table1.csv").is_file()
+
+
+# ---------------------------------------------------------------------------
+# engines and resume
+
+def test_same_numbers_for_1_and_2_workers_and_dask(net, tmp_path):
+    from photogram.montecarlo import run_montecarlo
+    project = _chain_project(net)
+    run_montecarlo(project, output=tmp_path / "w1", workers=1, progress=False)
+    run_montecarlo(project, output=tmp_path / "w2", workers=2, progress=False)
+    a, b = _samples(tmp_path / "w1"), _samples(tmp_path / "w2")
+    assert a.equals(b)
+    assert (tmp_path / "w1" / "samples" / "chunk-00003.csv").read_bytes() == \
+        (tmp_path / "w2" / "samples" / "chunk-00003.csv").read_bytes()
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  protocol="tcp://", host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        _, summary = run_montecarlo(project, output=tmp_path / "dask",
+                                    scheduler=cluster.scheduler_address, progress=False)
+    assert summary["execution"]["engine"] == "dask"
+    assert _samples(tmp_path / "dask").equals(a)
+
+
+def test_interrupted_run_resumes_and_gives_the_same_results(net, tmp_path):
+    from photogram.montecarlo import run_montecarlo
+    project = _chain_project(net)
+    run_montecarlo(project, output=tmp_path / "full", progress=False)
+    done = []
+
+    def interrupt(index):
+        done.append(index)
+        if len(done) == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_montecarlo(project, output=tmp_path / "cut", progress=False, on_chunk=interrupt)
+    chunks = sorted(p.name for p in (tmp_path / "cut" / "samples").glob("chunk-*.csv"))
+    assert chunks == ["chunk-00000.csv", "chunk-00001.csv"]
+    assert not (tmp_path / "cut" / "samples.csv").exists()
+    seen = []
+    _, summary = run_montecarlo(project, output=tmp_path / "cut", progress=False,
+                                on_chunk=seen.append)
+    assert seen == [2, 3]                        # the finished chunks are not run again
+    assert summary["execution"]["runs_resumed"] == 20
+    assert _samples(tmp_path / "cut").equals(_samples(tmp_path / "full"))
+    # other settings: the old chunks are discarded, not mixed in
+    other = _chain_project(net, extra="truth = \"adjusted\"\nalign = \"plan\"")
+    _, summary = run_montecarlo(other, output=tmp_path / "cut", progress=False)
+    assert summary["execution"]["runs_resumed"] == 0
+
+
+# ---------------------------------------------------------------------------
+# the jump chain (orient -> intersect) on simulated files
+
+def test_orient_intersect_chain_on_the_simulated_jump(tmp_path):
+    from photogram.montecarlo import run_montecarlo
+    from photogram.simulation.designs import field_design
+    from photogram.simulation.jump import jump_project
+    field, _ = field_design()
+    write_project(field, tmp_path / "field.prj")
+    jumps, _ = jump_project(n_exposures=3)
+    write_project(jumps, tmp_path / "jumps.prj")
+    path = _chain_file(tmp_path, """
+        orient = "field.prj"
+        intersect = "jumps.prj"
+        perturb = ["image", "reference"]
+        runs = 30
+        seed = 3
+        """)
+    folder, summary = run_montecarlo(read_project(path), progress=False)
+    assert summary["failed"] == 0
+    head = summary["headline"]
+    assert set(head) == {"station", "jumper", "stick"}
+    for group in head.values():
+        assert 0.6 < group["ratio"]["median"] < 1.4          # 30 runs: +-26 % at 2 sigma
+    t2 = (folder / "table2.csv").read_text()
+    assert "P1.X" in t2 and "delta_phi" in t2
+
+
+# ---------------------------------------------------------------------------
+# bad input
+
+@pytest.mark.parametrize("body, message", [
+    ('orient = "net.prj"\nrunz = 10', "unknown key 'runz'"),
+    ('orient = "net.prj"\nruns = 0', "runs in [montecarlo] must be at least 1"),
+    ('orient = "missing.prj"', "project missing.prj not found"),
+    ('runs = 5', "needs exactly one of orient and calibrate"),
+    ('orient = "net.prj"\nperturb = ["imgae"]', "unknown perturbation 'imgae'"),
+])
+def test_bad_montecarlo_section_is_one_line_with_file_and_line(net, tmp_path, body, message,
+                                                                capsys):
+    from photogram_cli.main import main
+    (tmp_path / "net.prj").symlink_to(net / "net.prj")
+    for f in net.glob("net_*.csv"):
+        (tmp_path / f.name).symlink_to(f)
+    path = _chain_file(tmp_path, body)
+    with pytest.raises(InputError) as err:
+        read_project(path)
+    assert message in str(err.value)
+    assert err.value.file == str(path) and err.value.line is not None
+    assert main(["montecarlo", str(path)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"{path}:") and message in lines[0]
+
+
+def test_bad_command_line_values_exit_2(net, capsys):
+    from photogram_cli.main import main
+    path = _chain_file(net, 'orient = "net.prj"\nruns = 5', name="ok.prj")
+    assert main(["montecarlo", str(path), "--runs", "0"]) == 2
+    assert "--runs must be at least 1" in capsys.readouterr().err
+    assert main(["montecarlo", str(path), "--scheduler", "localhost:1"]) == 2
+    assert "tcp://HOST:PORT" in capsys.readouterr().err
+
+
+def test_command_line_run_writes_the_results(net, tmp_path, capsys):
+    from photogram_cli.main import main
+    path = _chain_file(net, 'orient = "net.prj"\nruns = 20\nchunk = 5\nseed = 2',
+                       name="cli.prj")
+    assert main(["montecarlo", str(path), "--output", str(tmp_path), "--seed", "4"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("montecarlo: 20 runs (0 failed)")
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["seed"] == 4 and summary["runs"] == 20
+    for name in ("summary.csv", "table1.csv", "samples.csv", "log.txt",
+                 "samples/chunk-00003.csv"):
+        assert (tmp_path / name).is_file()
