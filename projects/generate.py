@@ -289,7 +289,7 @@ points = ["P1", "P2", "P3", "P4"]
 skis = ["L1", "L2"]
 ski_length = 2.63                     # m
 binding_fraction = 0.43               # binding from the ski tail
-orientation = ["../lab/results", "../field/results"]   # propagate their covariance
+orientation = ["../field/results"]    # joint covariance of lab interior + field exterior
 swap_skis = false
 
 [output]
