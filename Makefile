@@ -5,7 +5,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv test demo clean
+.PHONY: venv test demo clean montecarlo bench
 
 venv: $(STAMP)
 
@@ -26,3 +26,13 @@ demo: $(STAMP)
 
 clean:
 	rm -rf $(VENV) build *.egg-info
+
+# Accuracy by simulation on the demo's results (run `make demo` first).
+montecarlo: $(STAMP)
+	$(VENV)/bin/photogram montecarlo projects/jumps/montecarlo.prj
+
+# Benchmarks print their figures and end with a RESULT line (docs/benchmarks.md).
+bench: $(STAMP)
+	$(PY) benchmarks/camcal.py
+	$(PY) benchmarks/montecarlo.py
+	$(PY) benchmarks/scaling.py
