@@ -5,7 +5,9 @@ projects, in the order a user runs it.
 2. ``orient projects/field/field.prj``  the simulated arena, cameras from step 1
 3. ``intersect projects/jumps/jumps.prj``  the simulated jump: jumper points,
    ski lines and the stick model, orientation covariance propagated
-4. ``calibrate projects/camcal/camcal.prj``  DBAT's real CAMCAL network, when
+4. ``montecarlo projects/jumps/montecarlo.prj --runs 200``  accuracy by
+   simulation of orient + intersect, Monte Carlo versus propagated sigmas
+5. ``calibrate projects/camcal/camcal.prj``  DBAT's real CAMCAL network, when
    ../shared/data/dbat is present beside the repository
 
 Each step writes its results folder beside its project file.
@@ -24,11 +26,22 @@ ROOT = Path(__file__).resolve().parents[1]
 PROJECTS = ROOT / "projects"
 
 
+def _montecarlo(project, runs=200):
+    """The demo's Monte Carlo: 200 runs (the project says 1000)."""
+    from photogram.montecarlo import run_montecarlo
+    folder, summary = run_montecarlo(project, runs=runs, progress=False)
+    ratios = {g: h["ratio"]["median"] for g, h in summary["headline"].items()}
+    print(f"montecarlo: {summary['runs']} runs; sigma_mc / sigma_prop median per group: "
+          + ", ".join(f"{g} {r:.2f}" for g, r in ratios.items()) + f"; results in {folder}")
+    return folder, None
+
+
 def steps():
     """(command, function, project path, needs) of the demo, in order."""
     return [("calibrate", calibrate, PROJECTS / "lab" / "lab.prj", None),
             ("orient", orient, PROJECTS / "field" / "field.prj", None),
             ("intersect", intersect_and_write, PROJECTS / "jumps" / "jumps.prj", None),
+            ("montecarlo", _montecarlo, PROJECTS / "jumps" / "montecarlo.prj", None),
             ("calibrate", calibrate, PROJECTS / "camcal" / "camcal.prj",
              ROOT.parent / "shared" / "data" / "dbat" / "camcal")]
 
@@ -45,7 +58,8 @@ def run(args=None):
         if not path.is_file():
             continue
         folder, result = function(read_project(path))
-        announce(f"{command} {path.relative_to(ROOT)}", folder, result.summary, args)
+        if result is not None:
+            announce(f"{command} {path.relative_to(ROOT)}", folder, result.summary, args)
         folders.append(folder)
     print("results: " + ", ".join(str(Path(f).resolve().relative_to(ROOT)) if
                                   Path(f).resolve().is_relative_to(ROOT) else str(f)
