@@ -115,6 +115,8 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
     cof = cofactors(problem)
     s0sq = s.sigma0 ** 2 if np.isfinite(s.sigma0) else 1.0
     result = _collect(project, built, cof, s0sq, summary)
+    if fix_interior:
+        _with_calibration_covariance(result, built, s0sq, summary)
     red = redundancy_numbers(problem, cof)
     result.residuals = _residual_columns(problem, red)
     t_stats = time.perf_counter()
@@ -143,6 +145,35 @@ def _apriori_image_sigma(problem):
     (pixels)")."""
     sig = [b.sigma[:, 0] for b in problem.blocks if b.name == "image points"]
     return float(np.sqrt(np.mean(np.concatenate(sig) ** 2))) if sig else float("nan")
+
+
+def _with_calibration_covariance(result, built, s0sq, summary):
+    """With the interior orientation fixed at calibrated values whose
+    covariance is known (covariance.npz beside the cameras file), report the
+    covariance of the stations including that uncertainty, with the
+    interior-exterior cross-covariances (photogram.stats.interior.py)."""
+    from photogram.stats.interior import (
+        calibration_covariance, interior_sensitivity, station_rotation_to_angles)
+    found = calibration_covariance(result.project)
+    if found is None or built is None:
+        return
+    labels, Sio, folder = found
+    D, cof = interior_sensitivity(built.problem, built.camera_names, result.project, labels)
+    T = station_rotation_to_angles(built.problem)
+    D = T @ D                                         # angles instead of rotation increments
+    n_s = len(built.problem.state.X0)
+    lab_st = [f"{st}.{p}" for st in result.project.stations.names
+              for p in ("X0", "Y0", "Z0", "omega", "phi", "kappa")]
+    cols = built.problem.layout.station_cols.ravel()
+    Q_st = cof.Qcc[np.ix_(cols, cols)]
+    S_full = s0sq * T @ Q_st @ T.T + D @ Sio @ D.T
+    cov = np.block([[Sio, Sio @ D.T], [D @ Sio, S_full]])
+    result.station_sigma = np.sqrt(np.clip(np.diag(S_full), 0, None)).reshape(n_s, 6)
+    result.covariances.update({"orientation_labels": labels + lab_st, "orientation": cov})
+    summary["interior_covariance"] = {
+        "from": str(folder), "parameters": labels,
+        "note": "station sigmas and covariance.npz include the covariance of the fixed "
+                "interior orientation, propagated, with interior-exterior cross-covariances"}
 
 
 def _collect(project, built, cof, s0sq, summary):
@@ -244,6 +275,8 @@ def run(project, *, command, output=None, fix_interior=False):
                   residuals=result.residuals,
                   log_text=_log_text(command, project.path, result.summary))
     _write_covariance(folder / "covariance.npz", result)
+    from photogram.report import write_report
+    write_report(folder)
     if result.summary["status"] != "converged":
         raise GeometryError(f"{result.summary['message']}; the unconverged results are in {folder}",
                             hint="raise [adjustment] max_iterations or improve the approximate values")

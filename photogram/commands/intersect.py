@@ -25,9 +25,11 @@ from photogram.project.atomic import atomic_write_text
 
 
 def _orientation(project):
-    """(labels, matrix) summed over the results folders named in
-    ``[intersect] orientation`` (e.g. the lab's for the interior and the
-    field's for the exterior orientation), or None."""
+    """(labels, matrix) of the results folders named in ``[intersect]
+    orientation``, or None. The orient results of a project whose cameras
+    come from a calibration already hold the joint covariance of interior and
+    exterior orientation; blocks of several folders are combined without
+    cross terms, a later folder replacing what an earlier one gives."""
     from photogram.commands.bundle import read_orientation_covariance
     where = project.intersect.orientation
     if where is None:
@@ -46,9 +48,10 @@ def _orientation(project):
     union = list(dict.fromkeys(l for lab in labels for l in lab))
     index = {l: i for i, l in enumerate(union)}
     total = np.zeros((len(union), len(union)))
-    for lab, mat in zip(labels, blocks):
+    for lab, mat in zip(labels, blocks):       # a later folder overrides an earlier one
         ix = np.array([index[l] for l in lab])
-        total[np.ix_(ix, ix)] += mat
+        keep = np.diag(mat) > 0
+        total[np.ix_(ix[keep], ix[keep])] = mat[np.ix_(keep, keep)]
     return union, total
 
 
@@ -117,6 +120,8 @@ def intersect_and_write(project, output=None):
     write_results(folder, result.project, summary, point_sigma=result.point_sigma,
                   log_text=json.dumps(summary, indent=1, default=str) + "\n")
     write_jump(folder, result, project)
+    from photogram.report import write_report
+    write_report(folder)
     result.summary = summary
     return folder, result
 

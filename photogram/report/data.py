@@ -1,0 +1,294 @@
+"""Everything a report shows, read from a results folder.
+
+:func:`load` reads the files the commands write (docs/project-files.md,
+"Results folder"): summary.json, cameras.toml, stations.csv, points.csv,
+residuals.csv, log.txt via :func:`photogram.project.results.read_results`;
+covariance.npz; the intersect outputs exposures.csv, points3d.csv,
+lines3d.csv and stick.png; and, for the reference coordinates of control
+points and the list of input files, the project file named in summary.json
+when it can still be read. Quantities several pages need (rotation
+matrices, image formats, rays and intersection angles per point) are
+computed once, on first use.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from photogram.errors import InputError, PhotogramError
+from photogram.geometry import opk_to_matrix, to_radians
+from photogram.project.results import Results, read_results
+
+__all__ = ["ReportData", "load", "REQUIRED"]
+
+#: the files of an adjustment's results folder (calibrate, orient, intersect);
+#: other commands (montecarlo, mocap) need only summary.json
+REQUIRED = ("summary.json", "cameras.toml", "stations.csv", "points.csv", "residuals.csv")
+ADJUSTMENT_COMMANDS = ("calibrate", "orient", "intersect")
+
+
+@dataclass
+class ReportData:
+    """A results folder read back for the report (tables in file units)."""
+
+    folder: Path
+    results: Results
+    covariance: dict | None = None
+    exposures: object = None        # pandas DataFrames of the intersect step, or None
+    points3d: object = None
+    lines3d: object = None
+    project: object = None          # the Project of summary.json's path, if readable
+    project_note: str = ""
+    extra: dict = field(default_factory=dict)
+
+    # -------------------------------------------------------------- basics
+    @property
+    def summary(self) -> dict:
+        return self.results.summary
+
+    @property
+    def command(self) -> str:
+        return str(self.summary.get("command") or "adjustment")
+
+    @property
+    def info(self) -> dict:
+        return self.summary.get("project") or {}
+
+    @property
+    def name(self) -> str:
+        return str(self.info.get("name") or self.folder.name)
+
+    @property
+    def length_unit(self) -> str:
+        return str(self.info.get("length_unit") or "")
+
+    @property
+    def angle_unit(self) -> str:
+        return str(self.info.get("angle_unit") or "rad")
+
+    @property
+    def image_unit(self) -> str:
+        return str(self.results.image_unit or self.info.get("image_unit") or "px")
+
+    def has(self, name: str) -> bool:
+        return (self.folder / name).is_file()
+
+    # --------------------------------------------------------- observations
+    @cached_property
+    def residuals(self):
+        """residuals.csv with a boolean ``used`` column (all True if absent)."""
+        r = self.results.residuals.copy()
+        if "used" in r.columns:
+            r["used"] = r["used"].fillna(1).astype(int).astype(bool)
+        else:
+            r["used"] = True
+        return r
+
+    @property
+    def has_residuals(self) -> bool:
+        r = self.results.residuals
+        return len(r) > 0 and {"vx", "vy", "x", "y"} <= set(r.columns)
+
+    # -------------------------------------------------------------- stations
+    @cached_property
+    def stations(self):
+        return self.results.stations.set_index("station", drop=False)
+
+    @cached_property
+    def rotation(self) -> dict:
+        """Station -> world-to-camera matrix (from the file's angles and
+        rotation direction)."""
+        st = self.stations
+        out = {}
+        for name in st.index:
+            ang = st.loc[name, ["omega", "phi", "kappa"]].to_numpy(float)
+            if not np.all(np.isfinite(ang)):
+                continue
+            R = opk_to_matrix(to_radians(ang, self.angle_unit))
+            if self.info.get("rotation_direction") == "camera_to_world":
+                R = R.T
+            out[name] = R
+        return out
+
+    @cached_property
+    def centres(self) -> dict:
+        st = self.stations
+        return {n: st.loc[n, ["X0", "Y0", "Z0"]].to_numpy(float) for n in st.index}
+
+    def station_camera(self, station: str) -> str | None:
+        st = self.stations
+        return str(st.loc[station, "camera"]) if station in st.index else None
+
+    def image_format(self, camera: str | None):
+        """(width, height) of a camera's image in the image unit, or None."""
+        cam = self.results.cameras.get(camera) if camera else None
+        if cam is None or cam.image_size is None:
+            return None
+        w, h = (float(v) for v in cam.image_size)
+        if self.image_unit == "mm":
+            if cam.pixel_size is None:
+                return None
+            w, h = w * cam.pixel_size[0], h * cam.pixel_size[1]
+        return w, h
+
+    # ---------------------------------------------------------------- points
+    @cached_property
+    def points(self):
+        return self.results.points.set_index("id", drop=False)
+
+    @cached_property
+    def rays(self):
+        """Per observed point: ``rays`` (used observations) and ``angle``
+        (largest angle between two of its rays, degrees)."""
+        import pandas as pd
+
+        r = self.residuals[self.residuals["used"]]
+        pts, rows = self.points, []
+        for pid, group in r.groupby("point", sort=True):
+            if pid not in pts.index:
+                continue
+            X = pts.loc[pid, ["X", "Y", "Z"]].to_numpy(float)
+            C = np.array([self.centres[s] for s in group["station"] if s in self.centres])
+            ang = np.nan
+            if len(C) >= 2 and np.all(np.isfinite(X)):
+                u = C - X
+                u /= np.linalg.norm(u, axis=1, keepdims=True)
+                cos = np.clip(u @ u.T, -1.0, 1.0)
+                ang = float(np.degrees(np.arccos(cos.min())))
+            rows.append({"point": pid, "rays": len(group), "angle": ang})
+        return pd.DataFrame(rows, columns=["point", "rays", "angle"]).set_index("point")
+
+    @cached_property
+    def point_sigma(self):
+        """(ids, (n, 3) sigmas) of the points with a-posteriori sigmas > 0."""
+        p = self.points
+        cols = ["est_sX", "est_sY", "est_sZ"]
+        if not set(cols) <= set(p.columns):
+            return [], np.zeros((0, 3))
+        s = p[cols].to_numpy(float)
+        ok = np.all(np.isfinite(s), axis=1) & (s.max(axis=1) > 0)
+        return list(p.index[ok]), s[ok]
+
+
+def _read_covariance(path: Path) -> dict | None:
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path) as z:
+            return {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read the covariance file: {exc}", file=path,
+                         hint="the file is damaged: run the command again") from None
+
+
+def _read_table(path: Path, ids=("exposure", "point", "line")):
+    import pandas as pd
+
+    if not path.is_file():
+        return None
+    return pd.read_csv(path, comment="#", dtype={k: str for k in ids})
+
+
+def _project_path(folder: Path, text) -> Path | None:
+    if not text:
+        return None
+    p = Path(str(text))
+    if p.is_absolute():
+        return p if p.is_file() else None
+    # a relative path is relative to where the command ran: look above the
+    # results folder first (the same answer from any working directory),
+    # then in the working directory
+    candidates = [a / p for a in Path(folder).resolve().parents] + [Path.cwd() / p,
+                                                                    folder.parent / p.name]
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def _read_project(folder: Path, summary: dict):
+    from photogram.project import read_project
+
+    path = _project_path(folder, (summary.get("project") or {}).get("path"))
+    if path is None:
+        return None, "the project file named in summary.json was not found"
+    logger = logging.getLogger("photogram")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        return read_project(path), ""
+    except (PhotogramError, OSError) as exc:
+        return None, f"the project file could not be read ({' '.join(str(exc).split())})"
+    finally:
+        logger.setLevel(level)
+
+
+def _read_summary(folder: Path) -> dict:
+    import json
+
+    path = folder / "summary.json"
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"cannot read summary.json: {exc}", file=path,
+                         hint="the file is damaged: run the command again") from None
+    if not isinstance(summary, dict):
+        raise InputError("summary.json does not hold a JSON object", file=path,
+                         hint="the file is damaged: run the command again")
+    return summary
+
+
+def _summary_only(folder: Path, summary: dict) -> Results:
+    """The results of a command without adjustment tables (Monte Carlo,
+    motion capture): the summary and empty tables."""
+    import pandas as pd
+
+    image_unit = str((summary.get("project") or {}).get("image_unit") or "px")
+    return Results(folder=folder, summary=summary, image_unit=image_unit, cameras={},
+                   stations=pd.DataFrame(columns=["station", "camera", "X0", "Y0", "Z0",
+                                                  "omega", "phi", "kappa"]),
+                   points=pd.DataFrame(columns=["id", "kind", "X", "Y", "Z"]),
+                   residuals=pd.DataFrame(columns=["station", "point", "x", "y", "vx", "vy"]),
+                   log="")
+
+
+def load(folder: str | Path) -> ReportData:
+    """Read a results folder for the report.
+
+    Raises
+    ------
+    InputError
+        The folder holds no results, or a results file is missing or damaged
+        (one line naming the folder and the file).
+    """
+    folder = Path(folder)
+    if folder.is_file():
+        raise InputError("a file, not a results folder", file=folder,
+                         hint="photogram report takes the output folder of calibrate, orient "
+                              "or intersect, e.g. projects/lab/results")
+    if not folder.is_dir():
+        raise InputError("no such results folder", file=folder,
+                         hint="give the output folder of calibrate, orient or intersect")
+    missing = [f for f in REQUIRED if not (folder / f).is_file()]
+    hint = ("run calibrate, orient or intersect first, or give its output folder "
+            "(e.g. projects/lab/results)")
+    if "summary.json" in missing:
+        raise InputError(f"not a results folder: {', '.join(missing)} missing", file=folder,
+                         hint=hint)
+    if missing:
+        summary = _read_summary(folder)
+        if summary.get("command") in ADJUSTMENT_COMMANDS or "redundancy" in summary:
+            raise InputError(f"incomplete results folder: {', '.join(missing)} missing",
+                             file=folder, hint="run the command again")
+        results = _summary_only(folder, summary)
+    else:
+        results = read_results(folder)
+    project, note = _read_project(folder, results.summary)
+    return ReportData(folder=folder, results=results,
+                      covariance=_read_covariance(folder / "covariance.npz"),
+                      exposures=_read_table(folder / "exposures.csv", ids=()),
+                      points3d=_read_table(folder / "points3d.csv"),
+                      lines3d=_read_table(folder / "lines3d.csv"),
+                      project=project, project_note=note)

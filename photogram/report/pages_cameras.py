@@ -1,0 +1,198 @@
+"""One page per camera: interior parameters with sigma and significance,
+high correlations, the largest distortion and a distortion plot over the
+image format."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from photogram.errors import PhotogramError
+from photogram.geometry import camera_model
+from photogram.report.layout import decorate
+from photogram.report.numbers import finite, num, pair
+from photogram.report.registry import section
+
+#: parameters that are never zero: no significance test
+_NOT_TESTED = {"c", "x0", "y0", "fx", "fy", "cx", "cy"}
+
+_INTRO = ("Interior orientation: principal distance, principal point and lens distortion. "
+          "t = |value| / sigma; p is the probability of a |t| this large if the parameter were "
+          "really zero (Student's t with the redundancy as degrees of freedom): p < 0.05 means "
+          "the parameter is significant, otherwise it could be left out (fixed at 0). "
+          "Correlations above 0.95 mean that two parameters cannot be told apart well by this "
+          "network.")
+
+
+def _unit(dim: int, unit: str) -> str:
+    return "-" if dim == 0 else unit if dim == 1 else f"{unit}^{dim}"
+
+
+def _significance(name, value, sigma, dof):
+    from scipy.special import stdtr
+
+    if name in _NOT_TESTED or not (finite(sigma) and sigma > 0 and finite(value)):
+        return "-", "-", "-"
+    t = abs(value) / sigma
+    p = 2.0 * (1.0 - stdtr(max(float(dof), 1.0), t)) if finite(dof) else np.nan
+    return f"{t:.1f}", (f"{p:.3f}" if p >= 0.001 else "<0.001"), ("yes" if p < 0.05 else "no")
+
+
+def correlations(data, camera: str, limit: float = 0.95):
+    """Pairs ``(a, b, r)`` with |r| > limit involving an interior parameter of
+    ``camera``, from covariance.npz (or summary.json's high_correlations)."""
+    cov = data.covariance
+    if cov is None or "labels" not in cov:
+        return [(a, b, r) for a, b, r in (data.summary.get("high_correlations") or {})
+                .get(camera, [])]
+    labels = [str(x) for x in cov["labels"]]
+    M = np.asarray(cov["matrix"], float)
+    s = np.sqrt(np.clip(np.diag(M), 0, None))
+    ok = s > 0
+    own = np.array([lab.split(".")[0] == camera for lab in labels]) & ok
+    out = []
+    for i in np.flatnonzero(own):
+        r = M[i, ok] / (s[i] * s[ok])
+        for j, rij in zip(np.flatnonzero(ok), r):
+            if j != i and abs(rij) > limit and not (own[j] and j < i):
+                out.append((labels[i], labels[j], float(rij)))
+    return sorted(out, key=lambda t: -abs(t[2]))
+
+
+def displacement(cam, xy):
+    """Displacement (n, 2) of measured image points ``xy`` from their
+    distortion-free positions (image units, y down), or None for a model
+    without a pinhole part known here."""
+    model, io = camera_model(cam.model), cam.values()
+    if cam.model == "brown":
+        ideal = io[1:3] + model.correct(xy, io)
+    elif cam.model == "opencv":
+        ideal = io[2:4] + io[0:2] * model.image_to_ray(xy, io)
+    else:
+        return None
+    return xy - ideal
+
+
+def distortion_field(cam, fmt, nx=41, ny=31):
+    """Grid (X, Y) over the format and the displacement (dx, dy) of every
+    grid point, or None (see :func:`displacement`)."""
+    X, Y = np.meshgrid(np.linspace(0, fmt[0], nx), np.linspace(0, fmt[1], ny))
+    d = displacement(cam, np.stack([X.ravel(), Y.ravel()], -1))
+    if d is None:
+        return None
+    d = d.reshape(ny, nx, 2)
+    return X, Y, d[..., 0], d[..., 1]
+
+
+def _principal_point(cam):
+    io = cam.values()
+    return io[1:3] if cam.model == "brown" else io[2:4] if cam.model == "opencv" else None
+
+
+def _plot_distortion(doc, data, cam, fmt, field):
+    X, Y, dx, dy = field
+    mag = np.hypot(dx, dy)
+    unit = data.image_unit
+    ax_map, ax_rad = doc.axes(3.3, ncols=2, widths=[1.45, 1.0], pad_left=0.6, pad_right=0.45,
+                              gap=0.15)
+    cs = ax_map.contourf(X, Y, mag, levels=12, cmap="viridis")
+    cb = doc.page.figure.colorbar(cs, ax=ax_map, fraction=0.05, pad=0.02)
+    cb.set_label(f"|distortion| [{unit}]")
+    step = (slice(None, None, 4), slice(None, None, 4))
+    biggest = float(mag.max()) or 1.0
+    scale = biggest / (0.08 * fmt[0])          # data units of arrow per unit of length
+    ax_map.quiver(X[step], Y[step], dx[step], dy[step], angles="xy", scale_units="xy",
+                  scale=scale, color="black", width=0.005)
+    pp = _principal_point(cam)
+    if pp is not None:
+        ax_map.plot(*pp, "+", color="red", ms=9, mew=1.2)
+    ax_map.set_xlim(0, fmt[0])
+    ax_map.set_ylim(fmt[1], 0)
+    ax_map.set_aspect("equal")
+    decorate(ax_map, "distortion, + principal point", f"x [{unit}]", f"y [{unit}] (down)")
+    # along the half-diagonal to the corner farthest from the principal point
+    if pp is not None:
+        corners = np.array([[0, 0], [fmt[0], 0], [0, fmt[1]], [fmt[0], fmt[1]]], float)
+        far = corners[np.argmax(np.linalg.norm(corners - pp, axis=1))]
+        line = pp + np.linspace(0, 1, 60)[:, None] * (far - pp)
+        ax_rad.plot(np.linalg.norm(line - pp, axis=1),
+                    np.linalg.norm(displacement(cam, line), axis=1), color="tab:blue")
+        ax_rad.grid(True, lw=0.3)
+        decorate(ax_rad, "towards the farthest corner",
+                 f"distance from the principal point [{unit}]", f"|distortion| [{unit}]")
+    else:
+        ax_rad.set_visible(False)
+
+
+def _heatmap(doc, data, name):
+    cov = data.covariance
+    if cov is None or "labels" not in cov:
+        return
+    labels = [str(x) for x in cov["labels"]]
+    idx = [i for i, lab in enumerate(labels) if lab.split(".")[0] == name]
+    M = np.asarray(cov["matrix"], float)[np.ix_(idx, idx)]
+    s = np.sqrt(np.clip(np.diag(M), 0, None))
+    keep = s > 0
+    if keep.sum() < 2:
+        return
+    C = M[np.ix_(keep, keep)] / np.outer(s[keep], s[keep])
+    names = [labels[i].split(".", 1)[1] for i, k in zip(idx, keep) if k]
+    ax = doc.float_right(3.2, 3.0, pad_left=0.45, pad_bottom=0.45)
+    im = ax.imshow(C, vmin=-1, vmax=1, cmap="RdBu_r")
+    ax.set_xticks(range(len(names)), names, rotation=90)
+    ax.set_yticks(range(len(names)), names)
+    for i in range(len(names)):
+        for j in range(len(names)):
+            ax.text(j, i, f"{C[i, j]:.2f}", ha="center", va="center", size=5.5,
+                    color="white" if abs(C[i, j]) > 0.6 else "black")
+    cb = doc.page.figure.colorbar(im, ax=ax, fraction=0.05, pad=0.03)
+    cb.set_label("correlation [-]")
+    decorate(ax, "correlations (interior)")
+
+
+@section("cameras", "Cameras (interior orientation)", 20,
+         applies=lambda d: bool(d.results.cameras))
+def build(doc, data):
+    dof = data.summary.get("redundancy")
+    for name, cam in sorted(data.results.cameras.items()):
+        fmt = data.image_format(name)
+        size = f"{cam.image_size[0]} x {cam.image_size[1]} px" if cam.image_size else "size ?"
+        pix = (f", pixel {cam.pixel_size[0]:g} x {cam.pixel_size[1]:g} mm"
+               if cam.pixel_size else "")
+        doc.start_section(f"Camera {name}", intro=_INTRO)
+        doc.text(f"model {cam.model}, image {size}{pix}; values in {data.image_unit}", size=8.5)
+        model = camera_model(cam.model)
+        rows = []
+        for (pname, par), dim in zip(cam.parameters.items(), model.parameter_dims):
+            s = par.sigma_estimated
+            v, sv = pair(par.value, s if par.free else None)
+            rows.append([pname, _unit(dim, data.image_unit), v, sv,
+                         "estimated" if par.free else "fixed",
+                         *_significance(pname, par.value, s if par.free else None, dof)])
+        doc.table(["parameter", "unit", "value", "sigma", "", "t", "p", "significant"], rows,
+                  align="llrrlrrl", title="Parameters")
+        _heatmap(doc, data, name)
+        high = correlations(data, name)
+        doc.table(["parameter", "with", "correlation"],
+                  [(a, b, f"{r:+.3f}") for a, b, r in high[:15]], align="llr",
+                  title="Correlations above 0.95",
+                  note=(f"... and {len(high) - 15} more" if len(high) > 15 else None))
+        field = None
+        if fmt is not None:
+            try:
+                field = distortion_field(cam, fmt)
+            except PhotogramError as exc:
+                doc.text(f"distortion not evaluated: {exc.one_line()}", size=8)
+        if field is not None:
+            mag = np.hypot(field[2], field[3])
+            k = np.unravel_index(np.argmax(mag), mag.shape)
+            half_diag = 0.5 * np.hypot(*fmt)
+            px = ""
+            if data.image_unit == "mm" and cam.pixel_size:
+                px = f" ({mag[k] / cam.pixel_size[0]:.1f} px)"
+            doc.text(f"Largest distortion: {num(mag[k], 3)} {data.image_unit}{px}, "
+                     f"{100 * mag[k] / half_diag:.2f} % of the half-diagonal, at "
+                     f"x = {field[0][k]:.0f}, y = {field[1][k]:.0f} {data.image_unit}. The arrows "
+                     "point from the distortion-free to the measured position (longest arrow = "
+                     "largest distortion of the arrow grid).", size=8.5)
+            _plot_distortion(doc, data, cam, fmt, field)
+        doc.clear_float()

@@ -1,0 +1,79 @@
+"""Network geometry from the observations: rays per point, intersection
+angles and image coverage (DBAT's "Point Measurements", "Point Angles" and
+"Photo point coverage")."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from photogram.report.layout import decorate
+from photogram.report.numbers import num, pct
+from photogram.report.registry import section
+from photogram.report.shapes import convex_hull, coverage_fraction, polygon_area
+
+_INTRO = ("Rays: the images a point was measured (and used) in. Intersection angle: the "
+          "largest angle between two rays of a point, at the point; small angles (below "
+          "about 10 deg) give poor depth. Coverage: the part of the image format inside "
+          "the convex hull of the measured points (per image), and inside the union of "
+          "these hulls (per camera); a calibration needs points out to the corners.")
+
+
+def coverage(data):
+    """Per station (n points, hull fraction, rectangle fraction, hull) and
+    per camera the union fraction."""
+    r = data.residuals[data.residuals["used"]]
+    per_station, hulls = [], {}
+    for st, g in r.groupby("station", sort=False):
+        cam = data.station_camera(st)
+        fmt = data.image_format(cam)
+        xy = g[["x", "y"]].to_numpy(float)
+        hull = convex_hull(xy)
+        area = fmt[0] * fmt[1] if fmt else np.nan
+        rect = np.prod(np.ptp(xy, axis=0)) if len(xy) > 1 else 0.0
+        per_station.append((st, cam, len(g), polygon_area(hull) / area, rect / area))
+        hulls.setdefault(cam, []).append(hull)
+    union = {cam: coverage_fraction(h, data.image_format(cam))
+             for cam, h in hulls.items() if data.image_format(cam)}
+    return per_station, union
+
+
+@section("geometry", "Rays, intersection angles, coverage", 60,
+         applies=lambda d: d.has_residuals)
+def build(doc, data):
+    doc.start_section("Rays, intersection angles and image coverage", intro=_INTRO)
+    rays = data.rays
+    kinds = data.points["kind"] if "kind" in data.points.columns else None
+    rows = []
+    for kind in ("control", "check", "tie"):
+        ids = [p for p in rays.index if kinds is None or str(kinds.get(p, "tie")) == kind]
+        if not ids:
+            continue
+        n, a = rays.loc[ids, "rays"], rays.loc[ids, "angle"]
+        rows.append([kind, str(len(ids)), f"{n.min()}-{n.max()}", f"{n.mean():.1f}",
+                     num(a.min(), 3), num(a.mean(), 3), num(a.max(), 3)])
+    doc.table(["points", "number", "rays", "mean rays", "min angle [deg]", "mean angle [deg]",
+               "max angle [deg]"], rows, align="lrrrrrr", title="Rays and intersection angles")
+    small = rays.sort_values("angle").head(8)
+    doc.table(["point", "angle [deg]", "rays"],
+              [(p, num(x["angle"], 3), str(int(x["rays"]))) for p, x in small.iterrows()],
+              title="Smallest intersection angles")
+    per_station, union = coverage(data)
+    doc.table(["station", "camera", "points", "convex hull", "rectangle"],
+              [(st, str(cam), str(n), pct(h, 0), pct(rc, 0))
+               for st, cam, n, h, rc in per_station],
+              align="llrrr", title="Image coverage (share of the format)")
+    if union:
+        doc.text("Union of the convex hulls per camera: " + ", ".join(
+            f"{cam} {pct(f, 0)}" for cam, f in sorted(union.items())) + ".", size=8.5)
+    ax_r, ax_a = doc.axes(2.5, ncols=2, pad_left=0.6, gap=0.3)
+    n = rays["rays"].to_numpy(int)
+    if len(n):
+        ax_r.hist(n, bins=np.arange(n.min(), n.max() + 2) - 0.5, color="tab:blue", rwidth=0.8)
+    ax_r.xaxis.get_major_locator().set_params(integer=True)
+    decorate(ax_r, "rays per point", "rays [-]", "points [-]", ypad=0.42)
+    a = rays["angle"].to_numpy(float)
+    a = a[np.isfinite(a)]
+    if len(a):
+        ax_a.hist(a, bins=min(30, max(5, len(a) // 3)), color="tab:green")
+    decorate(ax_a, "intersection angle per point", "largest angle between rays [deg]",
+             "points [-]", ypad=0.42)

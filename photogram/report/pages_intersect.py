@@ -1,0 +1,170 @@
+"""The intersect step: the stick model figure (the ski-jump paper's Fig. 8),
+every stick-model parameter over time with its sigma band, the table of
+parameters per exposure, and the quality of the jumper points and ski lines."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from photogram.jump import definitions as defs
+from photogram.report.layout import decorate
+from photogram.report.numbers import decimals_for, finite, num, sig
+from photogram.report.registry import section
+
+
+_SHORT = {"alpha": "legs against the ski axis", "beta": "trunk against the ski axis",
+          "gamma": "hip angle", "delta_phi": "V angle of the skis", "phi": "ski slope",
+          "heading": "direction in plan", "Z0": "height of O", "v": "speed of O"}
+
+
+def _has_jump(d):
+    return d.exposures is not None and len(d.exposures) > 0
+
+
+def _unit(data, name):
+    if name in defs.ANGLE_PARAMETERS:
+        return data.angle_unit
+    return f"{data.length_unit}/s" if name == "v" else data.length_unit
+
+
+def _params(data):
+    return [p for p in defs.PARAMETERS if p in data.exposures.columns]
+
+
+@section("stick", "Stick model (Fig. 8)", 80, applies=_has_jump)
+def build_stick(doc, data):
+    image = None
+    if data.has("stick.png"):
+        import matplotlib.image as mpimg
+        image = mpimg.imread(data.folder / "stick.png")
+    wide = image is None or image.shape[1] > 1.3 * image.shape[0]
+    doc.start_section("Stick model (Fig. 8)", landscape=wide, intro=(
+        "The jumper's stick model (head P1, hip P2, bindings P3 P4, the two skis; right ski "
+        "red, left blue) at evenly spaced exposures, in a side view (X, Z) and in plan "
+        "(X, Y), at the true positions along the flight, with the speed of the binding "
+        "midpoint O."))
+    if image is not None:
+        doc.image(image, doc.remaining - 0.1)
+    else:
+        _redraw(doc, data)
+
+
+def _redraw(doc, data):
+    """Side and plan view from points3d.csv and lines3d.csv (stick.png missing)."""
+    lu = data.length_unit
+    p3, l3 = data.points3d, data.lines3d
+    axes = doc.axes(doc.remaining - 0.2, ncols=2, gap=0.3)
+    for ax, (j, name) in zip(axes, ((2, "Z"), (1, "Y"))):
+        if p3 is not None:
+            for _, g in p3.groupby("exposure"):
+                P = g.set_index("point").reindex(["P1", "P2", "P3", "P4"])[["X", "Y", "Z"]]
+                P = P.to_numpy(float)
+                for a, b in ((0, 1), (1, 2), (1, 3), (2, 3)):
+                    ax.plot(P[[a, b], 0], P[[a, b], j], color="black", lw=0.8)
+        if l3 is not None:
+            for _, row in l3.iterrows():
+                colour = "tab:red" if row["line"] == "L1" else "tab:blue"
+                ax.plot([row["X1"], row["X2"]], [row[f"{name}1"], row[f"{name}2"]],
+                        color=colour, lw=1.0)
+        ax.set_aspect("equal", adjustable="box")
+        ax.grid(True, lw=0.3)
+        decorate(ax, f"{'side' if j == 2 else 'plan'} view (stick.png not found: drawn from "
+                     "points3d.csv and lines3d.csv)", f"X [{lu}]", f"{name} [{lu}]")
+
+
+@section("timeseries", "Stick model over time", 81, applies=_has_jump)
+def build_series(doc, data):
+    e = data.exposures
+    names = _params(data)
+    doc.start_section("Stick model over time", intro=(
+        "Every stick-model parameter against time; the band is ±1 sigma (propagated from "
+        "the image measurements and, if given, the orientation's covariance). alpha legs and "
+        "beta trunk against the ski axis, gamma hip angle, delta_phi V angle of the skis, phi "
+        "ski slope, heading, Z0 height of O, v speed of O (docs/stick-model.md)."))
+    t = e["time"].to_numpy(float) if "time" in e.columns else np.arange(len(e), dtype=float)
+    rows = (len(names) + 1) // 2
+    height = min(2.3, (doc.remaining - 0.2) / max(rows, 1))
+    for i in range(0, len(names), 2):
+        axes = doc.axes(height, ncols=2, pad_left=0.7, pad_bottom=0.45, gap=0.2)
+        for ax, name in zip(axes, names[i:i + 2]):
+            y = e[name].to_numpy(float)
+            ax.plot(t, y, ".-", color="tab:blue", lw=1, ms=3)
+            if f"sigma_{name}" in e.columns:
+                s = e[f"sigma_{name}"].to_numpy(float)
+                ax.fill_between(t, y - s, y + s, color="tab:blue", alpha=0.25, lw=0)
+            ax.grid(True, lw=0.3)
+            decorate(ax, f"{name}: {_SHORT.get(name, '')}",
+                     "time [s]", f"{name} [{_unit(data, name)}]", xpad=0.28, ypad=0.55)
+        for ax in axes[len(names[i:i + 2]):]:
+            ax.set_visible(False)
+
+
+@section("stick_table", "Stick model per exposure", 82, applies=_has_jump)
+def build_table(doc, data):
+    e = data.exposures
+    names = _params(data)
+    doc.start_section("Stick model per exposure", intro=(
+        "Value ± sigma of every parameter at every exposure (exposures.csv holds them "
+        "with all digits). Units: " + ", ".join(f"{n} [{_unit(data, n)}]" for n in names)
+        + "."))
+    rows = []
+    for _, x in e.iterrows():
+        row = [str(int(x["exposure"])) if finite(x.get("exposure")) else "-",
+               num(x.get("time"), 3)]
+        for n in names:
+            s = x.get(f"sigma_{n}")
+            d = decimals_for(s, 1, 4) if finite(s) else 2
+            row.append(f"{x[n]:.{d}f} ± {s:.{d}f}" if finite(s) and finite(x[n])
+                       else num(x[n], 4))
+        rows.append(row)
+    doc.table(["exp.", "time [s]"] + names, rows, size=7.5)
+
+
+@section("intersect_quality", "Jumper points and ski lines", 83,
+         applies=lambda d: d.points3d is not None or d.lines3d is not None)
+def build_quality(doc, data):
+    lu = data.length_unit
+    s = data.summary
+    doc.start_section("Jumper points and ski lines", intro=(
+        "Precision of the intersected jumper points and ski lines, and the left/right ski "
+        "check: 'ok' the two skis are told apart consistently in all images, 'inconsistent' "
+        "they disagree between images, 'ambiguous' too close to tell."))
+    checks = s.get("ski_checks") or {}
+    if checks:
+        counts = {}
+        for v in checks.values():
+            counts[v] = counts.get(v, 0) + 1
+        swapped = [k for k, v in (s.get("swapped_skis") or {}).items() if v]
+        doc.pairs([(k, f"{n} exposure(s)") for k, n in sorted(counts.items())]
+                  + [("interchanged skis", ", ".join(swapped) or "none")],
+                  title="Left/right ski check")
+        bad = [k for k, v in checks.items() if v != "ok"]
+        if bad:
+            doc.text("Not 'ok': " + ", ".join(f"{k} ({checks[k]})" for k in bad), size=8)
+    p3 = data.points3d
+    if p3 is not None and len(p3):
+        rows = []
+        for name, g in p3.groupby("point", sort=True):
+            rows.append([name, str(len(g))] + [sig(g[c].mean()) for c in ("sX", "sY", "sZ")]
+                        + [sig(np.sqrt((g[["sX", "sY", "sZ"]] ** 2).to_numpy().mean(axis=1))
+                               .max())])
+        doc.table(["point", "exposures", f"mean sX [{lu}]", f"mean sY [{lu}]",
+                   f"mean sZ [{lu}]", f"max total [{lu}]"], rows, title="Jumper points")
+    l3 = data.lines3d
+    if l3 is not None and len(l3):
+        rows = []
+        for name, g in l3.groupby("line", sort=True):
+            ang = np.degrees(g["sigma_angle_rad"].to_numpy(float))
+            rows.append([name, str(len(g)), num(np.nanmean(ang), 3), num(np.nanmax(ang), 3),
+                         sig(g["sigma_position"].mean()), num(g["sigma0"].mean(), 3),
+                         num(g["sigma0"].max(), 3)])
+        doc.table(["line", "exposures", "mean s(dir) [deg]", "max s(dir) [deg]",
+                   f"mean s(pos) [{lu}]", "mean sigma0", "max sigma0"], rows,
+                  title="Ski lines")
+        ax, = doc.axes(2.6, pad_right=1.4)
+        for name, g in l3.groupby("line", sort=True):
+            ax.plot(g["exposure"].astype(int), g["sigma0"], "o-", ms=3, label=name)
+        ax.axhline(1.0, color="0.5", lw=0.8, ls="--")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0))
+        ax.grid(True, lw=0.3)
+        decorate(ax, "sigma0 of each ski line fit", "exposure [-]", "sigma0 [-]")

@@ -1,0 +1,105 @@
+"""The network: cameras and points in 3D and in plan."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.ticker import MaxNLocator
+
+from photogram.report.layout import decorate, equal_limits
+from photogram.report.registry import section
+
+_STYLE = {"control": ("^", "tab:red", 14), "check": ("s", "tab:orange", 12),
+          "tie": ("o", "0.3", 3)}
+
+
+def _points(data):
+    p = data.points
+    xyz = p[["X", "Y", "Z"]].to_numpy(float)
+    ok = np.all(np.isfinite(xyz), axis=1)
+    if data.has_residuals:
+        seen = set(data.residuals["point"])
+        ok &= np.array([i in seen for i in p.index])
+    kinds = p["kind"].astype(str).to_numpy() if "kind" in p.columns else np.full(len(p), "tie")
+    return xyz[ok], kinds[ok]
+
+
+def _stations(data):
+    names = [n for n in data.stations.index if n in data.rotation
+             and np.all(np.isfinite(data.centres[n]))]
+    C = np.array([data.centres[n] for n in names]).reshape(-1, 3)
+    D = np.array([-data.rotation[n][2] for n in names]).reshape(-1, 3)   # viewing directions
+    return names, C, D
+
+
+def _equal_box(ax, xyz):
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    mid, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-9)
+    for setter, m in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), mid):
+        setter(m - half, m + half)
+    ax.set_box_aspect((1, 1, 1))
+
+
+@section("network", "Network", 70, applies=lambda d: len(d.results.stations) > 0)
+def build(doc, data):
+    lu = data.length_unit
+    xyz, kinds = _points(data)
+    names, C, D = _stations(data)
+    allp = np.vstack([xyz, C]) if len(C) else xyz
+    if not len(allp):
+        return
+    size = float(np.ptp(allp, axis=0).max()) or 1.0
+    doc.start_section("Network", intro=(
+        "Projection centres (black triangles, with the viewing direction) and the measured "
+        "points (red triangles: control, orange squares: check, grey dots: tie or object "
+        "points) in 3D and in plan; in the plan view every ray from a camera to a point it "
+        "measured is drawn as a thin line."))
+    ax3, = doc.axes(4.4, projection="3d", pad_left=0.3, pad_bottom=0.2, pad_top=0.1)
+    for kind, (marker, colour, ms) in _STYLE.items():
+        m = kinds == kind
+        if m.any():
+            ax3.scatter(*xyz[m].T, marker=marker, color=colour, s=ms, depthshade=False,
+                        label=kind)
+    if len(C):
+        ax3.scatter(*C.T, marker="^", color="black", s=25, depthshade=False, label="camera")
+        E = C + 0.12 * size * D
+        for c, e, n in zip(C, E, names):
+            ax3.plot(*np.stack([c, e]).T, color="black", lw=0.8)
+            ax3.text(*c, f" {n}", size=6.5)
+    _equal_box(ax3, allp)
+    ax3.set_xlabel(f"X [{lu}]")
+    ax3.set_ylabel(f"Y [{lu}]")
+    ax3.set_zlabel(f"Z [{lu}]")
+    ax3.tick_params(labelsize=6)
+    for axis in (ax3.xaxis, ax3.yaxis, ax3.zaxis):
+        axis.set_major_locator(MaxNLocator(4))
+        axis.get_major_formatter().set_useOffset(False)
+        axis.get_major_formatter().set_scientific(False)
+    ax3.legend(loc="upper left", fontsize=7)
+    span = np.ptp(allp[:, :2], axis=0) + 1e-9
+    height = float(np.clip(5.6 * span[1] / span[0], 2.5, 5.2)) + 0.8
+    ax, = doc.axes(max(3.0, min(height, doc.remaining - 0.1)), pad_left=0.9, pad_right=0.4)
+    if data.has_residuals and len(C):
+        r = data.residuals[data.residuals["used"]]
+        idx = {n: i for i, n in enumerate(names)}
+        pts = data.points
+        ok = r["station"].isin(idx) & r["point"].isin(pts.index)
+        a = C[[idx[s] for s in r.loc[ok, "station"]], :2]
+        b = pts.loc[r.loc[ok, "point"], ["X", "Y"]].to_numpy(float)
+        ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors="tab:blue",
+                                         lw=0.3, alpha=0.15))
+    for kind, (marker, colour, ms) in _STYLE.items():
+        m = kinds == kind
+        if m.any():
+            ax.scatter(*xyz[m, :2].T, marker=marker, color=colour, s=ms, zorder=3)
+    if len(C):
+        ax.scatter(*C[:, :2].T, marker="^", color="black", s=25, zorder=4)
+        ax.quiver(C[:, 0], C[:, 1], D[:, 0], D[:, 1], angles="xy", scale_units="xy",
+                  scale=1 / (0.12 * size), width=0.003, color="black", zorder=4)
+        for c, n in zip(C, names):
+            ax.annotate(n, c[:2], xytext=(3, 3), textcoords="offset points", size=6.5)
+    pad = 0.05 * size
+    equal_limits(ax, allp[:, :2].min(axis=0) - pad, allp[:, :2].max(axis=0) + pad)
+    ax.grid(True, lw=0.3)
+    ax.ticklabel_format(useOffset=False, style="plain")
+    decorate(ax, "plan (X, Y)", f"X [{lu}]", f"Y [{lu}]", ypad=0.75)

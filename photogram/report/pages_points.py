@@ -1,0 +1,193 @@
+"""Object points: precision statistics, error ellipses in plan and
+elevation, control and check point differences, rays, intersection angles
+and image coverage."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.collections import EllipseCollection
+
+from photogram.report.layout import decorate, equal_limits
+from photogram.report.numbers import finite, num, sig
+from photogram.report.registry import section
+from photogram.report.shapes import ellipse, nice
+
+_KIND_STYLE = {"control": ("^", "tab:red"), "check": ("s", "tab:orange"),
+               "tie": (".", "0.2")}
+
+
+def _kinds(data, ids):
+    p = data.points
+    return [str(p.loc[i, "kind"]) if "kind" in p.columns else "tie" for i in ids]
+
+
+@section("points", "Point precision", 50, applies=lambda d: len(d.point_sigma[0]) > 0)
+def build(doc, data):
+    lu = data.length_unit
+    ids, s = data.point_sigma
+    total = np.sqrt(np.mean(s ** 2, axis=1))
+    doc.start_section("Point precision", intro=(
+        "A-posteriori standard deviations of the estimated object points (fixed points "
+        "left out). 'total' is the RMS of the X, Y and Z sigmas (DBAT's total standard "
+        "deviation). The relative precision is the size of the network divided by the mean "
+        "total sigma."))
+    rows = [[ax, sig(c.min()), sig(c.mean()), sig(c.max()), sig(np.sqrt(np.mean(c ** 2)))]
+            for ax, c in zip(("X", "Y", "Z", "total"), (*s.T, total))]
+    doc.table(["sigma", f"min [{lu}]", f"mean [{lu}]", f"max [{lu}]", f"RMS [{lu}]"], rows,
+              title=f"{len(ids)} points with estimated coordinates")
+    xyz = data.points.loc[ids, ["X", "Y", "Z"]].to_numpy(float)
+    size = float(np.linalg.norm(np.ptp(xyz, axis=0))) if len(xyz) > 1 else np.nan
+    if finite(size) and total.mean() > 0:
+        doc.text(f"Network size (bounding-box diagonal of these points) {num(size, 4)} {lu}; "
+                 f"relative precision 1 : {size / total.mean():,.0f}.", size=8.5)
+    rays = data.rays if data.has_residuals else None
+    order = np.argsort(-total)[:15]
+    rows = []
+    for k in order:
+        pid = ids[k]
+        nr = int(rays.loc[pid, "rays"]) if rays is not None and pid in rays.index else None
+        ang = rays.loc[pid, "angle"] if nr is not None else np.nan
+        rows.append([pid, _kinds(data, [pid])[0], str(nr if nr is not None else "-"),
+                     num(ang, 3), sig(s[k, 0]), sig(s[k, 1]), sig(s[k, 2]), sig(total[k])])
+    doc.table(["point", "kind", "rays", "angle [deg]", f"sX [{lu}]", f"sY [{lu}]",
+               f"sZ [{lu}]", f"total [{lu}]"], rows, align="llrrrrrr",
+              title="Least precise points")
+
+
+# --------------------------------------------------------------------------
+# error ellipses
+
+
+def _covariances(data, ids):
+    """(n, 3, 3) covariances of ``ids``: from covariance.npz, else diagonal
+    from the sigmas of points.csv; and whether they are full."""
+    cov = data.covariance
+    if cov is not None and "point_covariance" in cov:
+        index = {str(k): i for i, k in enumerate(cov["point_ids"])}
+        if all(i in index for i in ids):
+            return np.asarray(cov["point_covariance"], float)[[index[i] for i in ids]], True
+    s = data.points.loc[ids, ["est_sX", "est_sY", "est_sZ"]].to_numpy(float)
+    return np.einsum("ni,ij->nij", s ** 2, np.eye(3)), False
+
+
+def _ellipse_panel(ax, xy, C2, k, kinds, labels):
+    abt = np.array([ellipse(c) for c in C2]).reshape(-1, 3)
+    ax.add_collection(EllipseCollection(2 * k * abt[:, 0], 2 * k * abt[:, 1], abt[:, 2],
+                                        units="xy", offsets=xy, offset_transform=ax.transData,
+                                        facecolors="none", edgecolors="tab:blue", lw=0.7))
+    for kind, (marker, colour) in _KIND_STYLE.items():
+        m = np.array([kd == kind for kd in kinds])
+        if m.any():
+            ax.plot(xy[m, 0], xy[m, 1], marker, color=colour, ms=3 if kind == "tie" else 4,
+                    ls="none", label=kind)
+    placed = []
+    near = 0.06 * float(np.ptp(xy, axis=0).max() or 1.0)
+    for i in labels:                         # skip labels that would overlap
+        if all(np.hypot(*(xy[i] - q)) > near for q in placed):
+            ax.annotate(labels[i], xy[i], xytext=(3, 3), textcoords="offset points", size=6)
+            placed.append(xy[i])
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    pad = 0.08 * max(hi - lo) + k * abt[:, 0].max()
+    equal_limits(ax, lo - pad, hi + pad)
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.grid(True, lw=0.3)
+
+
+@section("ellipses", "Error ellipses", 52, applies=lambda d: len(d.point_sigma[0]) > 0)
+def build_ellipses(doc, data):
+    lu = data.length_unit
+    ids, s = data.point_sigma
+    C, full = _covariances(data, ids)
+    xyz = data.points.loc[ids, ["X", "Y", "Z"]].to_numpy(float)
+    kinds = _kinds(data, ids)
+    h = 0 if np.ptp(xyz[:, 0]) >= np.ptp(xyz[:, 1]) else 1
+    hname = "XY"[h]
+    extent = float(max(np.ptp(xyz[:, :2], axis=0).max(), np.ptp(xyz[:, 2]), 1e-12))
+    doc.start_section("Error ellipses", intro=(
+        f"1-sigma error ellipses of the points in plan (X, Y) and in elevation ({hname}, Z), "
+        "enlarged by the factor in each title. "
+        + ("From the full 3x3 covariance of every point (covariance.npz). " if full else
+           "Only the sigmas of points.csv are known here (no correlations): the ellipses are "
+           "drawn along the axes. ")
+        + "About 39 % of the true positions lie inside the 1-sigma ellipse, 95 % inside 2.45 "
+          "times it. Long ellipses show a weak direction of the network."))
+    panels = ((f"plan: X, Y [{lu}]", (0, 1)), (f"elevation: {hname}, Z [{lu}]", (h, 2)))
+    heights = []
+    for _, cols in panels:
+        span = np.ptp(xyz[:, cols], axis=0) + 1e-12 * extent
+        heights.append(float(np.clip(5.0 * span[1] / span[0], 1.6, 4.6)) + 0.8)
+    fit = min(1.0, (doc.remaining - 0.1) / sum(heights))
+    for (title, cols), height in zip(panels, heights):
+        xy, C2 = xyz[:, cols], C[:, cols][:, :, cols]
+        a = np.array([ellipse(c)[0] for c in C2])
+        k = nice(0.025 * extent / max(float(np.median(a)), 1e-300))
+        worst = {int(i): ids[i] for i in np.argsort(-a)[:5]}
+        ax, = doc.axes(max(2.0, height * fit), pad_left=0.9, pad_right=1.3)
+        _ellipse_panel(ax, xy, C2, k, kinds, worst)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+        decorate(ax, f"{title}; ellipses x {k:g}; labels: the largest",
+                 f"{'XYZ'[cols[0]]} [{lu}]", f"{'XYZ'[cols[1]]} [{lu}]", ypad=0.7)
+
+
+# --------------------------------------------------------------------------
+# control and check points
+
+
+def _control_rows(data):
+    p = data.project
+    if p is None:
+        return []
+    est = data.points
+    rows = []
+    for i, pid in enumerate(p.points.ids):
+        if str(p.points.kind[i]) != "control" or pid not in est.index:
+            continue
+        ref = p.points.xyz[i]
+        d = est.loc[pid, ["X", "Y", "Z"]].to_numpy(float) - ref
+        if np.all(np.isfinite(d)):
+            rows.append((pid, d, p.points.sigma[i]))
+    return rows
+
+
+def _diff_table(doc, data, rows, title, note=None):
+    lu = data.length_unit
+    out = []
+    for pid, d, prior in rows:
+        out.append([pid, num(d[0], 3), num(d[1], 3), num(d[2], 3), num(np.hypot(d[0], d[1]), 3),
+                     num(np.linalg.norm(d), 3)] + ([sig(np.nanmax(prior))] if prior is not None
+                                                   else []))
+    if rows:
+        D = np.array([d for _, d, _ in rows])
+        rmse = np.sqrt(np.mean(D ** 2, axis=0))
+        out.append(["RMSE", num(rmse[0], 3), num(rmse[1], 3), num(rmse[2], 3),
+                    num(np.hypot(rmse[0], rmse[1]), 3), num(np.linalg.norm(rmse), 3)]
+                   + ([""] if rows[0][2] is not None else []))
+    head = ["point", f"dX [{lu}]", f"dY [{lu}]", f"dZ [{lu}]", f"dXY [{lu}]", f"dXYZ [{lu}]"]
+    if rows and rows[0][2] is not None:
+        head.append(f"a-priori sigma [{lu}]")
+    doc.table(head, out, title=title, note=note)
+
+
+def _has_control(d):
+    return bool(d.summary.get("check_points")) or bool(_control_rows(d))
+
+
+@section("control", "Control and check points", 55, applies=_has_control)
+def build_control(doc, data):
+    doc.start_section("Control and check points", intro=(
+        "Differences d = adjusted - reference coordinates. Check points are not used in the "
+        "adjustment: their RMSE is an independent measure of the accuracy. Control points "
+        "define the datum; with weighted control their differences should be of the order "
+        "of their a-priori sigmas."))
+    cp = data.summary.get("check_points")
+    if cp:
+        rows = [(pid, np.asarray(d, float), None) for pid, d in zip(cp["ids"], cp["differences"])]
+        _diff_table(doc, data, rows, f"Check points ({len(rows)})")
+    ctrl = _control_rows(data)
+    if ctrl:
+        fixed = all(np.all(np.asarray(pr) == 0) for _, _, pr in ctrl)
+        _diff_table(doc, data, ctrl, f"Control points ({len(ctrl)})",
+                    note=("The control points were fixed (datum = control): their differences "
+                          "are zero by construction." if fixed else None))
+    elif data.project is None:
+        doc.text(f"Control point differences: not shown, {data.project_note}.", size=8)

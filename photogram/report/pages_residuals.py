@@ -1,0 +1,200 @@
+"""Residuals: overall and per-image RMS, the worst points, the largest
+standardized residuals, data snooping, and residual vector plots per image
+(with the convex hull of the measured points: the image coverage)."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.patches import Rectangle
+
+from photogram.report.layout import decorate
+from photogram.report.numbers import finite, num
+from photogram.report.registry import section
+from photogram.report.shapes import convex_hull, nice
+
+_INTRO = ("Residuals are the measured minus the adjusted image coordinates. The RMS is "
+          "over the used observations; 'RMS' alone is the RMS of the residual vector length "
+          "(DBAT's point RMS). A standardized residual w is a residual divided by its own "
+          "standard deviation: |w| above the critical value (about 3.3) marks a probable "
+          "blunder. The redundancy number r (0..1) is the share of an error that shows in its "
+          "own residual: r < 0.1 means an error there would hardly be seen.")
+
+
+def _rms(a):
+    a = np.asarray(a, float)
+    return float(np.sqrt(np.mean(a ** 2))) if len(a) else np.nan
+
+
+def _stats(r):
+    v = np.hypot(r["vx"], r["vy"])
+    return len(r), _rms(r["vx"]), _rms(r["vy"]), _rms(v), float(v.max()) if len(r) else np.nan
+
+
+def _w(r):
+    if {"wx", "wy"} <= set(r.columns):
+        return np.maximum(np.abs(r["wx"].to_numpy(float)), np.abs(r["wy"].to_numpy(float)))
+    return np.full(len(r), np.nan)
+
+
+@section("residuals", "Residuals", 40, applies=lambda d: d.has_residuals)
+def build(doc, data):
+    iu = data.image_unit
+    r = data.residuals
+    used = r[r["used"]]
+    doc.start_section("Residuals", intro=_INTRO)
+    snoop = data.summary.get("snooping")
+    if np.any(np.isfinite(_w(used))):
+        _histogram(doc, data, used, snoop)
+    n, rx, ry, rv, vmax = _stats(used)
+    big = used.iloc[int(np.argmax(np.hypot(used["vx"], used["vy"])))] if n else None
+    rows = [("image observations", f"{len(r)} points ({n} used, {len(r) - n} rejected)"),
+            ("RMS x, y", f"{num(rx, 3)}, {num(ry, 3)} {iu}"),
+            ("RMS (vector length)", f"{num(rv, 3)} {iu}")]
+    if big is not None:
+        rows.append(("largest residual", f"{num(vmax, 3)} {iu} (point {big['point']} in "
+                                         f"{big['station']})"))
+    if {"rx", "ry"} <= set(used.columns) and n:
+        red = np.concatenate([used["rx"], used["ry"]]).astype(float)
+        rows.append(("redundancy numbers", f"min {red.min():.2f}, mean {red.mean():.2f}; "
+                                           f"{int((red < 0.1).sum())} below 0.1"))
+    w = _w(used)
+    if np.any(np.isfinite(w)):
+        rows.append(("largest |w|", f"{np.nanmax(w):.2f}"))
+    doc.pairs(rows, title="Overall")
+    if snoop:
+        rej = snoop.get("rejected") or []
+        doc.pairs([("significance level", f"alpha = {snoop.get('alpha')}"),
+                   ("critical value", f"|w| > {num(snoop.get('critical_value'), 4)}"),
+                   ("rejected", f"{len(rej)} observation(s)" if rej else "none")],
+                  title="Data snooping (Baarda)")
+        if rej:
+            doc.table(["observation", "w"], [(str(x.get("label", x.get("row"))),
+                                              num(x.get("w"), 3)) for x in rej],
+                      align="lr")
+    else:
+        doc.text("Data snooping was not run (set [adjustment] snooping_alpha, e.g. 0.001).",
+                 size=8)
+    rows = []
+    for st, g in r.groupby("station", sort=False):
+        gu = g[g["used"]]
+        k, sx, sy, sv, mx = _stats(gu)
+        wg = _w(gu)
+        rows.append([st, str(data.station_camera(st) or "-"), str(k), num(sx, 3), num(sy, 3),
+                     num(sv, 3), num(mx, 3),
+                     num(np.nanmax(wg), 3) if np.any(np.isfinite(wg)) else "-"])
+    doc.table(["station", "camera", "points", f"RMS x [{iu}]", f"RMS y [{iu}]",
+               f"RMS [{iu}]", f"max [{iu}]", "max |w|"], rows, align="llrrrrrr",
+              title="Per image")
+    per_point = (used.assign(v2=used["vx"] ** 2 + used["vy"] ** 2)
+                 .groupby("point")["v2"].agg(["mean", "size"]))
+    per_point["rms"] = np.sqrt(per_point["mean"])
+    worst = per_point.sort_values("rms", ascending=False).head(8)
+    if len(per_point):
+        best = per_point["rms"].idxmin()
+        doc.text(f"Per point (RMS over all images of a point): min "
+                 f"{num(per_point['rms'].min(), 3)} {iu} ({best}), max "
+                 f"{num(worst['rms'].iloc[0], 3)} {iu} ({worst.index[0]}), "
+                 f"{len(per_point)} points.", size=8)
+    doc.table(["point", "rays", f"RMS [{iu}]"],
+              [(p, str(int(x["size"])), num(x["rms"], 3)) for p, x in worst.iterrows()],
+              title="Points with the largest RMS")
+    if np.any(np.isfinite(_w(r))):
+        top = r.assign(_w=_w(r)).sort_values("_w", ascending=False).head(12)
+        doc.table(["station", "point", f"vx [{iu}]", f"vy [{iu}]", "wx", "wy", "rx", "ry",
+                   "used"],
+                  [(t["station"], t["point"], num(t["vx"], 3), num(t["vy"], 3),
+                    f"{t['wx']:+.2f}", f"{t['wy']:+.2f}", num(t.get("rx"), 2),
+                    num(t.get("ry"), 2), "yes" if t["used"] else "no")
+                   for _, t in top.iterrows()],
+                  align="llrrrrrrl", title="Largest standardized residuals")
+
+
+def _histogram(doc, data, used, snoop):
+    w = np.concatenate([used["wx"], used["wy"]]).astype(float)
+    w = w[np.isfinite(w)]
+    if not len(w):
+        return
+    ax = doc.float_right(3.3, 2.6, pad_left=0.6, pad_bottom=0.45)
+    lim = max(4.0, float(np.abs(w).max()) * 1.05)
+    ax.hist(w, bins=np.linspace(-lim, lim, 41), density=True, color="tab:blue", alpha=0.7,
+            label="used observations")
+    t = np.linspace(-lim, lim, 200)
+    ax.plot(t, np.exp(-t ** 2 / 2) / np.sqrt(2 * np.pi), color="black", lw=1, label="N(0, 1)")
+    if snoop and finite(snoop.get("critical_value")):
+        for s in (-1, 1):
+            ax.axvline(s * snoop["critical_value"], color="tab:red", lw=0.8, ls="--")
+    decorate(ax, "standardized residuals w (x and y)", "w [-]", "density [-]", ypad=0.45)
+    ax.legend(loc="upper left", fontsize=6, frameon=False)
+
+
+# --------------------------------------------------------------------------
+# residual vectors per image
+
+
+def _scale(data):
+    """Enlargement of the residual vectors: their RMS becomes 8 % of the
+    widest format, rounded down to 1, 2 or 5 x 10^k."""
+    r = data.residuals
+    v = np.hypot(r["vx"], r["vy"]).to_numpy(float)
+    widths = [f[0] for f in (data.image_format(data.station_camera(s))
+                             for s in r["station"].unique()) if f]
+    if not len(v) or not widths:
+        return 1.0
+    rms = float(np.sqrt(np.mean(v ** 2))) or 1.0
+    return nice(0.08 * max(widths) / rms)
+
+
+def _vector_plot(ax, data, station, g, k, iu):
+    fmt = data.image_format(data.station_camera(station))
+    xy = g[["x", "y"]].to_numpy(float)
+    hull = convex_hull(xy[g["used"].to_numpy()])
+    if fmt:
+        ax.add_patch(Rectangle((0, 0), fmt[0], fmt[1], fill=False, lw=0.8, color="0.3"))
+    if len(hull) >= 3:
+        ax.fill(hull[:, 0], hull[:, 1], color="tab:green", alpha=0.12, lw=0)
+    u = g["used"].to_numpy()
+    v = g[["vx", "vy"]].to_numpy(float)[u]
+    ax.plot(xy[u, 0], xy[u, 1], ".", ms=2, color="0.2")
+    ax.add_collection(LineCollection(np.stack([xy[u], xy[u] + k * v], axis=1),
+                                     colors="tab:blue", lw=0.9))
+    if (~u).any():
+        ax.plot(xy[~u, 0], xy[~u, 1], "x", color="tab:red", ms=4, label="rejected")
+    w, h = fmt if fmt else (xy[:, 0].max(), xy[:, 1].max())
+    ref = nice(0.12 * w / k)
+    y0 = 1.06 * h
+    ax.plot([w - k * ref, w], [y0, y0], color="tab:blue", lw=2, solid_capstyle="butt")
+    ax.text(w - k * ref, y0 + 0.02 * h, f"{num(ref, 2)} {iu} ", ha="right", va="center", size=6.5)
+    ax.set_xlim(0, w)
+    ax.set_ylim(1.12 * h, 0)
+    ax.set_aspect("equal")
+    ax.set_xticks(np.linspace(0, w, 3))
+    ax.set_yticks(np.linspace(0, h, 3))
+    ax.tick_params(labelsize=6)
+    n, _, _, rv, _ = _stats(g[g["used"]])
+    decorate(ax, f"{station} ({data.station_camera(station)}): {n} points, RMS {num(rv, 2)} {iu}",
+             f"x [{iu}]", f"y [{iu}]", xpad=0.25, ypad=0.4, size=7.5)
+
+
+@section("residual_vectors", "Residual vectors per image", 45, applies=lambda d: d.has_residuals)
+def build_vectors(doc, data):
+    iu = data.image_unit
+    k = _scale(data)
+    doc.start_section("Residual vectors per image", intro=(
+        f"Residuals enlarged {k:g} times (the bar below each image is the length given), "
+        "drawn as lines from the measured points (dots) over the image format. Green: "
+        "convex hull of the measured points (image coverage); red x: rejected observations. "
+        "Systematic patterns (all lines turning together, growing towards the edges) point "
+        "to an error of the camera model; a single long line to a blunder."))
+    groups = list(data.residuals.groupby("station", sort=False))
+    for i in range(0, len(groups), 2):
+        pair_ = groups[i:i + 2]
+        aspect = max((f[1] / f[0]) for f in (data.image_format(data.station_camera(s))
+                                             or (4, 3) for s, _ in pair_))
+        height = min(4.2, 2.6 * aspect * 1.12 + 0.7)
+        axes = doc.axes(height, ncols=2, pad_left=0.55, pad_right=0.15, pad_top=0.3,
+                        pad_bottom=0.4, gap=0.25)
+        for ax, (station, g) in zip(axes, pair_):
+            _vector_plot(ax, data, station, g, k, iu)
+        for ax in axes[len(pair_):]:
+            ax.set_visible(False)

@@ -1,0 +1,59 @@
+"""The registry of report sections.
+
+A section is a group of pages: a name, a title, a test whether it applies to
+a results folder (``applies(data) -> bool``) and a builder that lays its
+pages out (``build(doc, data)``, see :class:`photogram.report.layout.Document`).
+Sections are registered with :func:`section` when their module is imported
+and built in the order of ``order``; the modules are listed in
+:data:`MODULES`.
+
+A later command adds its pages by writing a module with one or more
+``@section(...)`` builders that apply when its output files exist, and
+adding the module to :data:`MODULES` (see photogram/report/hooks.py for the
+Monte Carlo and motion-capture entries, and docs/report.md).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import Callable
+
+__all__ = ["Section", "SECTIONS", "MODULES", "section", "sections"]
+
+#: page modules, imported by :func:`sections`
+MODULES = ("photogram.report.pages_summary", "photogram.report.pages_cameras",
+           "photogram.report.pages_stations", "photogram.report.pages_residuals",
+           "photogram.report.pages_points", "photogram.report.pages_geometry",
+           "photogram.report.pages_network",
+           "photogram.report.pages_intersect", "photogram.report.hooks")
+
+
+@dataclass(frozen=True)
+class Section:
+    name: str
+    title: str
+    order: float
+    applies: Callable
+    build: Callable
+
+
+SECTIONS: dict[str, Section] = {}
+
+
+def section(name: str, title: str, order: float, applies: Callable | None = None):
+    """Decorator registering ``build(doc, data)`` as the section ``name``
+    (a later registration under the same name replaces an earlier one)."""
+    def register(build):
+        SECTIONS[name] = Section(name, title, order, applies or (lambda data: True), build)
+        return build
+    return register
+
+
+def sections(data=None) -> list[Section]:
+    """The registered sections in order; with ``data`` only those that
+    apply to it."""
+    for module in MODULES:
+        importlib.import_module(module)
+    out = sorted(SECTIONS.values(), key=lambda s: (s.order, s.name))
+    return [s for s in out if data is None or s.applies(data)]

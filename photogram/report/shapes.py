@@ -1,0 +1,74 @@
+"""Small geometric helpers of the report: convex hulls, areas, error
+ellipses, round scale factors."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["convex_hull", "polygon_area", "ellipse", "nice", "coverage_fraction"]
+
+
+def convex_hull(xy) -> np.ndarray:
+    """Convex hull (k, 2), counter-clockwise, of points (n, 2) (Andrew's
+    monotone chain); fewer than 3 distinct points are returned as they are."""
+    pts = np.unique(np.asarray(xy, float).reshape(-1, 2), axis=0)
+    if len(pts) < 3:
+        return pts
+
+    def turn(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    def half(points):
+        out = []
+        for p in points:
+            while len(out) >= 2 and turn(out[-2], out[-1], p) <= 0:
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def polygon_area(poly) -> float:
+    poly = np.asarray(poly, float)
+    if len(poly) < 3:
+        return 0.0
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def coverage_fraction(hulls, fmt, n=200) -> float:
+    """Fraction of the format ``(w, h)`` covered by the union of polygons,
+    on an ``n`` x ``n`` raster."""
+    from matplotlib.path import Path
+
+    w, h = fmt
+    gx, gy = np.meshgrid((np.arange(n) + 0.5) * w / n, (np.arange(n) + 0.5) * h / n)
+    grid = np.stack([gx.ravel(), gy.ravel()], -1)
+    inside = np.zeros(len(grid), bool)
+    for poly in hulls:
+        if len(poly) >= 3:
+            inside |= Path(poly).contains_points(grid)
+    return float(inside.mean())
+
+
+def ellipse(cov2) -> tuple[float, float, float]:
+    """Semi-axes (a >= b) and the angle of a (degrees from the first axis)
+    of the 1-sigma error ellipse of a 2x2 covariance."""
+    cov2 = np.asarray(cov2, float)
+    vals, vecs = np.linalg.eigh(0.5 * (cov2 + cov2.T))
+    vals = np.clip(vals, 0, None)
+    a, b = math.sqrt(vals[1]), math.sqrt(vals[0])
+    return a, b, math.degrees(math.atan2(vecs[1, 1], vecs[0, 1]))
+
+
+def nice(x: float) -> float:
+    """The number 1, 2 or 5 x 10^k closest below ``x`` (> 0)."""
+    if not (x > 0 and math.isfinite(x)):
+        return 1.0
+    e = math.floor(math.log10(x))
+    m = x / 10 ** e
+    return (5 if m >= 5 else 2 if m >= 2 else 1) * 10.0 ** e
