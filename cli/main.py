@@ -62,7 +62,8 @@ COMMANDS: dict[str, Command] = {
                       "rebuild report.pdf (the accuracy report) of a results folder",
                       needs_project=False),
     "mocap": Command("photogram.commands.mocap:run", "the motion-capture pipeline",
-                     "track and reconstruct the jumper's markers frame by frame"),
+                     "markerless motion capture: track the athlete in every camera, "
+                     "reconstruct its joints, metrics (docs/mocap.md)"),
     "demo": Command("photogram.demo:run", "the demo",
                     "run the built-in demonstration", needs_project=False),
     "import": Command("photogram.commands.convert:run_import", "the importers",

@@ -70,8 +70,9 @@ def test_console_process_bad_input(tmp_path):
         "(text needs double quotes, e.g. datum = \"control\")"]
 
 
-def test_console_process_not_built(tmp_path):
+def test_console_process_mocap_without_mocap_section(tmp_path):
     make_project(tmp_path)
     proc = _run("mocap", "lab/lab.prj", cwd=tmp_path)
     assert proc.returncode == 2
-    assert proc.stderr == "photogram mocap: the motion-capture pipeline is not built yet\n"
+    assert proc.stderr.startswith("lab/lab.prj: this project has no [mocap] section")
+    assert proc.stderr.count("\n") == 1

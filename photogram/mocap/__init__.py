@@ -1,0 +1,20 @@
+"""Markerless multi-camera motion capture (alpine skiing; docs/mocap.md).
+
+After Bachmann et al., "Motion Capture from Pan-Tilt Cameras with Unknown
+Orientation" (part 1: known camera rotations):
+
+| module | concern |
+|---|---|
+| ``skeleton`` | the 24-joint ski skeleton, detector skeletons, mappings |
+| ``anthropometry`` | de Leva (1996) segment masses and centres of mass |
+| ``sources`` | observation sources: OpenPose/Pose2Sim JSON, CSV, mediapipe, plugin |
+| ``tracking`` | athlete tracking and crops (section 4.1), main-person selection |
+| ``cameras`` | fixed and pan-tilt-zoom cameras (rotations per frame) |
+| ``dct`` | DCT trajectories and windows (eq. (1)) |
+| ``energy`` | robust reprojection energy and limb prior (eqs. (7)-(10)) |
+| ``solvers`` | Gauss-Newton/IRLS with PCG (default) and L-BFGS |
+| ``reconstruct`` | the reconstruction of a sequence (sections 4.3-4.4) |
+| ``metrics`` | PCK, MPJPE, CoM, speed, joint angles, lean, fore/aft (appendix C) |
+| ``simulate``, ``skier``, ``simproject`` | the simulated giant-slalom runs |
+| ``files``, ``pipeline``, ``outputs`` | project tables, the pipeline, the results folder |
+"""

@@ -1,0 +1,188 @@
+"""Tables of a motion-capture project: cameras from the project, camera
+rotations per frame, limb lengths, 3D joints (truth and results).
+
+``camera_frames`` (pan-tilt-zoom cameras), one row per camera and frame::
+
+    frame,camera,omega,phi,kappa[,<interior parameter>...]
+
+angles in the project's angle unit and rotation direction, frames numbered
+like the detections; optional columns named like a parameter of the
+camera's model (``fx``, ``fy`` for opencv, ``c`` for brown) override it per
+frame (zoom). Every camera needs every frame.
+
+``limb_lengths``: ``from,to,length`` (joint names, project length unit).
+
+3D joints (``joints3d.csv`` of the results, and ``truth``)::
+
+    frame,time,<joint>_X,<joint>_Y,<joint>_Z,...
+
+in the project's length unit and world axes (Z up); empty cells are
+missing values.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.geometry import camera_model, opk_to_matrix
+from photogram.mocap.cameras import MocapCameras
+from photogram.mocap.skeleton import Skeleton
+from photogram.project.atomic import atomic_write_text
+from photogram.project.camera_schema import invert_opk
+from photogram.project.tables import format_table, read_table, suggest
+
+__all__ = ["cameras_from_project", "read_camera_frames", "read_limb_lengths", "read_joints",
+           "write_joints", "cameras_from_views"]
+
+
+def cameras_from_views(views) -> MocapCameras:
+    """Fixed cameras from OpenCV views (objects with ``name``, ``K``,
+    ``dist``, ``R_cv``, ``t_cv``, ``image_size``; e.g. the Pose2Sim reader of
+    :mod:`photogram.io.pose2sim`): ``R = diag(1,-1,-1) R_cv``, ``X0 =
+    -R_cv^T t_cv`` (docs/camera-models.md)."""
+    names, io, X0, R, size = [], [], [], [], []
+    for v in views:
+        K = np.asarray(v.K, float)
+        d = np.zeros(5)
+        dist = np.asarray(v.dist, float).ravel()
+        d[:len(dist)] = dist
+        io.append([K[0, 0], K[1, 1], K[0, 2], K[1, 2], d[0], d[1], d[2], d[3], d[4]])
+        R_cv = np.asarray(v.R_cv, float)
+        R.append(np.diag([1.0, -1.0, -1.0]) @ R_cv)
+        X0.append(-R_cv.T @ np.asarray(v.t_cv, float).ravel())
+        names.append(str(v.name))
+        size.append(v.image_size if v.image_size is not None else (np.nan, np.nan))
+    return MocapCameras(names, ["opencv"] * len(names), io, np.array(X0), np.array(R),
+                        np.array(size, float))
+
+
+def cameras_from_project(project) -> MocapCameras:
+    """The cameras of a mocap project: ``calibration`` (Pose2Sim) or one
+    station per camera of ``[cameras]``/``[stations]``."""
+    mocap = project.mocap
+    if mocap.calibration is not None:
+        from photogram.io.pose2sim import read_pose2sim
+        return cameras_from_views(read_pose2sim(mocap.calibration))
+    st = project.stations
+    names, models, io, X0, angles, size = [], [], [], [], [], []
+    seen = {}
+    for i, (station, cam) in enumerate(zip(st.names, st.camera)):
+        if cam in seen:
+            raise InputError(f"camera {cam} has two stations ({seen[cam]} and {station}); a "
+                             f"motion-capture camera has one position",
+                             file=project.sources.get("stations"),
+                             line=int(st.record[i]) if len(st.record) > i else None)
+        seen[cam] = station
+        camera = project.cameras[cam]
+        if not np.all(np.isfinite(st.position[i])) or not np.all(np.isfinite(st.angles[i])):
+            raise InputError(f"station {station} needs its position and angles",
+                             file=project.sources.get("stations"),
+                             line=int(st.record[i]) if len(st.record) > i else None)
+        names.append(cam)
+        models.append(camera.model)
+        io.append(camera.values())
+        X0.append(st.position[i])
+        angles.append(st.angles[i])
+        size.append(camera.image_size or (np.nan, np.nan))
+    missing = [c for c in project.cameras if c not in seen]
+    if missing:
+        raise InputError(f"camera(s) without a station: {', '.join(missing)}",
+                         file=project.sources.get("stations"),
+                         hint="give every camera one station (its position and angles)")
+    return MocapCameras(names, models, io, np.array(X0), opk_to_matrix(np.array(angles)),
+                        np.array(size, float))
+
+
+def read_camera_frames(path: Path, cameras: MocapCameras, project, first_frame: int,
+                       n_frames: int) -> MocapCameras:
+    """Rotations (and interior parameters) per frame (module doc)."""
+    extra = sorted({p for m in cameras.models for p in camera_model(m).parameter_names})
+    table = read_table(path, required=("frame", "camera", "omega", "phi", "kappa"),
+                       optional=extra, what="camera frames table")
+    frame = table.floats("frame", required=True)
+    if np.any(frame != np.round(frame)):
+        raise table.error(int(np.flatnonzero(frame != np.round(frame))[0]),
+                          "frame must be an integer")
+    frame = frame.astype(int) - first_frame
+    cams = table.text("camera")
+    unit = project.units.angle
+    angles = np.stack([table.angles(k, unit) for k in ("omega", "phi", "kappa")], -1)
+    if np.any(~np.isfinite(angles)):
+        raise table.error(int(np.flatnonzero(~np.all(np.isfinite(angles), 1))[0]),
+                          "every row needs omega, phi and kappa")
+    if project.rotation_direction == "camera_to_world":
+        angles = invert_opk(angles)
+    C = cameras.n_cameras
+    R = np.full((n_frames, C, 3, 3), np.nan)
+    io = [np.repeat(p[:1], n_frames, axis=0) for p in cameras.io]
+    filled = np.zeros((n_frames, C), bool)
+    index = {n: k for k, n in enumerate(cameras.names)}
+    Rm = opk_to_matrix(angles)
+    cols = {p: table.floats(p) for p in extra if table.has(p)}
+    for i, (f, name) in enumerate(zip(frame, cams)):
+        if name not in index:
+            raise table.error(i, f"unknown camera '{name}'",
+                              hint=suggest(name, cameras.names, noun="cameras"))
+        if not 0 <= f < n_frames:
+            continue
+        c = index[name]
+        R[f, c] = Rm[i]
+        filled[f, c] = True
+        m = camera_model(cameras.models[c])
+        for p, values in cols.items():
+            if p in m.parameter_names and np.isfinite(values[i]):
+                io[c][f, m.index(p)] = values[i]
+    if not filled.all():
+        f, c = np.argwhere(~filled)[0]
+        raise InputError(f"camera {cameras.names[c]} has no row for frame {f + first_frame}",
+                         file=path, hint="give every camera a row for every frame")
+    return MocapCameras(cameras.names, cameras.models, io, cameras.X0, R, cameras.image_size)
+
+
+def read_limb_lengths(path: Path, skeleton: Skeleton) -> dict:
+    table = read_table(path, required=("from", "to", "length"), what="limb lengths table")
+    a, b, L = table.text("from"), table.text("to"), table.floats("length", required=True)
+    out = {}
+    limbs = {tuple(sorted(x)) for x in skeleton.limbs}
+    for i in range(len(a)):
+        for n in (a[i], b[i]):
+            if n not in skeleton.joints:
+                raise table.error(i, f"unknown joint '{n}' of skeleton {skeleton.name}",
+                                  hint=suggest(n, skeleton.joints, noun="joints"))
+        if tuple(sorted((a[i], b[i]))) not in limbs:
+            raise table.error(i, f"{a[i]}-{b[i]} is not a limb of skeleton {skeleton.name}")
+        if L[i] <= 0:
+            raise table.error(i, "length must be > 0")
+        out[(a[i], b[i])] = float(L[i])
+    return out
+
+
+def read_joints(path: Path, skeleton: Skeleton):
+    """Frames (n,) and joints (n, J, 3) of a joints table (module doc);
+    joints missing from the table are NaN."""
+    import pandas as pd
+    try:
+        df = pd.read_csv(path, comment="#")
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read the joints table: {exc}", file=path) from None
+    if "frame" not in df.columns:
+        raise InputError("the joints table has no column 'frame'", file=path, line=1)
+    X = np.full((len(df), skeleton.n_joints, 3), np.nan)
+    for j, name in enumerate(skeleton.joints):
+        for k, ax in enumerate("XYZ"):
+            col = f"{name}_{ax}"
+            if col in df.columns:
+                X[:, j, k] = pd.to_numeric(df[col], errors="coerce").to_numpy(float)
+    return df["frame"].to_numpy(int), X
+
+
+def write_joints(path: Path, frames, times, X: np.ndarray, skeleton: Skeleton,
+                 comment: str | None = None) -> Path:
+    cols = {"frame": np.asarray(frames, int), "time": np.round(np.asarray(times, float), 6)}
+    for j, name in enumerate(skeleton.joints):
+        for k, ax in enumerate("XYZ"):
+            cols[f"{name}_{ax}"] = np.round(X[:, j, k], 5)
+    return atomic_write_text(path, format_table(cols, comment=comment))

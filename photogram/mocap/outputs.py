@@ -1,0 +1,265 @@
+"""The results folder of ``photogram mocap`` (all files written atomically).
+
+=======================  ==========================================================
+file                     content
+=======================  ==========================================================
+``joints3d.csv``         frame, time, ``<joint>_X/_Y/_Z`` (project length unit, world
+                         axes, Z up; empty: not reconstructed)
+``joints3d.trc``         the same for OpenSim (Y up: ``(X, Y, Z)`` is written as
+                         ``(Y, Z, X)``, photogram.io.trc)
+``joints3d.c3d``         the same as C3D points (world axes, Z up, mm; needs the
+                         ``c3d`` package, skipped without it)
+``metrics.csv``          per frame: CoM, speed, knee and hip flexion, lean,
+                         outside leg, fore/aft angle and distance
+``detections.csv``       the tracked 2D detections used (long format) and the boxes
+``reprojection.csv``     per camera: median, mean, 90th percentile (px), count
+``bones.csv``            per limb: mean length, standard deviation, CV
+``summary.json``         settings, counts, solver, timings, accuracy (truth),
+                         comparison with the reference
+``*.png``                trajectory, angles, speed, reprojection errors, skeletons
+``log.txt``              the log of the run
+=======================  ==========================================================
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+import photogram
+from photogram.io.trc import write_trc
+from photogram.mocap.files import write_joints
+from photogram.project.atomic import atomic_write_bytes, atomic_write_text
+from photogram.project.results import to_json_safe
+from photogram.project.tables import format_table
+
+__all__ = ["write_outputs", "summary"]
+
+
+def _fig(size):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=size)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path: Path) -> Path:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def summary(result, project) -> dict:
+    rec = result.reconstruction
+    ms = project.mocap
+    b = result.biomechanics
+    out = {
+        "status": "ok", "project": project.name, "software_version": photogram.__version__,
+        "command": "mocap", "skeleton": result.skeleton.name, "source": result.info["source"],
+        "fps": result.fps, "frames": [int(result.frames[0]), int(result.frames[-1])],
+        "counts": {"frames": len(result.frames), "cameras": result.cameras.n_cameras,
+                   "joints": result.skeleton.n_joints,
+                   "detections": int(np.sum(np.nan_to_num(result.observations[..., 2]) > 0)),
+                   "runs": len(result.breaks) + 1},
+        "reconstruction": {"solver": rec.solver, "energy": rec.energy,
+                           "iterations": rec.iterations, "seconds": rec.seconds,
+                           "windows": rec.n_windows, "stages": rec.stages,
+                           "settings": dict(ms.reconstruction)},
+        "limb_lengths": {f"{a}-{b_}": float(v) for (a, b_), v in
+                         zip(result.skeleton.limbs, rec.limb_lengths)},
+        "reprojection": result.reprojection,
+        "bone_cv_mean": float(np.nanmean([v[2] for v in result.bones.values()]))
+        if result.bones else None,
+        "metrics_mean": {k: float(np.nanmean(b[k])) for k in b if k != "outside"
+                         and np.any(np.isfinite(b[k]))},
+        "axes": "world, Z up, project length unit; TRC: Y up (Y, Z, X)",
+        "timings": result.info.get("timings", {}),
+        "warnings": list(project.warnings),
+    }
+    if result.accuracy is not None:
+        out["accuracy"] = result.accuracy
+    if result.reference is not None:
+        out["reference"] = result.reference
+    return to_json_safe(out)
+
+
+def _detections_table(result) -> str:
+    F, C, J, _ = result.observations.shape
+    f, c, j = np.nonzero(np.nan_to_num(result.observations[..., 2]) > 0)
+    o = result.observations[f, c, j]
+    cols = {"frame": result.frames[f], "camera": np.array(result.cameras.names)[c],
+            "joint": np.array(result.skeleton.joints)[j],
+            "x": np.round(o[:, 0], 2), "y": np.round(o[:, 1], 2),
+            "confidence": np.round(o[:, 2], 3)}
+    return format_table(cols, comment="tracked detections used by the reconstruction (px)")
+
+
+def write_outputs(result, project, folder: Path, log_text: str = "") -> list[Path]:
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    sk, X = result.skeleton, result.reconstruction.joints
+    unit = project.units.length
+    written = [write_joints(folder / "joints3d.csv", result.frames, result.times, X, sk,
+                            comment=f"3D joints ({unit}, world axes, Z up) of photogram mocap")]
+    markers = {n: X[:, k] for k, n in enumerate(sk.joints)}
+    times = result.times + 1.0 / result.fps
+    written.append(write_trc(folder / "joints3d.trc", times, markers, units=unit,
+                             data_rate=result.fps, frames=result.frames + 1))
+    c3d = _write_c3d(folder / "joints3d.c3d", X, sk, result.fps, unit)
+    if c3d is not None:
+        written.append(c3d)
+    b = result.biomechanics
+    cols = {"frame": result.frames, "time": np.round(result.times, 6)}
+    cols.update({k: (v if k == "outside" else np.round(v, 6)) for k, v in b.items()})
+    written.append(atomic_write_text(folder / "metrics.csv", format_table(
+        cols, comment="per-frame quantities of photogram mocap (docs/mocap.md, Metrics)")))
+    written.append(atomic_write_text(folder / "detections.csv", _detections_table(result)))
+    rp = result.reprojection
+    written.append(atomic_write_text(folder / "reprojection.csv", format_table({
+        "camera": list(rp), "median_px": [rp[c]["median_px"] for c in rp],
+        "mean_px": [rp[c]["mean_px"] for c in rp], "p90_px": [rp[c]["p90_px"] for c in rp],
+        "n": [rp[c]["n"] for c in rp]})))
+    bones = result.bones
+    if bones:
+        written.append(atomic_write_text(folder / "bones.csv", format_table({
+            "limb": list(bones), "mean": [round(v[0], 6) for v in bones.values()],
+            "std": [round(v[1], 6) for v in bones.values()],
+            "cv": [round(v[2], 6) for v in bones.values()]})))
+    written += _plots(result, folder)
+    written.append(atomic_write_text(folder / "summary.json", json.dumps(
+        summary(result, project), indent=2, allow_nan=False) + "\n"))
+    written.append(atomic_write_text(folder / "log.txt", log_text))
+    return written
+
+
+def _write_c3d(path: Path, X, sk, fps, unit):
+    try:
+        import c3d
+    except ImportError:
+        return None
+    from photogram.project.model import LENGTH_UNITS
+    scale = LENGTH_UNITS.get(unit, 1.0) * 1000.0          # to mm
+    writer = c3d.Writer(point_rate=float(fps), point_units="mm  ")
+    writer.set_point_labels([n.ljust(16)[:16] for n in sk.joints])
+    for f in range(len(X)):
+        pts = np.zeros((sk.n_joints, 5), np.float32)
+        ok = np.all(np.isfinite(X[f]), axis=1)
+        pts[ok, :3] = X[f][ok] * scale
+        pts[~ok, 3] = -1.0                                  # residual -1: invalid point
+        writer.add_frames([(pts, np.zeros((0, 0), np.float32))])
+    buf = io.BytesIO()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)      # "No analog data found in file."
+        writer.write(buf)
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+# --------------------------------------------------------------------------
+def _plots(result, folder: Path) -> list[Path]:
+    import matplotlib.style
+    out = []
+    with matplotlib.style.context("default"):
+        out.append(_plot_trajectory(result, folder / "trajectory.png"))
+        out.append(_plot_series(result, folder / "angles.png"))
+        out.append(_plot_reprojection(result, folder / "reprojection.png"))
+        out.append(_plot_skeletons(result, folder / "skeletons.png"))
+    return out
+
+
+def _plot_trajectory(result, path):
+    b, tb = result.biomechanics, result.truth_biomechanics
+    fig = _fig((8, 6))
+    ax = fig.add_subplot(111)
+    X0 = result.cameras.X0
+    ax.plot(b["com_x"], b["com_y"], "-", color="tab:blue", lw=1.5, label="CoM (reconstructed)")
+    if tb is not None:
+        ax.plot(tb["com_x"], tb["com_y"], "--", color="black", lw=1, label="CoM (truth)")
+    ax.plot(X0[:, 0], X0[:, 1], "^", color="tab:red", label="cameras")
+    for name, p in zip(result.cameras.names, X0):
+        ax.annotate(name, p[:2], textcoords="offset points", xytext=(4, 4), fontsize=8)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("X")
+    ax.set_ylabel("Y")
+    ax.set_title("plan view")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def _plot_series(result, path):
+    b, tb = result.biomechanics, result.truth_biomechanics
+    t = result.times
+    fig = _fig((9, 9))
+    panels = [("knee flexion (deg)", ("knee_flexion_r", "knee_flexion_l")),
+              ("hip flexion (deg)", ("hip_flexion_r", "hip_flexion_l")),
+              ("lean (deg) / fore-aft (deg)", ("lean", "fore_aft_angle")),
+              ("CoM speed (m/s)", ("speed",))]
+    colors = ("tab:red", "tab:blue")
+    for i, (title, keys) in enumerate(panels):
+        ax = fig.add_subplot(len(panels), 1, i + 1)
+        for k, col in zip(keys, colors):
+            ax.plot(t, b[k], color=col, lw=1.2, label=k)
+            if tb is not None:
+                ax.plot(t, tb[k], "--", color=col, lw=0.8, label=k + " (truth)")
+        ax.set_ylabel(title, fontsize=8)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right", ncol=2)
+    ax.set_xlabel("time (s)")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _plot_reprojection(result, path):
+    proj = result.cameras.project(result.reconstruction.joints)
+    err = np.linalg.norm(proj - result.observations[..., :2], axis=-1)
+    use = np.nan_to_num(result.observations[..., 2]) >= 0.3
+    data = [err[:, c][use[:, c] & np.isfinite(err[:, c])] for c in range(err.shape[1])]
+    fig = _fig((8, 4))
+    ax = fig.add_subplot(111)
+    ax.boxplot([d if len(d) else [np.nan] for d in data], showfliers=False)
+    ax.set_xticks(range(1, len(data) + 1), result.cameras.names)
+    if result.reference is not None:
+        ref = [result.reference["reprojection"][c]["reference_median_px"]
+               for c in result.cameras.names]
+        ax.plot(range(1, len(data) + 1), [np.nan if r is None else r for r in ref], "kx",
+                label="reference median")
+        ax.legend(fontsize=8)
+    ax.set_ylabel("reprojection error (px)")
+    ax.set_title("per camera (detections with confidence >= 0.3, whiskers 1.5 IQR)")
+    ax.grid(alpha=0.3, axis="y")
+    return _save(fig, path)
+
+
+def _plot_skeletons(result, path):
+    X = result.reconstruction.joints
+    sk = result.skeleton
+    F = len(X)
+    picks = np.unique(np.linspace(0, F - 1, min(F, 8)).astype(int))
+    fig = _fig((12, 2.8))
+    L = sk.limb_indices()
+    for i, f in enumerate(picks):
+        ax = fig.add_subplot(1, len(picks), i + 1)
+        P = X[f]
+        if not np.any(np.isfinite(P)):
+            continue
+        c = np.nanmean(P, axis=0)
+        for a, b in L:
+            side = sk.joints[a][:2] if sk.name == "ski24" else sk.joints[a][:1]
+            col = "tab:red" if side in ("r_", "R") else "tab:blue" if side in ("l_", "L") \
+                else "black"
+            ax.plot([P[a, 0] - c[0], P[b, 0] - c[0]], [P[a, 2] - c[2], P[b, 2] - c[2]],
+                    color=col, lw=1.2)
+        ax.set_aspect("equal")
+        ax.set_title(f"frame {result.frames[f]}", fontsize=8)
+        ax.tick_params(labelsize=6)
+        ax.set_xlim(-1.1, 1.1)
+        ax.set_ylim(-1.1, 1.1)
+    fig.suptitle("skeletons, side view (X-Z about the mean joint; right red, left blue)",
+                 fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path)

@@ -1,0 +1,260 @@
+"""The motion-capture pipeline of ``photogram mocap``: cameras, detections,
+tracking, reconstruction, metrics, and the comparisons with a truth or a
+reference reconstruction.
+
+Steps (docs/mocap.md): read the cameras (``[cameras]``/``[stations]`` or a
+Pose2Sim calibration; rotations per frame from ``camera_frames``); open the
+source and track the athlete in every camera; map the detections onto the
+reconstruction skeleton (``skeleton`` of ``[mocap]``; default: the source's,
+a generic skeleton); cut the frame range; reconstruct
+(:mod:`photogram.mocap.reconstruct`); compute the per-frame quantities
+(:mod:`photogram.mocap.metrics`), the reprojection errors per camera and the
+bone-length variation; compare with ``truth`` (a joints table) and with
+``reference_trc`` (e.g. Pose2Sim's triangulation: its points projected with
+the same cameras against the same detections).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.mocap.cameras import MocapCameras
+from photogram.mocap.files import (cameras_from_project, read_camera_frames, read_joints,
+                                   read_limb_lengths)
+from photogram.mocap.metrics import (accuracy_3d, biomechanics, bone_lengths, mpjpe_2d, pck)
+from photogram.mocap.reconstruct import Reconstruction, ReconstructionSettings, reconstruct
+from photogram.mocap.skeleton import Skeleton, get_skeleton, map_joints
+from photogram.mocap.sources import open_source
+from photogram.mocap.tracking import TrackingSettings
+
+__all__ = ["MocapResult", "run_mocap", "reprojection_errors", "REFERENCE_CONFIDENCE"]
+
+log = logging.getLogger(__name__)
+
+#: detections used for the reprojection errors (Pose2Sim's likelihood threshold)
+REFERENCE_CONFIDENCE = 0.3
+_ANGLES = ("knee_flexion_r", "knee_flexion_l", "hip_flexion_r", "hip_flexion_l", "lean",
+           "fore_aft_angle")
+
+
+@dataclass
+class MocapResult:
+    """Everything ``photogram mocap`` writes."""
+
+    skeleton: Skeleton
+    fps: float
+    frames: np.ndarray              # (F,) frame numbers (as in the detections)
+    cameras: MocapCameras
+    observations: np.ndarray        # (F, C, J, 3)
+    tracked: list
+    reconstruction: Reconstruction
+    biomechanics: dict
+    reprojection: dict
+    bones: dict
+    breaks: list
+    truth: np.ndarray | None = None
+    truth_biomechanics: dict | None = None
+    accuracy: dict | None = None
+    reference: dict | None = None
+    info: dict = field(default_factory=dict)
+
+    @property
+    def times(self) -> np.ndarray:
+        return (self.frames - self.frames[0]) / self.fps
+
+
+def reprojection_errors(X, cameras: MocapCameras, obs, min_confidence=REFERENCE_CONFIDENCE,
+                        joints=None) -> dict:
+    """Per camera: median, mean and 90th percentile (px) of the distance
+    between the projection of X (F, J, 3) and the detections (F, C, J, 3)
+    with confidence >= ``min_confidence`` (optionally only ``joints``)."""
+    proj = cameras.project(X)
+    err = np.linalg.norm(proj - obs[..., :2], axis=-1)
+    use = np.nan_to_num(obs[..., 2]) >= min_confidence
+    if joints is not None:
+        keep = np.zeros(obs.shape[2], bool)
+        keep[list(joints)] = True
+        use &= keep[None, None, :]
+    out = {}
+    for c, name in enumerate(cameras.names):
+        e = err[:, c][use[:, c] & np.isfinite(err[:, c])]
+        out[name] = {"median_px": float(np.median(e)) if len(e) else None,
+                     "mean_px": float(np.mean(e)) if len(e) else None,
+                     "p90_px": float(np.percentile(e, 90)) if len(e) else None,
+                     "n": int(len(e))}
+    return out
+
+
+def _observations(project, cameras: MocapCameras):
+    ms = project.mocap
+    source = open_source(ms, cameras.names, project.folder)
+    tracking = TrackingSettings(**ms.tracking)
+    tracked = []
+    for name in cameras.names:
+        if name not in source.cameras:
+            tracked.append(None)
+            continue
+        t0 = time.perf_counter()
+        tracked.append(source.track(name, tracking, wide=name in ms.source.wide))
+        log.debug("camera %s: %d frames tracked (%.1f s)", name, len(tracked[-1].joints),
+                 time.perf_counter() - t0)
+    F = max((len(t.joints) for t in tracked if t is not None), default=0)
+    if F == 0:
+        raise InputError("the source has no detections", file=project.path)
+    J = source.skeleton.n_joints
+    obs = np.full((F, len(cameras.names), J, 3), np.nan)
+    obs[..., 2] = 0.0
+    for c, t in enumerate(tracked):
+        if t is not None:
+            obs[:len(t.joints), c] = t.joints
+    return source, tracked, obs
+
+
+def run_mocap(project) -> MocapResult:
+    """Run the whole pipeline on a project read by
+    :func:`photogram.project.read_project` (with a ``[mocap]`` section)."""
+    ms = project.mocap
+    timings = {}
+    t0 = time.perf_counter()
+    cameras = cameras_from_project(project)
+    source, tracked, obs = _observations(project, cameras)
+    timings["tracking_s"] = time.perf_counter() - t0
+    first = int(getattr(source, "first_frame", 0))
+    F = obs.shape[0]
+    if ms.camera_frames is not None:
+        cameras = read_camera_frames(ms.camera_frames, cameras, project, first, F)
+    skeleton = source.skeleton
+    if ms.skeleton is not None:
+        try:
+            target = get_skeleton(ms.skeleton)
+        except InputError as exc:
+            raise ms.error(("skeleton",), exc.what, hint=exc.hint) from None
+        if target.name != skeleton.name:
+            try:
+                obs = map_joints(obs, skeleton, target)
+            except InputError as exc:
+                raise ms.error(("skeleton",), exc.what, hint=exc.hint) from None
+            skeleton = target
+    frames = first + np.arange(F)
+    lo, hi = 0, F
+    if ms.frames is not None:
+        lo, hi = max(ms.frames[0] - first, 0), min(ms.frames[1] - first + 1, F)
+        if hi <= lo:
+            raise ms.error(("frames",), f"frames {list(ms.frames)} select nothing of frames "
+                           f"{first}..{first + F - 1}")
+    obs, frames = obs[lo:hi], frames[lo:hi]
+    cameras = cameras.select_frames(np.arange(lo, hi)) if cameras.n_frames else cameras
+    tracked = [None if t is None else type(t)(t.camera, t.joints[lo:hi], t.detected[lo:hi],
+                                                t.boxes[lo:hi], t.person[lo:hi])
+               for t in tracked]
+    breaks = [r - frames[0] for r in ms.runs if frames[0] < r <= frames[-1]]
+    rs = dict(ms.reconstruction)
+    if ms.limb_lengths is not None:
+        rs["limb_lengths"] = read_limb_lengths(ms.limb_lengths, skeleton)
+    from photogram.project.model import LENGTH_UNITS
+    rs.setdefault("limb_unit", 0.01 / LENGTH_UNITS[project.units.length])   # 1 cm
+    settings = ReconstructionSettings(**rs)
+    rec = reconstruct(obs, cameras, skeleton, settings, breaks)
+    log.info("reconstruction: %d frames, %d windows, %s, energy %.6g, %d iterations, %.1f s",
+             len(frames), rec.n_windows, rec.solver, rec.energy, rec.iterations, rec.seconds)
+    timings["reconstruction_s"] = rec.seconds
+    bio = biomechanics(rec.joints, skeleton, ms.fps, breaks, ms.up, ms.outside_leg)
+    result = MocapResult(
+        skeleton=skeleton, fps=ms.fps, frames=frames, cameras=cameras, observations=obs,
+        tracked=tracked, reconstruction=rec, biomechanics=bio,
+        reprojection=reprojection_errors(rec.joints, cameras, obs),
+        bones=bone_lengths(rec.joints, skeleton), breaks=breaks,
+        info={"source": source.describe(), "timings": timings})
+    if ms.truth is not None:
+        _compare_truth(result, ms)
+    if ms.reference_trc is not None:
+        _compare_reference(result, ms)
+    return result
+
+
+# --------------------------------------------------------------------------
+def _aligned(frames_ref, X_ref, frames):
+    out = np.full((len(frames),) + X_ref.shape[1:], np.nan)
+    index = {int(f): i for i, f in enumerate(frames_ref)}
+    for i, f in enumerate(frames):
+        if int(f) in index:
+            out[i] = X_ref[index[int(f)]]
+    return out
+
+
+def _compare_truth(result: MocapResult, ms) -> None:
+    sk = result.skeleton
+    frames_t, T = read_joints(ms.truth, sk)
+    T = _aligned(frames_t, T, result.frames)
+    X = result.reconstruction.joints
+    acc = accuracy_3d(X, T, sk)
+    tb = biomechanics(T, sk, result.fps, result.breaks, ms.up, ms.outside_leg)
+    com = np.stack([result.biomechanics[k] for k in ("com_x", "com_y", "com_z")], -1)
+    com_t = np.stack([tb[k] for k in ("com_x", "com_y", "com_z")], -1)
+    acc["com_error"] = float(np.nanmean(np.linalg.norm(com - com_t, axis=-1)))
+    acc["speed_mae"] = float(np.nanmean(np.abs(result.biomechanics["speed"] - tb["speed"])))
+    for k in _ANGLES + ("fore_aft_distance",):
+        acc[k + "_mae"] = float(np.nanmean(np.abs(result.biomechanics[k] - tb[k])))
+    knees = np.concatenate([np.abs(result.biomechanics[k] - tb[k]) for k in
+                            ("knee_flexion_r", "knee_flexion_l")])
+    acc["knee_flexion_mae"] = float(np.nanmean(knees))
+    truth_2d = result.cameras.project(T)
+    width = np.where(np.isfinite(result.cameras.image_size[:, 0]),
+                     result.cameras.image_size[:, 0], 1.0)
+    det = np.where((np.nan_to_num(result.observations[..., 2]) > 0)[..., None],
+                   result.observations[..., :2], np.nan)
+    reproj = result.cameras.project(X)
+    for tag, pred in (("detections", det), ("reprojected", reproj)):
+        acc[f"pck_{tag}"] = pck(pred, truth_2d, sk)
+        for k, v in mpjpe_2d(pred, truth_2d, width).items():
+            acc[f"{k}_{tag}"] = v
+    result.truth, result.truth_biomechanics, result.accuracy = T, tb, acc
+
+
+def _compare_reference(result: MocapResult, ms) -> None:
+    """Reprojection errors and bone-length CV of a reference TRC (Z-up
+    world: read with ``rotate_to_z_up``), over the joints both have."""
+    from photogram.io.trc import read_trc
+    sk = result.skeleton
+    trc = read_trc(ms.reference_trc, rotate_to_z_up=True)
+    common = [j for j in sk.joints if j in trc.markers]
+    if not common:
+        raise ms.error(("reference_trc",), f"the reference TRC has no marker named like a "
+                       f"joint of skeleton {sk.name}",
+                       hint="the markers must carry the skeleton's joint names")
+    n = min(len(trc.frames), len(result.frames))
+    R = np.full(result.reconstruction.joints.shape, np.nan)
+    for j in common:
+        R[:n, sk.index(j)] = trc.markers[j][:n]
+    if trc.units and trc.units != "m":
+        from photogram.project.model import LENGTH_UNITS
+        R *= LENGTH_UNITS.get(trc.units, 1.0)
+    idx = [sk.index(j) for j in common]
+    limbs = [(a, b) for a, b in sk.limbs if a in common and b in common]
+    ours = result.reconstruction.joints.copy()
+    ours[n:] = np.nan
+    mine = reprojection_errors(ours, result.cameras, result.observations, joints=idx)
+    theirs = reprojection_errors(R, result.cameras, result.observations, joints=idx)
+    cv_ours = bone_lengths(ours, sk, limbs)
+    cv_ref = bone_lengths(R, sk, limbs)
+    result.reference = {
+        "file": str(ms.reference_trc), "frames": n, "joints": common,
+        "alignment": "row i of the TRC is frame i of the detections",
+        "confidence_threshold": REFERENCE_CONFIDENCE,
+        "reprojection": {c: {"ours_median_px": mine[c]["median_px"],
+                             "reference_median_px": theirs[c]["median_px"],
+                             "n": mine[c]["n"]} for c in result.cameras.names},
+        "bone_cv": {k: {"ours": cv_ours[k][2], "reference": cv_ref.get(k, (0, 0, np.nan))[2],
+                        "ours_mean_m": cv_ours[k][0],
+                        "reference_mean_m": cv_ref.get(k, (np.nan,))[0]}
+                    for k in cv_ours},
+        "bone_cv_mean": {"ours": float(np.nanmean([v[2] for v in cv_ours.values()])),
+                         "reference": float(np.nanmean([v[2] for v in cv_ref.values()]))},
+        "mpjpe_to_reference": float(np.nanmean(np.linalg.norm(ours[:, idx] - R[:, idx],
+                                                              axis=-1))),
+    }

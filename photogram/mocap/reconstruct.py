@@ -1,0 +1,307 @@
+"""3D reconstruction of a sequence from multi-view 2D detections (sections
+4.3-4.4 of the paper, with known camera rotations).
+
+Every joint coordinate is an inverse DCT of ``n_dct`` coefficients per
+window (:mod:`photogram.mocap.dct`); the coefficients minimise the energy of
+:mod:`photogram.mocap.energy` (robust confidence-weighted reprojection term,
+lambda_rep = 80, sigma^2 = 100 px^2; limb-length prior, lambda_limbs = 1).
+All joints start at the centre of the cameras (the mean projection centre),
+as in the paper. The solvers are in :mod:`photogram.mocap.solvers`:
+``"gauss-newton"`` (default; IRLS Gauss-Newton / Levenberg-Marquardt with
+preconditioned conjugate gradients) and ``"lbfgs"`` (the paper's L-BFGS).
+
+Continuation (graduated non-convexity; both solvers): from the centre of
+the cameras every detection is hundreds of pixels off and the Geman-McClure
+function would treat all of them as outliers, so the robust scale starts at
+``sigma^2 = gnc_start`` (1e6 px^2) and is divided by ten per stage down to
+the paper's 100 px^2. The stages with sigma^2 >= 1e4 px^2 only place the
+athlete roughly and use at most 10 coefficients and every third frame. The
+limb lengths, when not given, are estimated before the last stage as the
+medians of the reconstructed lengths (left and right averaged), and the
+limb prior (given or estimated lengths) is active in the last stage only.
+The energy reported is that of the last stage: the paper's energy.
+
+Partly observed joints: restricted to the frames a joint is detected in, the
+DCT basis is nearly degenerate when the gap is contiguous (condition number
+7.5e6 for 25 coefficients on the first 40 of 50 frames, 5e8 for 10 on the
+first 20): the trajectory in the gap is an extrapolation that the energy
+hardly constrains, and the solvers creep along it for ever. Such a joint
+uses the most leading coefficients for which that condition number stays
+below 100 (scattered single missing frames keep all 25); the others stay
+zero. A joint without detections in a window keeps its start and is
+reported as missing (NaN), as is any joint at a frame with fewer than two
+detections within ``support_frames`` frames.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.mocap.cameras import MocapCameras
+from photogram.mocap.dct import blend_weights, dct_basis, plan_windows
+from photogram.mocap.energy import WindowBatch
+from photogram.mocap.solvers import solve_gauss_newton, solve_lbfgs
+from photogram.mocap.skeleton import Skeleton
+
+__all__ = ["ReconstructionSettings", "Reconstruction", "reconstruct", "limb_lengths",
+           "SOLVERS"]
+
+log = logging.getLogger(__name__)
+SOLVERS = ("gauss-newton", "lbfgs")
+MAX_CONDITION = 100.0    # of the DCT basis on the frames a joint is detected in
+
+
+@dataclass
+class ReconstructionSettings:
+    """Settings of :func:`reconstruct` (defaults: the paper's values)."""
+
+    n_dct: int = 25
+    window: int = 50
+    overlap: int = 10
+    sigma2: float = 100.0
+    lambda_rep: float = 80.0
+    lambda_limbs: float = 1.0
+    limb_unit: float = 0.01         # limb residuals in this length (cm of a project in m)
+    solver: str = "gauss-newton"
+    gnc_start: float = 1e6          # sigma^2 of the first continuation stage (px^2)
+    max_iterations: int = 100       # per stage (Gauss-Newton) / per stage x 20 (L-BFGS)
+    tolerance: float = 1e-9         # relative energy decrease that ends the last stage
+    limb_lengths: dict | None = None   # {(a, b): length}; None: estimate
+    symmetric_limbs: bool = True
+    min_confidence: float = 0.0
+    support_frames: int = 5         # report a joint only with 2 detections within +-5 frames
+    step_tol: float = 1e-5          # converged when no determined position moves more (m)
+
+    def stages(self) -> list[float]:
+        s, out = float(self.gnc_start), []
+        while s > self.sigma2 * 1.0001:
+            out.append(s)
+            s /= 10.0
+        return out + [float(self.sigma2)]
+
+
+@dataclass
+class Reconstruction:
+    """Result of :func:`reconstruct`: joints (F, J, 3), NaN where a joint has
+    fewer than two detections (any cameras) within ``support_frames`` frames
+    of the frame (the trajectory there is an extrapolation); ``n_views``
+    (F, J) detections per frame."""
+
+    joints: np.ndarray
+    n_views: np.ndarray
+    limb_lengths: np.ndarray
+    energy: float
+    iterations: int
+    seconds: float
+    solver: str
+    n_windows: int
+    stages: list = field(default_factory=list)
+
+
+# --------------------------------------------------------------------------
+def limb_lengths(X: np.ndarray, skeleton: Skeleton, symmetric: bool = True) -> np.ndarray:
+    """Median length of every limb over the frames of X (F, J, 3) (NaN-aware);
+    with ``symmetric`` the left and right limbs get their mean."""
+    L = skeleton.limb_indices()
+    d = np.linalg.norm(X[:, L[:, 0]] - X[:, L[:, 1]], axis=-1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)        # limbs never seen
+        med = np.nanmedian(d, axis=0) if len(d) else np.full(len(L), np.nan)
+    if symmetric:
+        perm = skeleton.swap_permutation()
+        key = {tuple(sorted(p)): k for k, p in enumerate(L.tolist())}
+        out = med.copy()
+        for k, (a, b) in enumerate(L):
+            m = key.get(tuple(sorted((perm[a], perm[b]))))
+            if m is not None and m != k and np.isfinite(med[m]) and np.isfinite(med[k]):
+                out[k] = 0.5 * (med[k] + med[m])
+        med = out
+    return med
+
+
+def _given_lengths(skeleton: Skeleton, given: dict) -> np.ndarray:
+    out = np.full(len(skeleton.limbs), np.nan)
+    for k, (a, b) in enumerate(skeleton.limbs):
+        v = given.get((a, b), given.get((b, a)))
+        if v is not None:
+            out[k] = float(v)
+    return out
+
+
+def _batches(obs, cameras: MocapCameras, skeleton: Skeleton, settings, breaks):
+    """Gather the windows into batches of equal length, laid out (nw, C, J, T)."""
+    F, C, J, _ = obs.shape
+    conf = np.where(np.isfinite(obs[..., 2]) & np.all(np.isfinite(obs[..., :2]), -1),
+                    obs[..., 2], 0.0)
+    conf = np.where(conf > settings.min_confidence, conf, 0.0)
+    xy = np.where((conf > 0)[..., None], obs[..., :2], np.nan)
+    t_obs = np.nan_to_num(cameras.to_rays(xy)).transpose(1, 2, 0, 3)     # (C, J, F, 2)
+    conf = conf.transpose(1, 2, 0)                                         # (C, J, F)
+    scale = cameras.pixel_scale(F).transpose(1, 2, 0)                      # (C, 2, F)
+    R = cameras.rotations(F).transpose(1, 2, 3, 0)                         # (C, 3, 3, F)
+    RX0 = np.einsum("cabf,cb->caf", R, cameras.X0)
+    windows = plan_windows(F, settings.window, settings.overlap, settings.n_dct, breaks)
+    limbs = skeleton.limb_indices()
+    groups: dict[tuple, list] = {}
+    for w in windows:
+        groups.setdefault((w.length, w.n_coefficients), []).append(w)
+    out = []
+    for (T, K), ws in groups.items():
+        idx = np.array([np.arange(w.start, w.stop) for w in ws])       # (nw, T)
+        c = np.ascontiguousarray(conf[:, :, idx].transpose(2, 0, 1, 3))   # (nw, C, J, T)
+        B = dct_basis(T, K)
+        n_coef = _coefficients(np.any(c > 0, axis=1), B)              # (nw, J)
+        nv = np.sum(c > 0, axis=1).transpose(0, 2, 1)                  # (nw, T, J)
+        support = np.stack([_support(v, settings.support_frames) >= 2 for v in nv])
+        observed = n_coef > 0
+        mask = observed[:, limbs[:, 0]] & observed[:, limbs[:, 1]] if len(limbs) \
+            else np.zeros((len(ws), 0), bool)
+        t = t_obs[:, :, idx].transpose(2, 0, 1, 3, 4)                  # (nw, C, J, T, 2)
+        sc = scale[:, :, idx].transpose(2, 0, 1, 3)                    # (nw, C, 2, T)
+        batch = WindowBatch(
+            tx=np.ascontiguousarray(t[..., 0]), ty=np.ascontiguousarray(t[..., 1]), conf=c,
+            sx=np.ascontiguousarray(sc[:, :, 0:1]), sy=np.ascontiguousarray(sc[:, :, 1:2]),
+            R=np.ascontiguousarray(R[..., idx].transpose(3, 0, 1, 2, 4)),
+            RX0=np.ascontiguousarray(RX0[..., idx].transpose(2, 0, 1, 3)),
+            B=B, limbs=limbs, limb_mask=mask.astype(float), n_coef=n_coef,
+            support=np.ascontiguousarray(support.transpose(0, 2, 1)))
+        out.append((ws, idx, batch))
+    return windows, out
+
+
+def _coefficients(seen: np.ndarray, B: np.ndarray, max_cond: float | None = None):
+    """Coefficients (nw, J) each joint may use: all K when it is detected in
+    every frame of the window, else the most leading ones for which the
+    basis on its frames ``seen`` (nw, J, T) has a condition number <=
+    ``max_cond`` (0 when never detected)."""
+    max_cond = MAX_CONDITION if max_cond is None else max_cond
+    T, K = B.shape
+    n = np.where(seen.all(axis=-1), K, 0)
+    part = np.flatnonzero((~seen.all(axis=-1) & seen.any(axis=-1)).ravel())
+    if len(part):
+        m = seen.reshape(-1, T)[part].astype(float)
+        G = np.einsum("nt,tk,tl->nkl", m, B, B)
+        best = np.ones(len(part), int)
+        for k in range(2, K + 1):
+            ev = np.linalg.eigvalsh(G[:, :k, :k])
+            ok = ev[:, 0] > ev[:, -1] / max_cond ** 2
+            best = np.where(ok & (best == k - 1), k, best)
+        n.reshape(-1)[part] = best
+    return n
+
+
+def _stage_plan(s: ReconstructionSettings):
+    """(sigma^2, coefficients, frame step) of every continuation stage: the
+    stages with sigma^2 >= 1e4 px^2 only place the athlete roughly, so they
+    use at most 10 coefficients and every third frame."""
+    out = []
+    for sigma2 in s.stages():
+        coarse = sigma2 >= 1e4 - 1e-9 and sigma2 > s.sigma2
+        out.append((sigma2, min(10, s.n_dct) if coarse else s.n_dct, 3 if coarse else 1))
+    return out
+
+
+def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skeleton,
+                settings: ReconstructionSettings | None = None, breaks=()) -> Reconstruction:
+    """Reconstruct the joints of a sequence.
+
+    Parameters
+    ----------
+    observations : (F, C, J, 3)
+        x, y (px, full image) and confidence of joint j in camera c at frame
+        f; NaN or confidence 0: no detection.
+    cameras : MocapCameras
+        With rotations (and interior orientation) per frame or fixed.
+    skeleton : Skeleton
+        The joints of ``observations`` (J = skeleton.n_joints) and the limbs.
+    settings : ReconstructionSettings
+    breaks : frames where an independent segment starts (windows never cross).
+    """
+    s = settings or ReconstructionSettings()
+    if s.solver not in SOLVERS:
+        raise InputError(f"unknown solver {s.solver!r}", hint="use " + " or ".join(SOLVERS))
+    obs = np.asarray(observations, dtype=float)
+    if obs.ndim != 4 or obs.shape[1] != cameras.n_cameras or obs.shape[2] != skeleton.n_joints \
+            or obs.shape[3] != 3:
+        raise InputError(f"observations must be (frames, {cameras.n_cameras} cameras, "
+                         f"{skeleton.n_joints} joints, 3), got {obs.shape}")
+    t0 = time.perf_counter()
+    F, J = obs.shape[0], skeleton.n_joints
+    windows, batches = _batches(obs, cameras, skeleton, s, breaks)
+    given = _given_lengths(skeleton, s.limb_lengths) if s.limb_lengths else None
+    centre = cameras.centre()
+    coeffs = []
+    for ws, idx, batch in batches:
+        nw, T, C, J, K = batch.shape
+        a = np.zeros((nw, J, 3, K))
+        a[:, :, :, 0] = centre * np.sqrt(T)          # constant trajectory at the centre
+        coeffs.append(a)
+    solver = solve_gauss_newton if s.solver == "gauss-newton" else solve_lbfgs
+    stages, iterations = [], 0
+    plan = _stage_plan(s)
+    lengths = given if given is not None else np.full(len(skeleton.limbs), np.nan)
+    for n, (sigma2, k, step) in enumerate(plan):
+        last = n == len(plan) - 1
+        if last and given is None and len(skeleton.limbs):
+            X, _ = _blend(batches, coeffs, F, J, s.overlap)
+            lengths = limb_lengths(X, skeleton, s.symmetric_limbs)
+        lam = s.lambda_limbs / s.limb_unit ** 2 if last else 0.0
+        L = np.nan_to_num(lengths)
+        stage_E, stage_it = 0.0, 0
+        for b, (ws, idx, batch) in enumerate(batches):
+            use = batch.subsample(step)
+            if lam:
+                use = use.with_limb_mask(batch.limb_mask * np.isfinite(lengths))
+            kk = min(k, use.B.shape[0], batch.B.shape[1])
+            a, E, it = solver(use, coeffs[b][..., :kk].copy(), sigma2, L, s.lambda_rep, lam,
+                              s.max_iterations, s.tolerance if last else 1e-4,
+                              second_order=last, step_tol=s.step_tol if last else 0.0)
+            coeffs[b][..., :kk] = a
+            stage_E += float(np.sum(E))
+            stage_it = max(stage_it, it)
+        iterations += stage_it
+        stages.append({"sigma2": sigma2, "coefficients": k, "frame_step": step,
+                       "lambda_limbs": lam, "energy": stage_E, "iterations": stage_it,
+                       "seconds": time.perf_counter() - t0})
+        log.debug("stage sigma2=%g k=%d step=%d energy=%.6g iterations=%d %.2fs", sigma2, k,
+                  step, stage_E, stage_it, time.perf_counter() - t0)
+    X, views = _blend(batches, coeffs, F, J, s.overlap)
+    n_views = np.sum(np.isfinite(obs[..., 0]) & (np.nan_to_num(obs[..., 2]) >
+                                                  s.min_confidence), axis=1)
+    X[(views == 0) | (_support(n_views, s.support_frames) < 2)] = np.nan
+    return Reconstruction(joints=X, n_views=n_views, limb_lengths=lengths,
+                          energy=stages[-1]["energy"], iterations=iterations,
+                          seconds=time.perf_counter() - t0, solver=s.solver,
+                          n_windows=len(windows), stages=stages)
+
+
+def _support(n_views: np.ndarray, h: int) -> np.ndarray:
+    """Detections of every joint within +-h frames (F, J)."""
+    c = np.concatenate([np.zeros((1, n_views.shape[1])), np.cumsum(n_views, axis=0)])
+    F = len(n_views)
+    lo = np.clip(np.arange(F) - h, 0, F)
+    hi = np.clip(np.arange(F) + h + 1, 0, F)
+    return c[hi] - c[lo]
+
+
+def _blend(batches, coeffs, F, J, overlap):
+    """Blend the window trajectories (dct module doc); ``views`` counts the
+    windows in which each (frame, joint) is observed."""
+    acc = np.zeros((F, J, 3))
+    wsum = np.zeros((F, J))
+    views = np.zeros((F, J))
+    for (ws, idx, batch), a in zip(batches, coeffs):
+        X = batch.positions(a).transpose(0, 3, 1, 2)              # (nw, T, J, 3)
+        w = blend_weights(idx.shape[1], overlap)[None, :, None] * batch.observed[:, None, :]
+        np.add.at(acc, idx, w[..., None] * X)
+        np.add.at(wsum, idx, w)
+        np.add.at(views, idx, np.broadcast_to(batch.observed[:, None, :], w.shape))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        X = acc / wsum[..., None]
+    return X, views

@@ -1,0 +1,226 @@
+"""The ``[mocap]`` section: a motion-capture project (docs/mocap.md).
+
+A .prj with a ``[mocap]`` section is a motion-capture project: ``[project]``
+and ``[output]`` as usual; the cameras either in ``[cameras]`` and
+``[stations]`` (one station per camera, named like it or naming it in its
+``camera`` column) or in a Pose2Sim calibration file (``calibration =``);
+no ``[points]``, ``[observations]`` or ``[constraints]``. This module checks
+types, choices and that files exist, every error with file and line; the
+mocap pipeline (:mod:`photogram.mocap.pipeline`) checks what needs the
+mocap package (skeleton names, the network) through
+:meth:`MocapSettings.error`, which points at the key's line.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from photogram.errors import InputError
+from photogram.project.camera_schema import read_camera
+from photogram.project.model import Points, Project
+from photogram.project.toml_source import Section, TomlSource
+
+__all__ = ["MocapSettings", "MocapSource", "read_mocap_project", "MOCAP_KEYS", "SOURCE_KINDS"]
+
+MOCAP_KEYS = ("fps", "skeleton", "calibration", "camera_frames", "frames", "up", "limb_lengths",
+              "truth", "reference_trc", "outside_leg", "runs", "source", "tracking",
+              "reconstruction")
+SOURCE_KINDS = ("openpose", "csv", "mediapipe", "plugin")
+SOURCE_KEYS = ("kind", "path", "cameras", "skeleton", "network", "wide")
+TRACKING_KEYS = ("scale", "wide_scale", "sigma_centre", "sigma_side", "sigma_refine",
+                 "crop_size", "min_confidence")
+RECONSTRUCTION_KEYS = ("solver", "n_dct", "window", "overlap", "sigma2", "lambda_rep",
+                       "lambda_limbs", "gnc_start", "max_iterations", "tolerance",
+                       "symmetric_limbs", "min_confidence", "support_frames", "limb_unit",
+                       "step_tol")
+_FORBIDDEN = ("points", "observations", "constraints", "intersect", "montecarlo",
+              "adjustment")
+
+
+@dataclass
+class MocapSource:
+    """``[mocap.source]``: where the 2D detections come from."""
+
+    kind: str
+    path: Path | None = None
+    cameras: dict | None = None         # camera -> folder/file (absolute)
+    skeleton: str | None = None
+    network: str | None = None          # "module:function" (kind = plugin)
+    wide: tuple = ()                    # cameras with the wide crop scale
+
+
+@dataclass
+class MocapSettings:
+    """``[mocap]`` with absolute paths; ``source_file`` and ``keypath`` let
+    later checks point at the right line (:meth:`error`)."""
+
+    source: MocapSource
+    fps: float = 50.0
+    skeleton: str | None = None
+    calibration: Path | None = None
+    camera_frames: Path | None = None
+    frames: tuple | None = None
+    up: tuple = (0.0, 0.0, 1.0)
+    limb_lengths: Path | None = None
+    truth: Path | None = None
+    reference_trc: Path | None = None
+    outside_leg: str = "extended"
+    runs: tuple = ()
+    tracking: dict = field(default_factory=dict)
+    reconstruction: dict = field(default_factory=dict)
+    toml: TomlSource | None = None
+
+    def error(self, keypath, what: str, hint: str | None = None) -> InputError:
+        """An InputError at the line of ``keypath`` (e.g. ``("source",
+        "skeleton")``) under ``[mocap]``."""
+        line = self.toml.line_of(("mocap",) + tuple(keypath)) if self.toml else None
+        return InputError(what, file=self.toml.path if self.toml else None, line=line, hint=hint)
+
+
+def _path(sec: Section, key: str, folder: Path, *, kind: str = "file") -> Path | None:
+    if key not in sec:
+        return None
+    value = Path(sec.string(key))
+    full = value if value.is_absolute() else folder / value
+    ok = {"file": full.is_file(), "dir": full.is_dir(), "any": full.exists()}[kind]
+    if not ok:
+        what = {"file": "file", "dir": "folder", "any": "file or folder"}[kind]
+        raise sec.error(key, f"{key} in {sec.label}: {what} {value} not found",
+                        hint="paths are relative to the folder of the project file")
+    return full
+
+
+def _read_source(sec: Section, folder: Path) -> MocapSource:
+    sec.check_keys(SOURCE_KEYS, required=("kind",))
+    kind = sec.string("kind", choices=SOURCE_KINDS)
+    want = {"openpose": "any", "csv": "file", "mediapipe": "any", "plugin": "any"}[kind]
+    path = _path(sec, "path", folder, kind=want)
+    cams = None
+    if "cameras" in sec:
+        sub = sec.table("cameras")
+        base = path if path is not None and path.is_dir() else folder
+        cams = {}
+        for name in sub.data:
+            value = Path(sub.string(name))
+            full = value if value.is_absolute() else base / value
+            if not full.exists():
+                raise sub.error(name, f"camera {name} in {sub.label}: {value} not found",
+                                hint="relative to path of [mocap.source] (or the project "
+                                     "folder without path)")
+            cams[name] = full
+    if kind == "csv" and path is None:
+        raise sec.error(None, f"{sec.label} of kind csv needs path = \"detections.csv\"")
+    if kind != "csv" and path is None and cams is None:
+        raise sec.error(None, f"{sec.label} of kind {kind} needs path or cameras",
+                        hint="path = a folder with one sub-folder per camera, or cameras = "
+                             "{ cam1 = \"...\" }")
+    network = None
+    if kind == "plugin":
+        network = sec.string("network")
+        if ":" not in network:
+            raise sec.error("network", f"network in {sec.label} must be \"module:function\"",
+                            hint='e.g. network = "mynet:detect"')
+    elif "network" in sec:
+        raise sec.error("network", f"network in {sec.label} is only for kind = \"plugin\"")
+    return MocapSource(kind=kind, path=path, cameras=cams, skeleton=sec.string("skeleton", None),
+                       network=network, wide=tuple(sec.ids("wide", [])))
+
+
+def _numbers(sec: Section, key: str, length: int, default):
+    if key not in sec:
+        return default
+    value = sec.data[key]
+    if not isinstance(value, list) or len(value) != length or any(
+            isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
+        raise sec.error(key, f"{key} in {sec.label} must be an array of {length} numbers")
+    return tuple(float(v) for v in value)
+
+
+def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
+    sec.check_keys(MOCAP_KEYS, required=("source",))
+    source = _read_source(sec.table("source"), folder)
+    frames = None
+    if "frames" in sec:
+        value = sec.data["frames"]
+        if not (isinstance(value, list) and len(value) == 2 and
+                all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+                and 0 <= value[0] <= value[1]):
+            raise sec.error("frames", f"frames in {sec.label} must be [first, last] (0-based, "
+                                      f"inclusive)", hint="e.g. frames = [0, 99]")
+        frames = (int(value[0]), int(value[1]))
+    up = _numbers(sec, "up", 3, (0.0, 0.0, 1.0))
+    if sum(v * v for v in up) == 0:
+        raise sec.error("up", f"up in {sec.label} must not be zero")
+    runs = sec.data.get("runs", [])
+    if not isinstance(runs, list) or any(not isinstance(v, int) or isinstance(v, bool) or v < 1
+                                         for v in runs):
+        raise sec.error("runs", f"runs in {sec.label} must list the first frames (>= 1) of "
+                                f"the runs after the first", hint="e.g. runs = [279, 558]")
+    subs = {}
+    for name, keys in (("tracking", TRACKING_KEYS), ("reconstruction", RECONSTRUCTION_KEYS)):
+        sub = sec.table(name, required=False)
+        values = {}
+        if sub is not None:
+            sub.check_keys(keys)
+            for key in sub.data:
+                if key == "solver":
+                    values[key] = sub.string(key, choices=("gauss-newton", "lbfgs"))
+                elif key == "symmetric_limbs":
+                    values[key] = sub.boolean(key)
+                elif key in ("n_dct", "window", "overlap", "max_iterations", "crop_size",
+                             "support_frames"):
+                    values[key] = sub.integer(key, minimum=0 if key in ("overlap",
+                                                                        "support_frames") else 1)
+                else:
+                    values[key] = sub.number(key, nonnegative=key in ("lambda_limbs",
+                                                                      "min_confidence"),
+                                             positive=key not in ("lambda_limbs",
+                                                                  "min_confidence"))
+        subs[name] = values
+    return MocapSettings(
+        source=source, fps=sec.number("fps", 50.0, positive=True),
+        skeleton=sec.string("skeleton", None),
+        calibration=_path(sec, "calibration", folder),
+        camera_frames=_path(sec, "camera_frames", folder), frames=frames, up=up,
+        limb_lengths=_path(sec, "limb_lengths", folder), truth=_path(sec, "truth", folder),
+        reference_trc=_path(sec, "reference_trc", folder),
+        outside_leg=sec.string("outside_leg", "extended", choices=("extended", "flexed")),
+        runs=tuple(sorted(set(runs))), tracking=subs["tracking"],
+        reconstruction=subs["reconstruction"], toml=src)
+
+
+def read_mocap_project(prj: Path, src: TomlSource, root: Section) -> Project:
+    """Read a motion-capture project (module doc)."""
+    from photogram.project.reader import (_read_output, _read_project_section,
+                                          _read_stations)
+    for name in _FORBIDDEN:
+        if name in root.data:
+            raise root.error(name, f"[{name}] has no meaning in a motion-capture project",
+                             hint="remove it; the detections are given in [mocap.source]")
+    root.table("project")
+    project = Project(path=prj, sources={"project": prj})
+    _read_project_section(root.table("project"), project)
+    project.output = _read_output(root.table("output", required=False))
+    mocap = _read_mocap(root.table("mocap"), prj.parent, src)
+    cams, stations = root.table("cameras", required=False), root.table("stations",
+                                                                       required=False)
+    if mocap.calibration is not None and (cams is not None or stations is not None):
+        raise root.error("cameras" if cams is not None else "stations",
+                         "give the cameras either in calibration or in [cameras] and "
+                         "[stations], not both")
+    if mocap.calibration is None:
+        if cams is None or stations is None:
+            raise root.error("mocap", "a motion-capture project needs its cameras: "
+                                      "calibration = \"Calib.toml\" in [mocap], or [cameras] "
+                                      "and [stations]")
+        if not cams.data:
+            raise cams.error(None, "[cameras] has no cameras")
+        for name in cams.data:
+            cam = read_camera(cams.table(name), name, image_unit=project.units.image,
+                              folder=project.folder)
+            project.cameras[name] = cam
+        project.stations = _read_stations(stations, project)
+        project.points = Points()
+    project.mocap = mocap
+    return project
