@@ -7,8 +7,11 @@ projects, in the order a user runs it.
    ski lines and the stick model, orientation covariance propagated
 4. ``montecarlo projects/jumps/montecarlo.prj --runs 200``  accuracy by
    simulation of orient + intersect, Monte Carlo versus propagated sigmas
-5. ``calibrate projects/camcal/camcal.prj``  DBAT's real CAMCAL network, when
-   ../shared/data/dbat is present beside the repository
+5. ``mocap projects/ski-ptz/ski-ptz.prj``  markerless motion capture of a
+   simulated giant-slalom run (6 pan-tilt cameras, known rotations)
+6. ``calibrate projects/camcal/camcal.prj``  DBAT's real CAMCAL network, and
+   ``mocap projects/pose2sim-demo/demo.prj``  Pose2Sim's real demo, when
+   ../shared/data is present beside the repository
 
 Each step writes its results folder beside its project file.
 """
@@ -36,14 +39,24 @@ def _montecarlo(project, runs=200):
     return folder, None
 
 
+def _mocap(project):
+    """photogram mocap (prints its own line)."""
+    from photogram.commands.mocap import run as run_mocap
+    run_mocap(project)
+    return project.output_folder(), None
+
+
 def steps():
     """(command, function, project path, needs) of the demo, in order."""
     return [("calibrate", calibrate, PROJECTS / "lab" / "lab.prj", None),
             ("orient", orient, PROJECTS / "field" / "field.prj", None),
             ("intersect", intersect_and_write, PROJECTS / "jumps" / "jumps.prj", None),
             ("montecarlo", _montecarlo, PROJECTS / "jumps" / "montecarlo.prj", None),
+            ("mocap", _mocap, PROJECTS / "ski-ptz" / "ski-ptz.prj", None),
             ("calibrate", calibrate, PROJECTS / "camcal" / "camcal.prj",
-             ROOT.parent / "shared" / "data" / "dbat" / "camcal")]
+             ROOT.parent / "shared" / "data" / "dbat" / "camcal"),
+            ("mocap", _mocap, PROJECTS / "pose2sim-demo" / "demo.prj",
+             ROOT.parent / "shared" / "data" / "pose2sim-demo")]
 
 
 def run(args=None):
