@@ -20,7 +20,7 @@ import pandas as pd
 from photogram.errors import InputError
 from photogram.io.trc import write_trc
 from photogram.jump.figure import plot_stick_figure, time_series_figure
-from photogram.jump.pipeline import intersect_jump, split_id
+from photogram.jump.pipeline import intersect_jump
 from photogram.project.atomic import atomic_write_text
 
 

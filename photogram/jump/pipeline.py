@@ -18,6 +18,8 @@ from photogram.adjust.build import build_problem
 from photogram.adjust.datum import check_datum
 from photogram.adjust.solver import SolverOptions, solve
 from photogram.errors import InputError
+from photogram.jump.exposures import exposure_order as _exposure_order
+from photogram.jump.exposures import split_id
 from photogram.jump.stick import stick_model
 from photogram.lines import cameras_from_project, intersect_line_from_points
 from photogram.lines.skis import check_ski_labels, swap_labels
@@ -39,24 +41,6 @@ class JumpResult:
     project: object                 # the project with the estimated points
     point_sigma: np.ndarray = None  # (n_points, 3) of every point of the project
     summary: dict = field(default_factory=dict)
-
-
-def split_id(ident: str) -> tuple[str, str]:
-    """``"P1@007"`` -> ``("P1", "007")``; ids without an exposure -> (id, "")."""
-    name, _, exposure = str(ident).partition("@")
-    return name, exposure
-
-
-def _exposure_order(exposures):
-    """Exposure ids in time order, and their frame numbers (numeric ids are
-    frame numbers; others are taken in order of appearance)."""
-    ids = list(dict.fromkeys(exposures))
-    try:
-        frames = np.array([int(e) for e in ids])
-        order = np.argsort(frames, kind="stable")
-        return [ids[i] for i in order], frames[order]
-    except ValueError:
-        return ids, np.arange(len(ids))
 
 
 def intersect_points(project, orientation=None):

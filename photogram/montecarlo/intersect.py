@@ -34,6 +34,8 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.geometry import camera_model, opk_to_matrix
 from photogram.geometry.camera import ideal_projection
+from photogram.jump.exposures import exposure_order as _exposure_order
+from photogram.jump.exposures import split_id
 from photogram.jump.stick import stick_model
 from photogram.montecarlo.lines import (fit_lines_batch, initial_lines_batch,  # noqa: F401
                                         intersect_lines_batch, local_basis_batch)
@@ -69,24 +71,6 @@ def correct_fast(xy, io, jacobian=False):
     J[:, 1, 0] = -c * (1.0 + B1)
     J[:, 1, 1] = c * B2 + d
     return C, J
-
-
-def split_id(ident):
-    """``"P1@007"`` -> ``("P1", "007")`` (as :func:`photogram.jump.pipeline.split_id`)."""
-    name, _, exposure = str(ident).partition("@")
-    return name, exposure
-
-
-def _exposure_order(exposures):
-    """Exposure ids in time order and their frame numbers (as the intersect
-    pipeline orders them: numeric ids are frame numbers)."""
-    ids = list(dict.fromkeys(exposures))
-    try:
-        frames = np.array([int(e) for e in ids])
-        order = np.argsort(frames, kind="stable")
-        return [ids[i] for i in order], frames[order]
-    except ValueError:
-        return ids, np.arange(len(ids))
 
 
 def _segments(keys):
