@@ -7,6 +7,9 @@ points (25,000 ... 200,000 image points) the script prints the time per
 Gauss-Newton iteration and per 1000 points; linear growth means a constant
 last column.
 
+The smallest network is solved once untimed first (loading numba's cached
+kernels when numba is installed).
+
 Run: .venv/bin/python benchmarks/scaling.py [--points 1250,2500,5000,10000]
 """
 
@@ -16,6 +19,7 @@ import time
 import photogram  # noqa: F401  (sets single-threaded BLAS before numpy)
 import numpy as np
 
+from photogram.adjust import kernels
 from photogram.adjust.build import build_problem
 from photogram.adjust.solver import SolverOptions, solve
 from photogram.simulation.network import to_project, wall_network
@@ -42,7 +46,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", default="1250,2500,5000,10000")
     args = ap.parse_args()
-    rows = [run(int(n)) for n in args.points.split(",")]
+    sizes = [int(n) for n in args.points.split(",")]
+    run(sizes[0])        # warm-up: numba's cached kernels load once per process
+    print(f"numba kernels: {'on' if kernels.use_numba() else 'off (numpy path)'}")
+    rows = [run(n) for n in sizes]
     print(f"{'points':>7} {'obs':>8} {'iter':>4} {'status':>10} {'sigma0':>7} "
           f"{'build s':>8} {'solve s':>8} {'s/iter':>7} {'ms/iter/1000 pts':>17} {'rmse m':>8}")
     for r in rows:

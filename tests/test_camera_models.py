@@ -19,6 +19,8 @@ PARAMS = {
     "brown": np.array([1420.0, 321.5, 238.2, 2.3e-7, -3.0e-13, 6.0e-19,
                        6.0e-6, -4.0e-6, 4.0e-4, -3.0e-4]),
     "opencv": np.array([1420.0, 1425.0, 322.0, 238.0, -0.25, 0.3, 1.0e-3, -8.0e-4, -0.5]),
+    # BAL (Snavely): f, k1, k2 of normalised radii; origin at the image centre
+    "bal": np.array([1420.0, -0.25, 0.3]),
 }
 # Characteristic magnitudes: a change of 1e-4 of these moves points by a
 # few hundredths of a pixel (r ~ 400 px at the corners).
@@ -26,6 +28,7 @@ TYPICAL = {
     "brown": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
                        1 / 400, 1 / 400, 1, 1]),
     "opencv": np.array([1420, 1420, 1420, 1420, 1, 1, 1, 1, 1]),
+    "bal": np.array([1420, 1, 1]),
 }
 STEP = {"angles": 1e-4, "rotation": 1e-4, "X0": 1e-3, "X": 1e-3}
 
@@ -121,12 +124,13 @@ def test_jacobian_shapes(model):
 
 # ---------------------------------------------------------------- registry
 def test_registry():
-    assert set(CAMERA_MODELS) == {"brown", "opencv"}
+    assert set(CAMERA_MODELS) == {"bal", "brown", "opencv"}
     assert camera_model("brown").parameter_names == (
         "c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2")
     assert camera_model("opencv").parameter_names == (
         "fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
-    with pytest.raises(InputError, match="brown.*opencv"):
+    assert camera_model("bal").parameter_names == ("f", "k1", "k2")
+    with pytest.raises(InputError, match="bal.*brown.*opencv"):
         camera_model("fisheye")
 
 
@@ -294,3 +298,64 @@ def test_single_station_broadcasts(model):
     assert np.array_equal(one, many)
     with pytest.raises(InputError):
         m.project(X, angles[:3], X0, io)
+
+
+# ---------------------------------------------------------------- rotation-matrix path
+def rotation_cases():
+    for model in sorted(CAMERA_MODELS):
+        for i, name in enumerate(camera_model(model).parameter_names):
+            yield pytest.param(model, "io", i, id=f"{model}-io-{name}")
+        for group in ("X0", "X", "rotation"):
+            for i in range(3):
+                yield pytest.param(model, group, i, id=f"{model}-{group}-{i}")
+
+
+@pytest.mark.parametrize("model,group,col", list(rotation_cases()))
+def test_rotation_path_jacobian_matches_central_differences(model, group, col):
+    """``residuals_rotation`` (the engine's R-based path): its Jacobians
+    against central differences, and its values equal ``residuals``."""
+    X, angles, X0, io = scene(model)
+    m = camera_model(model)
+    R = opk_to_matrix(angles)
+    xy_obs = m.project(X, angles, X0, io) + RNG.normal(0, 0.5, (N, 2))
+    r, jac = m.residuals_rotation(xy_obs, X, R, X0, io)
+    assert set(jac) == {"io", "X0", "X", "rotation"}
+    r_angles, jac_angles = m.residuals(xy_obs, X, angles, X0, io)
+    np.testing.assert_allclose(r, r_angles, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(jac[group], jac_angles[group], rtol=1e-9,
+                               atol=1e-12 * np.abs(jac_angles[group]).max())
+    h = 1e-4 * TYPICAL[model][col] if group == "io" else STEP[group]
+
+    def moved(s):
+        Xp, X0p, iop, Rp = X.copy(), X0.copy(), io.copy(), R
+        if group == "io":
+            iop[:, col] += s
+        elif group == "X0":
+            X0p[:, col] += s
+        elif group == "X":
+            Xp[:, col] += s
+        else:
+            delta = np.zeros(3)
+            delta[col] = s
+            Rp = small_rotation(delta) @ R
+        return m.residuals_rotation(xy_obs, Xp, Rp, X0p, iop, jacobians=False)
+
+    fd = (moved(h) - moved(-h)) / (2 * h)
+    J = jac[group][:, :, col]
+    err = np.abs(J - fd) / np.maximum(np.abs(J), np.max(np.abs(fd)))
+    assert err.max() < 1e-6, f"max relative error {err.max():.2e}"
+
+
+def test_bal_model_is_snavely_projection():
+    """The bal model equals BAL's formula p = -P/P_z, r = f (1 + k1 |p|^2 +
+    k2 |p|^4) p with P = R X + t, t = -R X0, and y flipped (BAL is y up)."""
+    X, angles, X0, io = scene("bal", n=40, seed=4)
+    R = opk_to_matrix(angles)
+    P = np.einsum("nij,nj->ni", R, X) - np.einsum("nij,nj->ni", R, X0)
+    p = -P[:, :2] / P[:, 2:]
+    r2 = np.sum(p * p, axis=1)
+    bal = (io[:, 0] * (1 + io[:, 1] * r2 + io[:, 2] * r2 ** 2))[:, None] * p
+    ours = camera_model("bal").project(X, angles, X0, io)
+    np.testing.assert_allclose(ours, bal * [1.0, -1.0], rtol=1e-12, atol=1e-9)
+    t = camera_model("bal").image_to_ray(ours, io)
+    np.testing.assert_allclose(camera_model("bal").ray_to_image(t, io), ours, atol=1e-9)

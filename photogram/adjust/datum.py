@@ -131,7 +131,15 @@ def check_datum(problem, what_is_present):
 
     The message reads e.g. "datum defect 7: no control, no distance, no
     inner constraints (free: translation X, ...)".
+
+    ``what_is_present["gauge"] = True`` declares the gauge freedom on
+    purpose (the BAL mode of :mod:`photogram.io.bal`, as Ceres' BAL
+    example: nothing fixed, the trust-region damping keeps every step
+    regular, and the cost does not depend on the datum); no error is raised
+    then.
     """
+    if what_is_present.get("gauge"):
+        return
     defect, names = datum_defect(problem, what_is_present)
     if defect == 0:
         return

@@ -1,5 +1,5 @@
-"""Normal equations, assembled block by block, and their solution by the
-Schur complement of the (3x3 block-diagonal) eliminated point part.
+"""Normal equations, assembled block by block, in the form the Schur
+complement of the (3x3 block-diagonal) eliminated points needs.
 
 With the columns split into reduced (c) and eliminated points (e), the
 normal equations ``N dx = -g`` read::
@@ -7,25 +7,27 @@ normal equations ``N dx = -g`` read::
     [ N_cc  W   ] [dx_c]     [g_c]
     [ W^T   A   ] [dx_e] = - [g_e]
 
-``A`` is block diagonal (one 3x3 block per point). Eliminating ``dx_e``
-gives the reduced system ``S dx_c = -(g_c - W A^-1 g_e)`` with
-``S = N_cc - W A^-1 W^T``, solved by Cholesky; then
-``dx_e = -A^-1 (g_e + W^T dx_c)``. Cost grows linearly with the points.
+``A`` is block diagonal (one 3x3 block per point). ``W`` is never formed as
+a matrix: every row of a residual block that touches an eliminated point
+(an *E-row*: an image point of an eliminated object point, a prior on it)
+keeps its own ``W_o^T = Je^T Jc`` (3 x s), with ``Jc`` the Jacobian of its
+``s`` reduced columns (station, interior orientation, ...; columns that are
+fixed for every row of the class are left out) and ``Je`` that of its point.
+The Schur complement (:mod:`schur`) sums ``W_a A_p^-1 W_b^T`` over the pairs
+of E-rows of each point, a pattern that is computed once.
 
-The sparsity structure never changes between iterations, so every index
-needed to scatter the per-observation products is computed once
-(:class:`Structure`); an iteration only sums values.
+Rows are grouped by their reduced columns (e.g. one group per station);
+``N_cc`` is summed per group (one small Gram matrix each) and scattered once.
+The sparsity structure never changes between iterations, so every index is
+computed once (:class:`Structure`); an iteration only sums values.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.sparse as sp
 
-
-DENSE_LIMIT = 4_000_000   # entries of W (n_reduced x 3 n_points) kept dense
+from photogram.adjust import kernels
 
 
 class Segments:
@@ -53,20 +55,62 @@ def pair_keys(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a.astype(np.int64) * (int(b.max(initial=0)) + 1) + b
 
 
-@dataclass
-class _PairPlan:
-    block: int            # residual block number
-    a: int                # slot numbers
-    b: int
-    rows: np.ndarray      # observation rows of the block this pair uses
-    segments: Segments
-    first_cols_a: np.ndarray  # (n_pairs, s_a) columns of slot a per pair
-    first_cols_b: np.ndarray  # (n_pairs, s_b)
+def _group_ids(keys, n):
+    """Dense group numbers of rows identified by several integer key
+    columns (combined pairwise, never overflowing)."""
+    gid = np.zeros(n, dtype=np.int64)
+    for k in keys:
+        _, gid = np.unique(gid * (int(k.max(initial=0)) + 1) + k, return_inverse=True)
+        gid = gid.astype(np.int64).ravel()
+    return gid
+
+
+class RowClass:
+    """Rows of one residual block with the same reduced/eliminated slots."""
+
+    def __init__(self, block, rows, n_block, e_slot, gather, rcols, group):
+        self.block = block
+        self.rows = rows
+        self.identity = len(rows) == n_block and np.array_equal(rows, np.arange(n_block))
+        self.e_slot = e_slot            # slot of the eliminated point, -1: none
+        self.gather = gather            # [(slot, positions or None)]
+        self.rcols = rcols              # (n, s) reduced columns
+        self.s = rcols.shape[1]
+        self.group = group              # (n,) local group, sorted
+        self.n_groups = int(group[-1]) + 1 if len(group) else 0
+        self.group_starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]]) if len(group) \
+            else np.zeros(0, dtype=int)
+        self.group_cols = rcols[self.group_starts]
+        self.point = None               # (n,) eliminated point of each row
+        self.offset = 0                 # first E-row
+        self.flat9 = self.flat3 = None  # scatter indices of the numpy path
+
+    def take(self, residuals, jacobians):
+        """Residuals r (n, d), the Jacobians of the reduced slots (a list
+        of (n, d, s_k), together Jc) and the point Jacobian Je (n, d, 3)
+        (or None) of the class's rows."""
+        r, Js = residuals[self.block], jacobians[self.block]
+        sel = slice(None) if self.identity else self.rows
+        parts = []
+        for k, pos in self.gather:
+            J = Js[k][sel]
+            parts.append(np.ascontiguousarray(J if pos is None else J[:, :, pos]))
+        Je = np.ascontiguousarray(Js[self.e_slot][sel]) if self.e_slot >= 0 else None
+        return np.ascontiguousarray(r[sel]), parts, Je
+
+    @staticmethod
+    def joined(parts, n, d):
+        """The reduced Jacobian Jc (n, d, s) of the parts."""
+        if len(parts) == 1:
+            return parts[0]
+        if parts:
+            return np.concatenate(parts, axis=2)
+        return np.zeros((n, d, 0))
 
 
 class Structure:
-    """Precomputed scatter plan for the normal equations of a set of
-    residual blocks with fixed slot columns.
+    """Precomputed plan for the normal equations and the Schur complement
+    of a set of residual blocks with fixed slot columns.
 
     Parameters
     ----------
@@ -79,68 +123,206 @@ class Structure:
         self.layout = layout
         self.slot_cols = slot_cols
         n_r = layout.n_reduced
-        self.cc_plans, self.ce_plans, self.ee_plans = [], [], []
-        w_rows, w_cols = [], []
+        self.n_r = n_r
+        free = layout.free
+        self.e_classes, self.c_classes = [], []
         for bi, slots in enumerate(slot_cols):
-            for a, cols_a in enumerate(slots):
-                red_a = cols_a[:, 0] < n_r
-                for b, cols_b in enumerate(slots):
-                    red_b = cols_b[:, 0] < n_r
-                    if a == b:
-                        rows = np.flatnonzero(~red_a)
-                        if len(rows):
-                            keys = (cols_a[rows, 0] - n_r) // 3
-                            self.ee_plans.append(self._plan(bi, a, b, rows, keys, cols_a, cols_b))
-                    elif np.any(~red_a & ~red_b):
-                        raise ValueError("two eliminated points in one residual; "
-                                         "mark them as reduced points")
-                    rows = np.flatnonzero(red_a & red_b)
-                    if len(rows):
-                        keys = pair_keys(cols_a[rows, 0], cols_b[rows, 0])
-                        self.cc_plans.append(self._plan(bi, a, b, rows, keys, cols_a, cols_b))
-                    rows = np.flatnonzero(red_a & ~red_b)
-                    if len(rows):
-                        keys = pair_keys(cols_a[rows, 0], cols_b[rows, 0])
-                        plan = self._plan(bi, a, b, rows, keys, cols_a, cols_b)
-                        self.ce_plans.append(plan)
-                        ra = plan.first_cols_a[:, :, None]
-                        cb = plan.first_cols_b[:, None, :] - n_r
-                        w_rows.append(np.broadcast_to(ra, ra.shape[:2] + (cb.shape[2],)).ravel())
-                        w_cols.append(np.broadcast_to(cb, (ra.shape[0], ra.shape[1], cb.shape[2])).ravel())
-        n_e3 = 3 * layout.n_eliminated
-        rows = np.concatenate(w_rows) if w_rows else np.zeros(0, dtype=int)
-        cols = np.concatenate(w_cols) if w_cols else np.zeros(0, dtype=int)
-        flat = rows.astype(np.int64) * max(n_e3, 1) + cols
-        uniq, self.w_inverse = np.unique(flat, return_inverse=True)
-        self.w_nnz = len(uniq)
-        self.W_pattern = sp.csr_matrix(
-            (np.zeros(len(uniq)), (uniq // max(n_e3, 1), uniq % max(n_e3, 1))),
-            shape=(n_r, n_e3))
-        self.W_pattern.sort_indices()
-        # map from sorted-unique order to CSR data order (identical for CSR
-        # built from sorted row-major keys, checked here)
-        coo = self.W_pattern.tocoo()
-        assert np.array_equal(coo.row.astype(np.int64) * max(n_e3, 1) + coo.col, uniq)
-        # small problems: W as a dense array (BLAS beats sparse products)
-        self.dense = n_r * n_e3 <= DENSE_LIMIT
-        self.w_flat = uniq
+            if not slots or len(slots[0]) == 0:
+                continue
+            n_block = len(slots[0])
+            red = np.stack([c[:, 0] < n_r for c in slots], axis=1)
+            if np.any((~red).sum(axis=1) > 1):
+                raise ValueError("two eliminated points in one residual; "
+                                 "mark them as reduced points")
+            code = red.astype(np.int64) @ (1 << np.arange(len(slots), dtype=np.int64))
+            for pat in np.unique(code):
+                rows = np.flatnonzero(code == pat)
+                is_red = [bool((pat >> k) & 1) for k in range(len(slots))]
+                e_slot = is_red.index(False) if not all(is_red) else -1
+                gather, cols, keys = [], [], []
+                for k, c in enumerate(slots):
+                    if not is_red[k]:
+                        continue
+                    ck = c[rows]
+                    keep = np.flatnonzero(free[ck].any(axis=0))
+                    if len(keep) == 0:
+                        continue
+                    gather.append((k, None if len(keep) == ck.shape[1] else keep))
+                    cols.append(ck[:, keep])
+                    keys.append(ck[:, 0])
+                rcols = np.hstack(cols) if cols else np.zeros((len(rows), 0), dtype=np.int64)
+                group = _group_ids(keys, len(rows))
+                order = np.argsort(group, kind="stable")
+                cls = RowClass(bi, rows[order], n_block, e_slot, gather,
+                               rcols[order].astype(np.int64), group[order])
+                if e_slot >= 0:
+                    cls.point = ((slots[e_slot][cls.rows, 0] - n_r) // 3).astype(np.int64)
+                    self.e_classes.append(cls)
+                else:
+                    self.c_classes.append(cls)
+        # all E-rows: reduced columns padded to s with the dummy column n_r
+        self.s = max((c.s for c in self.e_classes), default=0)
+        n_e_rows, g_off = 0, 0
+        for c in self.e_classes:
+            c.offset = n_e_rows
+            c.group_offset = g_off
+            n_e_rows += len(c.rows)
+            g_off += c.n_groups
+        self.n_e_rows = n_e_rows
+        self.n_groups = g_off
+        self.e_rcols = np.full((n_e_rows, self.s), n_r, dtype=np.int64)
+        self.e_point = np.zeros(n_e_rows, dtype=np.int64)
+        self.e_group = np.zeros(n_e_rows, dtype=np.int64)
+        self.group_cols = np.full((g_off, self.s), n_r, dtype=np.int64)
+        coupling = np.zeros(n_e_rows, dtype=bool)
+        for c in self.e_classes:
+            sl = slice(c.offset, c.offset + len(c.rows))
+            self.e_rcols[sl, :c.s] = c.rcols
+            self.e_point[sl] = c.point
+            self.e_group[sl] = c.group + c.group_offset
+            self.group_cols[c.group_offset:c.group_offset + c.n_groups, :c.s] = c.group_cols
+            coupling[sl] = c.s > 0
+        # E-rows that couple their point to reduced columns, by point (CSR)
+        rows = np.flatnonzero(coupling)
+        order = np.argsort(self.e_point[rows], kind="stable")
+        self.pt_rows = rows[order].astype(np.int64)
+        counts = np.bincount(self.e_point[self.pt_rows], minlength=layout.n_eliminated)
+        self.pt_ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        m = n_r + 1
+        gc = self.group_cols
+        self._g_scatter = (gc[:, :, None] * m + gc[:, None, :]).ravel()
+        self._pairs = None
+        self._group_pairs = None
 
-    @staticmethod
-    def _plan(bi, a, b, rows, keys, cols_a, cols_b):
-        seg = Segments(keys)
-        first = rows[seg.order[seg.starts]]
-        return _PairPlan(bi, a, b, rows, seg, cols_a[first], cols_b[first])
+    def group_pairs(self):
+        """Ordered pairs of row groups that share a point (both orders and
+        the diagonal): ``(ga, gb, pair_id, reverse, scatter)`` with
+        ``pair_id[ga, gb]`` the pair's number (-1: none), ``reverse`` the
+        number of (gb, ga) and ``scatter`` the flat positions of each
+        pair's s x s block in the (n_r + 1)^2 reduced matrix."""
+        if self._group_pairs is None:
+            ng = self.n_groups
+            rows = self.pt_rows
+            inc = sp.csr_matrix((np.ones(len(rows)), (self.e_group[rows], self.e_point[rows])),
+                                shape=(ng, self.layout.n_eliminated))
+            P = (inc @ inc.T).tocoo()
+            ga, gb = P.row.astype(np.int64), P.col.astype(np.int64)
+            order = np.lexsort((gb, ga))
+            ga, gb = ga[order], gb[order]
+            pair_id = np.full((ng, ng), -1, dtype=np.int64)
+            pair_id[ga, gb] = np.arange(len(ga))
+            reverse = pair_id[gb, ga]
+            m = self.n_r + 1
+            gc = self.group_cols
+            scatter = (gc[ga][:, :, None] * m + gc[gb][:, None, :]).ravel()
+            self._group_pairs = (ga, gb, pair_id, reverse, scatter)
+        return self._group_pairs
+
+    # ------------------------------------------------------------------
+    def point_pairs(self, budget=4_000_000):
+        """All ordered pairs (a, b) of coupling E-rows of the same point
+        (a == b included), in chunks of whole points of about ``budget``
+        pairs: yields ``(point, a, b)`` arrays."""
+        ptr, rows = self.pt_ptr, self.pt_rows
+        k = np.diff(ptr)
+        n_p = len(k)
+        cum = np.concatenate([[0], np.cumsum(k.astype(np.int64) ** 2)])
+        lo = 0
+        while lo < n_p:
+            hi = int(np.searchsorted(cum, cum[lo] + budget, side="right")) - 1
+            hi = min(max(hi, lo + 1), n_p)
+            kk = k[lo:hi]
+            sq = kk * kk
+            reps = np.repeat(np.arange(hi - lo), sq)
+            local = np.arange(len(reps)) - np.repeat(np.cumsum(sq) - sq, sq)
+            kr = np.maximum(kk[reps], 1)
+            base = ptr[lo:hi][reps]
+            yield lo + reps, rows[base + local // kr], rows[base + local % kr]
+            lo = hi
+
+    def pair_plan(self):
+        """Pairs (a, b) of E-rows of the same point with group(a) <= group(b)
+        (both orders within one group), sorted by group pair: arrays ``a``,
+        ``b``, segment starts and the group pair of every segment. Built on
+        first use (the numpy Schur complement), in chunks of points."""
+        if self._pairs is not None:
+            return self._pairs
+        grp = self.e_group
+        a_all, b_all = [], []
+        for _, a, b in self.point_pairs():
+            keep = grp[a] <= grp[b]
+            a_all.append(a[keep])
+            b_all.append(b[keep])
+        a = np.concatenate(a_all) if a_all else np.zeros(0, dtype=np.int64)
+        b = np.concatenate(b_all) if b_all else np.zeros(0, dtype=np.int64)
+        key = grp[a] * max(self.n_groups, 1) + grp[b]
+        order = np.argsort(key, kind="stable")
+        a, b, key = a[order], b[order], key[order]
+        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else np.zeros(0, int)
+        ends = np.r_[starts[1:], len(key)]
+        g1 = key[starts] // max(self.n_groups, 1)
+        g2 = key[starts] % max(self.n_groups, 1)
+        self._pairs = (a, b, starts, ends, g1, g2)
+        return self._pairs
 
 
-@dataclass
 class NormalSystem:
-    """Assembled normal equations: dense N_cc, sparse W, blocks A, gradient."""
+    """Assembled normal equations: dense ``Ncc``, the per-E-row ``WT``
+    (``W_o^T``, 3 x s), the point blocks ``A``, the gradient and the cost."""
 
-    Ncc: np.ndarray       # (n_r, n_r)
-    W: sp.csr_matrix | np.ndarray   # (n_r, 3 n_e), dense for small problems
-    A: np.ndarray         # (n_e, 3, 3)
-    g: np.ndarray         # (n_columns,)
-    cost: float           # 0.5 * sum r^2 of the whitened residuals
+    def __init__(self, Ncc, A, g, cost, WT, structure):
+        self.Ncc = Ncc            # (n_r, n_r)
+        self.A = A                # (n_e, 3, 3)
+        self.g = g                # (n_columns,)
+        self.cost = cost          # 0.5 * sum r^2 of the whitened residuals
+        self.WT = WT              # (n_e_rows, 3, s)
+        self.structure = structure
+        self._W = None
+
+    @property
+    def W(self):
+        """``W`` (n_r x 3 n_e) as a sparse matrix (built on request; the
+        solver never needs it)."""
+        if self._W is None:
+            st = self.structure
+            n_r, n_e = st.n_r, st.layout.n_eliminated
+            rows = np.broadcast_to(st.e_rcols[:, None, :], self.WT.shape)
+            cols = np.broadcast_to((3 * st.e_point[:, None] + np.arange(3))[:, :, None], self.WT.shape)
+            ok = rows < n_r
+            self._W = sp.csr_matrix((self.WT[ok], (rows[ok], cols[ok])), shape=(n_r, 3 * n_e))
+        return self._W
+
+    def w_times_e(self, x_e):
+        """``W x_e`` (n_r,) for x_e (n_e, 3)."""
+        st = self.structure
+        v = np.einsum("nis,ni->ns", self.WT, x_e[st.e_point])
+        return np.bincount(st.e_rcols.ravel(), weights=v.ravel(), minlength=st.n_r + 1)[:st.n_r]
+
+    def wt_times_c(self, x_c):
+        """``W^T x_c`` as (n_e, 3) for x_c (n_r,)."""
+        st = self.structure
+        n_e = st.layout.n_eliminated
+        xe = np.zeros((n_e, 3))
+        if st.n_e_rows == 0:
+            return xe
+        x_ext = np.append(x_c, 0.0)
+        if kernels.active(st.n_e_rows):
+            kernels.compiled().back_rows(self.WT, st.e_rcols, st.e_point, x_ext, xe)
+            return xe
+        v = np.einsum("nis,ns->ni", self.WT, x_ext[st.e_rcols])
+        for i in range(3):
+            xe[:, i] = np.bincount(st.e_point, weights=v[:, i], minlength=n_e)
+        return xe
+
+    def quadratic(self, dx):
+        """``dx^T N dx`` (= |J dx|^2) of the undamped normal equations."""
+        st = self.structure
+        n_r = st.n_r
+        dc, de = dx[:n_r], dx[n_r:].reshape(-1, 3)
+        q = float(dc @ self.Ncc @ dc) + float(np.einsum("ni,nij,nj->", de, self.A, de))
+        if st.n_e_rows:
+            q += 2.0 * float(np.sum(self.wt_times_c(dc) * de))
+        return q
 
 
 def assemble(structure: Structure, residuals, jacobians) -> NormalSystem:
@@ -151,39 +333,114 @@ def assemble(structure: Structure, residuals, jacobians) -> NormalSystem:
     residuals : list of (N_b, d_b) whitened residuals per block.
     jacobians : list of list of (N_b, d_b, s) whitened Jacobians per slot.
     """
-    lay = structure.layout
+    st = structure
+    lay = st.layout
     n_r, n_e = lay.n_reduced, lay.n_eliminated
-    g = np.zeros(lay.n_columns)
-    cost = 0.0
-    for r, Js, cols in zip(residuals, jacobians, structure.slot_cols):
-        cost += 0.5 * float(np.sum(r * r))
-        for J, c in zip(Js, cols):
-            g += np.bincount(c.ravel(), weights=np.matmul(r[:, None, :], J)[:, 0].ravel(),
-                             minlength=lay.n_columns)
-    Ncc = np.zeros(n_r * n_r)
-    for plan in structure.cc_plans:
-        blocks = _pair_products(plan, jacobians)
-        idx = plan.first_cols_a[:, :, None] * n_r + plan.first_cols_b[:, None, :]
-        Ncc += np.bincount(idx.ravel(), weights=blocks.ravel(), minlength=n_r * n_r)
+    m = n_r + 1
+    cost = 0.5 * sum(float(np.sum(r * r)) for r in residuals)
     A = np.zeros((n_e, 3, 3))
-    for plan in structure.ee_plans:
-        keys = plan.segments.unique
-        A[keys] += _pair_products(plan, jacobians)
-    w_vals = [_pair_products(plan, jacobians).ravel() for plan in structure.ce_plans]
-    data = np.bincount(structure.w_inverse,
-                       weights=np.concatenate(w_vals) if w_vals else np.zeros(0),
-                       minlength=structure.w_nnz)
-    if structure.dense:
-        W = np.zeros(structure.W_pattern.shape)
-        W.ravel()[structure.w_flat] = data
-    else:
-        W = structure.W_pattern.copy()
-        W.data = data
-    return NormalSystem(Ncc.reshape(n_r, n_r), W, A, g, cost)
+    g_e = np.zeros((n_e, 3))
+    g_c = np.zeros(m)
+    Ncc = np.zeros(m * m)
+    s = st.s
+    WT = np.zeros((st.n_e_rows, 3, s))
+    G = np.zeros((st.n_groups, s, s))
+    g_grp = np.zeros((st.n_groups, s))
+    fast = kernels.active(st.n_e_rows)
+    kern = kernels.compiled() if fast else None
+    for cls in st.e_classes:
+        r, parts, Je = cls.take(residuals, jacobians)
+        n, sc, d = len(cls.rows), cls.s, r.shape[1]
+        sl = slice(cls.offset, cls.offset + n)
+        gs = slice(cls.group_offset, cls.group_offset + cls.n_groups)
+        if fast:
+            if len(parts) > 2:
+                parts = [RowClass.joined(parts, n, d)]
+            J1 = parts[0] if parts else np.zeros((n, d, 0))
+            J2 = parts[1] if len(parts) > 1 else np.zeros((n, d, 0))
+            if sc == s:
+                kern.assemble_rows(J1, J2, Je, r, cls.point, cls.group, A, g_e, WT[sl], g_grp[gs])
+            else:
+                wt = np.zeros((n, 3, sc))
+                gr = np.zeros((cls.n_groups, sc))
+                kern.assemble_rows(J1, J2, Je, r, cls.point, cls.group, A, g_e, wt, gr)
+                WT[sl, :, :sc] = wt
+                g_grp[gs, :sc] += gr
+            _group_grams(cls, parts, G[gs, :sc, :sc])
+            continue
+        Jc = RowClass.joined(parts, n, d)
+        JeT = np.swapaxes(Je, 1, 2)
+        if cls.flat9 is None:
+            cls.flat9 = (cls.point[:, None] * 9 + np.arange(9)).ravel()
+            cls.flat3 = (cls.point[:, None] * 3 + np.arange(3)).ravel()
+        A += np.bincount(cls.flat9, weights=_point_grams(Je).ravel(),
+                         minlength=9 * n_e).reshape(n_e, 3, 3)
+        ge_rows = np.einsum("nd,ndi->ni", r, Je)
+        g_e += np.bincount(cls.flat3, weights=ge_rows.ravel(), minlength=3 * n_e).reshape(n_e, 3)
+        if sc == 0:
+            continue
+        WT[sl, :, :sc] = np.matmul(JeT, Jc)
+        _group_sums(cls, Jc, r, G[gs, :sc, :sc], g_grp[gs, :sc])
+    if st.n_groups:
+        Ncc += np.bincount(st._g_scatter, weights=G.ravel(), minlength=m * m)
+        g_c += np.bincount(st.group_cols.ravel(), weights=g_grp.ravel(), minlength=m)
+    for cls in st.c_classes:
+        if cls.s == 0:
+            continue
+        r, parts, _ = cls.take(residuals, jacobians)
+        Jc = RowClass.joined(parts, len(cls.rows), r.shape[1])
+        Gc = np.zeros((cls.n_groups, cls.s, cls.s))
+        gc = np.zeros((cls.n_groups, cls.s))
+        _group_sums(cls, Jc, r, Gc, gc)
+        gcols = cls.group_cols
+        idx = (gcols[:, :, None] * m + gcols[:, None, :]).ravel()
+        Ncc += np.bincount(idx, weights=Gc.ravel(), minlength=m * m)
+        g_c += np.bincount(gcols.ravel(), weights=gc.ravel(), minlength=m)
+    g = np.concatenate([g_c[:n_r], g_e.ravel()])
+    Ncc = Ncc.reshape(m, m)[:n_r, :n_r]
+    return NormalSystem(np.ascontiguousarray(Ncc), A, g, cost, WT, st)
 
 
-def _pair_products(plan, jacobians):
-    Ja = jacobians[plan.block][plan.a][plan.rows]
-    Jb = jacobians[plan.block][plan.b][plan.rows]
-    prod = np.matmul(np.swapaxes(Ja, 1, 2), Jb)      # batched J_a^T J_b
-    return plan.segments.sum(prod)
+def _group_grams(cls, parts, G):
+    """``G[group] += Jc^T Jc`` with ``Jc = [parts]``, one BLAS product per
+    group and pair of parts (the rows of a group are contiguous)."""
+    if not parts:
+        return
+    n = len(cls.rows)
+    widths = [P.shape[2] for P in parts]
+    offs = np.concatenate([[0], np.cumsum(widths)])
+    ends = np.r_[cls.group_starts[1:], n]
+    for q, (lo, hi) in enumerate(zip(cls.group_starts, ends)):
+        blocks = [P[lo:hi].reshape(-1, w) for P, w in zip(parts, widths)]
+        for i, a in enumerate(blocks):
+            for j in range(i, len(blocks)):
+                prod = a.T @ blocks[j]
+                G[q, offs[i]:offs[i + 1], offs[j]:offs[j + 1]] += prod
+                if j != i:
+                    G[q, offs[j]:offs[j + 1], offs[i]:offs[i + 1]] += prod.T
+
+
+def _point_grams(Je):
+    """``Je^T Je`` (n, 3, 3) of every row, from the 6 distinct products
+    (numpy's matmul of 10^5 stacked 3 x d matrices is several times
+    slower)."""
+    out = np.empty((len(Je), 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            v = np.sum(Je[:, :, i] * Je[:, :, j], axis=1)
+            out[:, i, j] = v
+            if j != i:
+                out[:, j, i] = v
+    return out
+
+
+def _group_sums(cls, Jc, r, G, g):
+    """Per group (contiguous rows) ``G += Jc^T Jc`` (one Gram matrix by
+    BLAS each) and ``g += Jc^T r``."""
+    n, d, s = Jc.shape
+    grad = np.einsum("nd,nds->ns", r, Jc)
+    g += np.add.reduceat(grad, cls.group_starts, axis=0)
+    ends = np.r_[cls.group_starts[1:], n]
+    for q, (lo, hi) in enumerate(zip(cls.group_starts, ends)):
+        J = Jc[lo:hi].reshape(-1, s)
+        G[q] += J.T @ J

@@ -61,15 +61,22 @@ class ImagePointBlock(ResidualBlock):
         self.labels = labels
 
     def evaluate(self, state, jacobians=True):
+        indexed = getattr(self.model, "residuals_indexed", None)
+        if indexed is not None:
+            out = indexed(self.xy, state.points, state.R, state.X0,
+                          np.stack([state.io[k] for k in self.cameras]),
+                          self.point, self.station, self.camera, jacobians)
+            if out is not None:
+                return out
         io = np.stack([state.io[k] for k in self.cameras])[self.camera]
         R = state.R[self.station]
-        angles = matrix_to_opk(R)
+        X = state.points[self.point]
+        X0 = state.X0[self.station]
+        # the state holds R: the models' rotation-matrix path (no angles)
         if not jacobians:
-            e = self.model.residuals(self.xy, state.points[self.point], angles,
-                                     state.X0[self.station], io, jacobians=False)
+            e = self.model.residuals_rotation(self.xy, X, R, X0, io, jacobians=False)
             return e, None
-        e, jac = self.model.residuals(self.xy, state.points[self.point], angles,
-                                      state.X0[self.station], io)
+        e, jac = self.model.residuals_rotation(self.xy, X, R, X0, io)
         return e, [jac["X"], np.concatenate([jac["X0"], jac["rotation"]], axis=2), jac["io"]]
 
 

@@ -1,10 +1,22 @@
 """The Gauss-Newton / Levenberg-Marquardt loop over a :class:`Problem`
 (parameter blocks + residual blocks + weights), with solver options in one
 place and a full summary at the end (as Ceres does).
+
+Two damping strategies: ``"lm"`` (the default; the undamped Gauss-Newton
+step first, Marquardt's lambda x 10 only after a failed step) and
+``"trust_region"`` (Ceres' Levenberg-Marquardt: always damped with
+``lambda = 1 / radius``, the radius updated from the ratio of the actual to
+the predicted decrease, ``radius /= max(1/3, 1 - (2 rho - 1)^3)`` after a
+success and halved with a doubling factor after a failure; Ceres' default
+function, gradient and parameter tolerances). The trust region copes with a
+gauge freedom (no datum: the damping keeps the system regular), which is
+how Ceres solves BAL problems.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -14,7 +26,7 @@ from photogram.adjust.normal import Structure, assemble
 from photogram.adjust.schur import solve as schur_solve
 from photogram.errors import GeometryError
 
-DAMPINGS = ("none", "lm", "armijo")
+DAMPINGS = ("none", "lm", "armijo", "trust_region")
 
 
 @dataclass
@@ -24,6 +36,13 @@ class SolverOptions:
     ``tolerance`` is relative: stop when the cost decreases by less than
     ``tolerance * cost`` and the largest step is below ``tolerance`` times
     the parameter scale.
+
+    With ``damping="trust_region"`` (Ceres' Levenberg-Marquardt) the
+    tolerances are Ceres': ``tolerance`` is the function tolerance
+    (``|cost change| <= tolerance * cost``; Ceres' default 1e-6 is used when
+    ``tolerance`` is left at this class's default), ``parameter_tolerance``
+    bounds the step (``|dx| <= ptol (|x| + ptol)``) and
+    ``gradient_tolerance`` the largest gradient entry.
     """
 
     max_iterations: int = 50
@@ -33,6 +52,15 @@ class SolverOptions:
     restart_lambda: float = 1e-4      # lambda after a failed undamped step
     max_lambda: float = 1e12
     callback: object = None   # called as callback(iteration, cost, lambda)
+    # trust_region (Ceres' defaults)
+    initial_radius: float = 1e4
+    max_radius: float = 1e16
+    min_radius: float = 1e-32
+    min_relative_decrease: float = 1e-3
+    function_tolerance: float | None = None   # None: 1e-6 (Ceres) for trust_region
+    parameter_tolerance: float = 1e-8
+    gradient_tolerance: float = 1e-10
+    max_invalid_steps: int = 10
 
 
 @dataclass
@@ -49,6 +77,8 @@ class Summary:
     redundancy: int = 0
     sigma0: float = float("nan")
     timings: dict = field(default_factory=dict)
+    successful_steps: int = 0
+    unsuccessful_steps: int = 0
 
     def to_dict(self) -> dict:
         return {k: v for k, v in self.__dict__.items()}
@@ -71,6 +101,8 @@ class Problem:
         self.active = [np.ones(len(b), dtype=bool) for b in self.blocks]
         self.robust_weight = [np.ones((len(b), b.dim)) for b in self.blocks]
         self._free_masks = [[layout.free[c][:, None, :] for c in b.slot_cols] for b in self.blocks]
+        self._all_free = [[bool(np.all(m)) for m in ms] for ms in self._free_masks]
+        self._all_fixed = [[not np.any(m) for m in ms] for ms in self._free_masks]
 
     def weights(self, k):
         """sqrt of the weight of every residual of block k (0 = not used)."""
@@ -86,9 +118,21 @@ class Problem:
         for k, b in enumerate(self.blocks):
             e, J = b.evaluate(state, jacobians)
             w = self.weights(k)
-            rs.append(np.where(w > 0, e, 0.0) * w)
+            unit = bool(np.all(w == 1.0))
+            rs.append(e if unit else np.where(w > 0, e, 0.0) * w)
             if jacobians:
-                Js.append([Jj * w[:, :, None] * m for Jj, m in zip(J, self._free_masks[k])])
+                out = []
+                for Jj, m, all_free, all_fixed in zip(J, self._free_masks[k], self._all_free[k],
+                                                      self._all_fixed[k]):
+                    if all_fixed:
+                        out.append(np.zeros(Jj.shape))
+                        continue
+                    if not unit:
+                        Jj = Jj * w[:, :, None]
+                    if not all_free:
+                        Jj = Jj * m
+                    out.append(Jj)
+                Js.append(out)
         return rs, Js
 
     def cost(self, state) -> float:
@@ -104,14 +148,51 @@ class Problem:
     def redundancy(self) -> int:
         return self.n_observations() - self.layout.n_free + self.n_conditions()
 
-    def step(self, state, damping=0.0):
+    def linearize(self, state):
+        """The normal equations at ``state`` (residuals, Jacobians, sums)."""
         rs, Js = self.evaluate(state)
-        system = assemble(self.structure, rs, Js)
-        dx, fact = schur_solve(system, self.layout, damping, self.G, self.point_labels)
+        return assemble(self.structure, rs, Js)
+
+    def solve_linear(self, system, damping=0.0):
+        """The (damped) step of assembled normal equations: ``(dx, fact)``."""
+        return schur_solve(system, self.layout, damping, self.G, self.point_labels)
+
+    def step(self, state, damping=0.0):
+        system = self.linearize(state)
+        dx, fact = self.solve_linear(system, damping)
         return system, dx, fact
 
 
+_CONTROLLER = []
+
+
+def single_thread_blas():
+    """Context: one BLAS thread, the policy of ``photogram/__init__.py``,
+    also when numpy was imported before photogram (so that the environment
+    variable came too late), e.g. under pytest. A thread count the user set
+    (``OPENBLAS_NUM_THREADS``) is respected; without threadpoolctl this is
+    a no-op."""
+    if "OPENBLAS_NUM_THREADS" in os.environ:
+        return contextlib.nullcontext()
+    try:
+        if not _CONTROLLER:
+            from threadpoolctl import ThreadpoolController
+            _CONTROLLER.append(ThreadpoolController())
+        return _CONTROLLER[0].limit(limits=1, user_api="blas")
+    except Exception:   # pragma: no cover - threadpoolctl missing or failing
+        return contextlib.nullcontext()
+
+
 def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
+    """Minimize the weighted sum of squares of ``problem`` in place.
+
+    See :func:`_solve`; runs with one BLAS thread (:func:`single_thread_blas`).
+    """
+    with single_thread_blas():
+        return _solve(problem, options)
+
+
+def _solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     """Minimize the weighted sum of squares of ``problem`` in place.
 
     Gauss-Newton steps; with ``damping="lm"`` the undamped step is tried
@@ -120,7 +201,8 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     to 0 once small): near the solution the iteration is pure Gauss-Newton,
     which converges quadratically even in the narrow valleys of correlated
     interior parameters where a small fixed lambda crawls. With
-    ``"armijo"`` a failed step is halved.
+    ``"armijo"`` a failed step is halved. With ``"trust_region"`` every
+    step is damped as in Ceres (:func:`_trust_region`).
     """
     opt = options or SolverOptions()
     if opt.damping not in DAMPINGS:
@@ -136,12 +218,32 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
                             hint="check the approximate values (a point at or behind a camera?)")
     s.initial_cost = cost
     s.cost_trace.append(cost)
+    if opt.damping == "trust_region":
+        state, cost = _trust_region(problem, opt, s, state, cost)
+    else:
+        state, cost = _gauss_newton(problem, opt, s, state, cost)
+    problem.state = state
+    s.final_cost = cost
+    s.sigma0 = float(np.sqrt(2 * cost / s.redundancy)) if s.redundancy > 0 else float("nan")
+    s.timings["solve"] = time.perf_counter() - t0
+    if s.status == "failed":
+        raise GeometryError(s.message, hint="check the approximate values, the datum and gross errors")
+    return s
+
+
+def _gauss_newton(problem, opt, s, state, cost):
+    """Gauss-Newton with Marquardt's damping after failures ("lm"), step
+    halving ("armijo") or nothing ("none"). The normal equations are
+    assembled once per iterate; only the solve is repeated per lambda."""
     lam = opt.initial_lambda if opt.damping == "lm" else 0.0
     s.status = "max_iterations"
+    system = None
     for it in range(1, opt.max_iterations + 1):
         accepted = False
+        if system is None:
+            system = problem.linearize(state)
         while True:
-            _, dx, _ = problem.step(state, lam)
+            dx, _ = problem.solve_linear(system, lam)
             trial = state.updated(problem.layout, dx)
             new_cost = problem.cost(trial)
             if np.isfinite(new_cost) and new_cost <= cost * (1 + 1e-12):
@@ -164,13 +266,16 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
             break
         s.iterations = it
         if not accepted:
+            s.unsuccessful_steps += 1
             if not np.isfinite(new_cost):
                 s.status, s.message = "failed", "the iteration diverged (non-finite cost)"
             else:
                 s.status, s.message = "converged", "no step decreases the cost any further"
             break
+        s.successful_steps += 1
         decrease = cost - new_cost
         state, cost = trial, new_cost
+        system = None
         s.cost_trace.append(cost)
         if opt.callback is not None:
             opt.callback(it, cost, lam)
@@ -183,13 +288,113 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
             break
     else:
         s.message = f"no convergence in {opt.max_iterations} iterations"
-    problem.state = state
-    s.final_cost = cost
-    s.sigma0 = float(np.sqrt(2 * cost / s.redundancy)) if s.redundancy > 0 else float("nan")
-    s.timings["solve"] = time.perf_counter() - t0
-    if s.status == "failed":
-        raise GeometryError(s.message, hint="check the approximate values, the datum and gross errors")
-    return s
+    return state, cost
+
+
+def _trust_region(problem, opt, s, state, cost):
+    """Ceres' Levenberg-Marquardt trust region (levenberg_marquardt_strategy.cc,
+    trust_region_minimizer.cc): solve ``(N + diag(N) / radius) dx = -g``;
+    ``rho = (cost - new cost) / (model decrease)``; a step with
+    ``rho > min_relative_decrease`` is taken and the radius grows by
+    ``1 / max(1/3, 1 - (2 rho - 1)^3)``; otherwise the radius shrinks by a
+    factor that doubles with every consecutive failure. A singular damped
+    system counts as an invalid step (radius shrinks). Stops when
+    ``|cost change| <= ftol cost`` (Ceres' function tolerance; a decrease is
+    kept), ``|dx| <= ptol (|x| + ptol)``, ``max |g| <= gtol``, or the
+    radius falls below ``min_radius``.
+    """
+    ftol = opt.function_tolerance
+    if ftol is None:
+        ftol = 1e-6 if opt.tolerance == SolverOptions.tolerance else opt.tolerance
+    radius, factor = opt.initial_radius, 2.0
+    invalid = 0
+    s.status = "max_iterations"
+    s.message = f"no convergence in {opt.max_iterations} iterations"
+    t_sol = t_cost = 0.0
+    t = time.perf_counter()
+    system = problem.linearize(state)
+    t_lin = time.perf_counter() - t
+    for it in range(1, opt.max_iterations + 1):
+        s.iterations = it
+        free_g = system.g[problem.layout.free]
+        if np.max(np.abs(free_g), initial=0.0) <= opt.gradient_tolerance:
+            s.status, s.message = "converged", "gradient tolerance reached"
+            s.iterations = it - 1
+            break
+        lam = 1.0 / radius
+        error = None
+        t = time.perf_counter()
+        try:
+            dx, _ = problem.solve_linear(system, lam)
+            valid = True
+        except GeometryError as exc:
+            valid, error = False, exc
+        t_sol += time.perf_counter() - t
+        if valid:
+            model = -(float(system.g @ dx) + 0.5 * system.quadratic(dx))
+            t = time.perf_counter()
+            trial = state.updated(problem.layout, dx)
+            new_cost = problem.cost(trial)
+            t_cost += time.perf_counter() - t
+            valid = np.isfinite(new_cost) and model > 0
+        if not valid:
+            invalid += 1
+            s.unsuccessful_steps += 1
+            radius /= factor
+            factor *= 2.0
+            if invalid >= opt.max_invalid_steps or radius < opt.min_radius:
+                if error is not None:
+                    raise error
+                s.status, s.message = "converged", "no valid step (trust region collapsed)"
+                break
+            continue
+        invalid = 0
+        change = cost - new_cost
+        if np.linalg.norm(dx) <= opt.parameter_tolerance * (
+                _state_norm(state) + opt.parameter_tolerance):
+            s.status, s.message = "converged", "parameter tolerance reached"
+            if change > 0:
+                state, cost = trial, new_cost
+                s.cost_trace.append(cost)
+                s.successful_steps += 1
+            break
+        if abs(change) <= ftol * cost:
+            s.status, s.message = "converged", (
+                f"function tolerance reached: |cost change| / cost = {abs(change) / cost:.3g}")
+            if change > 0:
+                state, cost = trial, new_cost
+                s.cost_trace.append(cost)
+                s.successful_steps += 1
+            break
+        rho = change / model
+        if rho > opt.min_relative_decrease:
+            s.successful_steps += 1
+            state, cost = trial, new_cost
+            s.cost_trace.append(cost)
+            radius = min(opt.max_radius, radius / max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3))
+            factor = 2.0
+            if opt.callback is not None:
+                opt.callback(it, cost, lam)
+            t = time.perf_counter()
+            system = problem.linearize(state)
+            t_lin += time.perf_counter() - t
+        else:
+            s.unsuccessful_steps += 1
+            radius /= factor
+            factor *= 2.0
+            if radius < opt.min_radius:
+                s.status, s.message = "converged", "trust region radius below its minimum"
+                break
+    s.timings.update({"linearize": t_lin, "linear_solve": t_sol, "cost": t_cost})
+    return state, cost
+
+
+def _state_norm(state):
+    """|x| of the parameter vector (points, centres, interior; rotations
+    count as unit-norm 3-vectors), for Ceres' parameter tolerance."""
+    total = float(np.sum(state.points ** 2) + np.sum(state.X0 ** 2)
+                  + sum(float(np.sum(v ** 2)) for v in state.io)) + 3.0 * len(state.R)
+    return float(np.sqrt(total))
 
 
 def _non_finite_message(problem, state):

@@ -31,7 +31,8 @@ import numpy as np
 
 from photogram.errors import GeometryError
 from photogram.geometry.camera import (CameraModel, ideal_projection, newton_invert,
-                                       pose_jacobians, register_model, solve2)
+                                       pose_jacobians, register_model,
+                                       rotation_observations, solve2)
 
 _FLIP = np.array([1.0, -1.0])
 
@@ -59,18 +60,21 @@ class BrownModel(CameraModel):
     # ------------------------------------------------------------------
     # correction (closed form)
     # ------------------------------------------------------------------
-    def _core(self, xbar, ybar, io):
+    def _core(self, xbar, ybar, io, partials=True):
         """Corrected coordinates C = (U, -V) of (xbar, ybar) (steps 2-3)
-        with dC/d(xbar, ybar) (n,2,2) and dC/d io (n,2,p) (c, x0, y0 zero)."""
+        with dC/d(xbar, ybar) (n,2,2) and dC/d io (n,2,p) (c, x0, y0 zero);
+        with ``partials=False`` only C (and None, None)."""
         n = len(xbar)
         K1, K2, K3, P1, P2, B1, B2 = (io[:, i] for i in range(3, 10))
         u = (1.0 + B1) * xbar - B2 * ybar
         v = -ybar
         r2 = u * u + v * v
         k = r2 * (K1 + r2 * (K2 + r2 * K3))
-        kp = K1 + r2 * (2.0 * K2 + 3.0 * r2 * K3)          # dk/d(r2)
         U = u + u * k + P1 * (r2 + 2 * u * u) + 2 * P2 * u * v
         V = v + v * k + P2 * (r2 + 2 * v * v) + 2 * P1 * u * v
+        if not partials:
+            return np.stack([U, -V], -1), None, None
+        kp = K1 + r2 * (2.0 * K2 + 3.0 * r2 * K3)          # dk/d(r2)
         # d(U, V)/d(u, v)
         Juv = np.empty((n, 2, 2))
         Juv[:, 0, 0] = 1 + k + 2 * u * u * kp + 6 * P1 * u + 2 * P2 * v
@@ -140,10 +144,21 @@ class BrownModel(CameraModel):
         ``(r, jac)`` with the keys of the module docstring of camera.py.
         """
         X, angles, X0, io, Xc, R, d = self._prepare(X, angles, X0, io)
+        return self._residuals(xy_obs, X, angles, io, Xc, R, d, jacobians)
+
+    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True):
+        """:meth:`residuals` with world-to-camera matrices R (n,3,3) instead
+        of angles; the Jacobian dict has no ``"angles"``."""
+        X, R, X0, io, Xc, d = rotation_observations(X, R, X0, io, self.n_params)
+        return self._residuals(xy_obs, X, None, io, Xc, R, d, jacobians)
+
+    def _residuals(self, xy_obs, X, angles, io, Xc, R, d, jacobians):
         xy_obs = np.asarray(xy_obs, dtype=float).reshape(len(X), 2)
-        C, _, dC_dio = self._correct_full(xy_obs, io)
         if not jacobians:
+            C, _, _ = self._core(xy_obs[:, 0] - io[:, 1], xy_obs[:, 1] - io[:, 2], io,
+                                 partials=False)
             return C - ideal_projection(Xc, io[:, 0])
+        C, _, dC_dio = self._correct_full(xy_obs, io)
         ideal, J_xc, J_c = ideal_projection(Xc, io[:, 0], jacobians=True)
         jac = pose_jacobians(-J_xc, R, d, angles, Xc)
         dC_dio[:, :, 0] -= J_c

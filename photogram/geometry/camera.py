@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from photogram.errors import GeometryError, InputError
-from photogram.geometry.rotations import opk_derivatives, opk_to_matrix, skew
+from photogram.geometry.rotations import matrix_to_opk, opk_derivatives, opk_to_matrix
 
 FLIP_YZ = np.diag([1.0, -1.0, -1.0])
 
@@ -154,11 +154,36 @@ def pose_jacobians(J_xc, R, d, angles, Xc):
 
     ``dXc/dX = R``, ``dXc/dX0 = -R``, ``dXc/d angle_k = dR/d angle_k (X-X0)``
     and, for ``R = expm([delta]x) R0`` at 0, ``dXc/d delta = -[Xc]x``.
+    With ``angles=None`` the omega-phi-kappa partials are not computed (the
+    rotation-matrix path of the engine, which only needs ``"rotation"``).
     """
     JX = J_xc @ R
-    dRd = np.einsum("nijk,nj->nik", opk_derivatives(angles), d)
-    return {"X": JX, "X0": -JX, "angles": J_xc @ dRd,
-            "rotation": -J_xc @ skew(Xc)}
+    out = {"X": JX, "X0": -JX,
+           # -J [Xc]x: row i is Xc x J_i
+           "rotation": np.cross(Xc[:, None, :], J_xc)}
+    if angles is not None:
+        dRd = np.einsum("nijk,nj->nik", opk_derivatives(angles), d)
+        out["angles"] = J_xc @ dRd
+    return out
+
+
+def rotation_observations(X, R, X0, io, n_params):
+    """Broadcast the inputs of the rotation-matrix path: X (n,3), R
+    (n,3,3), X0 (n,3), io (n,p); returns them with ``Xc = R (X - X0)`` and
+    ``d = X - X0``."""
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    n = X.shape[0]
+    try:
+        R = np.broadcast_to(np.asarray(R, dtype=float), (n, 3, 3))
+        X0 = np.broadcast_to(np.asarray(X0, dtype=float), (n, 3))
+        io = np.broadcast_to(np.asarray(io, dtype=float), (n, n_params))
+    except ValueError:
+        raise InputError("observation arrays have inconsistent shapes",
+                         hint=f"X is {X.shape}; R must be (n,3,3) or (3,3), X0 (n,3) "
+                              f"or (3,), io (n,{n_params}) or ({n_params},)") from None
+    d = X - X0
+    Xc = np.einsum("nij,nj->ni", R, d)
+    return X, R, X0, io, Xc, d
 
 
 def solve2(A, b):
@@ -258,6 +283,21 @@ class CameraModel:
     def residuals(self, xy_obs, X, angles, X0, io, jacobians=True):
         """Residuals (n, 2) of the model's own formulation [, Jacobian dict]."""
         raise NotImplementedError
+
+    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True):
+        """:meth:`residuals` with the world-to-camera matrices R (n, 3, 3)
+        instead of omega-phi-kappa angles (the engine's state holds R).
+
+        The Jacobian dict has the keys ``"io"``, ``"X0"``, ``"X"`` and
+        ``"rotation"`` (no ``"angles"``). This generic version goes through
+        the angles; the models override it with a direct one.
+        """
+        angles = matrix_to_opk(np.asarray(R, dtype=float))
+        if not jacobians:
+            return self.residuals(xy_obs, X, angles, X0, io, jacobians=False)
+        r, jac = self.residuals(xy_obs, X, angles, X0, io)
+        jac.pop("angles", None)
+        return r, jac
 
     def image_to_ray(self, xy, io):
         """Normalised ideal coordinates (ideal projection with c = 1)."""

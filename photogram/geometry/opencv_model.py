@@ -24,7 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from photogram.geometry.camera import (CameraModel, ideal_projection, newton_invert,
-                                       pose_jacobians, register_model)
+                                       pose_jacobians, register_model,
+                                       rotation_observations)
 
 
 @register_model
@@ -120,6 +121,19 @@ class OpenCVModel(CameraModel):
             return xy_obs - self.project(X, angles, X0, io)
         xy, jac = self.project(X, angles, X0, io, jacobians=True)
         return xy_obs - xy, {key: -value for key, value in jac.items()}
+
+    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True):
+        """:meth:`residuals` with world-to-camera matrices R (n,3,3) instead
+        of angles; the Jacobian dict has no ``"angles"``."""
+        X, R, X0, io, Xc, d = rotation_observations(X, R, X0, io, self.n_params)
+        xy_obs = np.asarray(xy_obs, dtype=float).reshape(len(X), 2)
+        t, J_xc, _ = ideal_projection(Xc, 1.0, jacobians=True)
+        xy, dt, dio = self._forward(t, io)
+        if not jacobians:
+            return xy_obs - xy
+        jac = pose_jacobians(-(dt @ J_xc), R, d, None, Xc)
+        jac["io"] = -dio
+        return xy_obs - xy, jac
 
     # ------------------------------------------------------------------
     def ray_to_image(self, t, io):

@@ -9,25 +9,55 @@ With ``K = [[A, U], [U^T, D]]`` (points eliminated, ``U = [W^T, G_e]``) and
 
 (cofactors of the whitened system; multiply by sigma0^2 for covariances).
 Fixed parameters get zero variance.
+
+``V_p = (A^-1 U)_p`` is never a dense matrix: it is the sum of the E-rows'
+``A_p^-1 W_a^T`` (3 x s, at their reduced columns), so ``Q_ee`` is summed
+over the pairs of E-rows of each point (the pattern of the reduced camera
+system) and ``Q_ec`` is computed only for the rows asked for. Cameras and
+3x3 point blocks are therefore available for BAL-sized problems (10^4 - 10^5
+points) at the cost of one inverse of the reduced matrix.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from photogram.adjust import kernels
 from photogram.adjust.residual_blocks import _angle_increment_map
+from photogram.adjust.schur import solve as schur_solve
 
 
-@dataclass
 class Cofactors:
-    """Cofactor matrices of the unknowns (a-priori sigma0 = 1)."""
+    """Cofactor matrices of the unknowns (a-priori sigma0 = 1).
 
-    layout: object
-    Qcc: np.ndarray           # (n_r, n_r)
-    Qec: np.ndarray           # (3 n_e, n_r)
-    Qee: np.ndarray           # (n_e, 3, 3)
+    ``Qcc`` (n_r, n_r) of the reduced unknowns (interior and exterior
+    orientation, coupled points) and ``Qee`` (n_e, 3, 3) of every eliminated
+    point are computed at once; the cross cofactors ``Qec`` (3 n_e, n_r)
+    only on request (:meth:`block` computes just the rows it needs), so that
+    a problem with 10^5 points does not need a dense 3 n_e x n_r matrix.
+    """
+
+    def __init__(self, layout, Qcc, Qec, Qee, qec_rows=None):
+        self.layout = layout
+        self.Qcc = Qcc
+        self.Qee = Qee
+        self._Qec = Qec
+        self._qec_rows = qec_rows       # callable: points -> (len, 3, n_r)
+
+    @property
+    def Qec(self) -> np.ndarray:
+        """(3 n_e, n_r) cross cofactors of eliminated points and reduced
+        unknowns (dense; built on first use)."""
+        if self._Qec is None:
+            n_e = self.layout.n_eliminated
+            self._Qec = self._qec_rows(np.arange(n_e)).reshape(3 * n_e, -1)
+        return self._Qec
+
+    def _qec_of_points(self, points):
+        if self._Qec is not None or self._qec_rows is None:
+            Q = self.Qec
+            return Q.reshape(self.layout.n_eliminated, 3, -1)[points]
+        return self._qec_rows(points)
 
     def block(self, cols_a, cols_b):
         """Cofactors between per-row column sets (N, sa) and (N, sb).
@@ -41,10 +71,16 @@ class Cofactors:
         out = np.zeros((len(cols_a), cols_a.shape[1], cols_b.shape[1]))
         m = red_a & red_b
         out[m] = self.Qcc[cols_a[m][:, :, None], cols_b[m][:, None, :]]
-        m = ~red_a & red_b
-        out[m] = self.Qec[cols_a[m][:, :, None] - n_r, cols_b[m][:, None, :]]
-        m = red_a & ~red_b
-        out[m] = np.swapaxes(self.Qec[cols_b[m][:, :, None] - n_r, cols_a[m][:, None, :]], 1, 2)
+        for mask, ce, cr, swap in ((~red_a & red_b, cols_a, cols_b, False),
+                                   (red_a & ~red_b, cols_b, cols_a, True)):
+            if not mask.any():
+                continue
+            ce, cr = ce[mask], cr[mask]
+            pts, inv = np.unique((ce[:, 0] - n_r) // 3, return_inverse=True)
+            Q = self._qec_of_points(pts)                       # (len, 3, n_r)
+            comp = (ce - n_r) % 3
+            vals = Q[inv.ravel()[:, None, None], comp[:, :, None], cr[:, None, :]]
+            out[mask] = np.swapaxes(vals, 1, 2) if swap else vals
         m = ~red_a & ~red_b
         if m.any():
             out[m] = self.Qee[(cols_a[m][:, 0] - n_r) // 3]
@@ -55,33 +91,161 @@ class Cofactors:
         return self.block(cols, cols)
 
 
-def cofactors(problem) -> Cofactors:
-    """Cofactors of all unknowns at the problem's current state."""
-    _, _, fact = problem.step(problem.state, 0.0)
+def cofactors(problem, G=None) -> Cofactors:
+    """Cofactors of all unknowns at the problem's current state.
+
+    Parameters
+    ----------
+    problem : Problem
+    G : (n_columns, m) array, optional
+        Datum conditions for the covariance instead of the problem's own
+        (e.g. the inner constraints of a gauge-free problem such as a BAL
+        problem: the minimum-trace covariance).
+    """
+    from photogram.adjust.solver import single_thread_blas
+    with single_thread_blas():
+        return _cofactors(problem, problem.G if G is None else G)
+
+
+def _cofactors(problem, G):
+    system = problem.linearize(problem.state)
+    _, fact = schur_solve(system, problem.layout, 0.0, G, problem.point_labels)
     lay = problem.layout
-    n_r = lay.n_reduced
+    n_r, n_e = lay.n_reduced, lay.n_eliminated
+    st = system.structure
     Minv = fact.reduced_inverse()
-    Qcc = Minv[:n_r, :n_r]
-    Y = fact.Y if isinstance(fact.Y, np.ndarray) else fact.Y.toarray()
-    V_c = Y.T if lay.n_eliminated else np.zeros((0, n_r))   # A^-1 W^T
-    if fact.AinvGe is not None:
-        V = np.hstack([V_c, fact.AinvGe])
-    else:
-        V = V_c
-    VM = V @ Minv
-    Qec = -VM[:, :n_r]
-    n_e = lay.n_eliminated
-    Qee = fact.Ainv + np.einsum("iam,ibm->iab", VM.reshape(n_e, 3, -1), V.reshape(n_e, 3, -1))
+    m = Minv.shape[0] - n_r
+    # Minv with a zero dummy row/column n_r (the padding of the row plan);
+    # the datum conditions follow at g0 = n_r + 1
+    ext = np.zeros((n_r + 1 + m, n_r + 1 + m))
+    keep = np.r_[0:n_r, n_r + 1:n_r + 1 + m]
+    ext[np.ix_(keep, keep)] = Minv
+    AinvGe3 = (fact.AinvGe.reshape(n_e, 3, m) if fact.AinvGe is not None
+               else np.zeros((n_e, 3, 0)))
+    Qee = _point_cofactors(st, system.WT, fact.Ainv, ext, AinvGe3, n_r + 1)
     fixed = ~lay.free
-    Qcc = Qcc.copy()
+    Qcc = Minv[:n_r, :n_r].copy()
     Qcc[fixed[:n_r], :] = 0.0
     Qcc[:, fixed[:n_r]] = 0.0
-    fe = fixed[n_r:]
-    Qec[fe, :] = 0.0
-    Qec[:, fixed[:n_r]] = 0.0
-    fe3 = fe.reshape(-1, 3)
+    fe3 = fixed[n_r:].reshape(-1, 3)
     Qee = Qee * (~fe3[:, :, None]) * (~fe3[:, None, :])
-    return Cofactors(lay, Qcc, Qec, Qee)
+
+    def qec_rows(points):
+        return _qec_rows(st, system.WT, fact.Ainv, ext, AinvGe3, n_r, points, fixed)
+
+    cof = Cofactors(lay, Qcc, None, Qee, qec_rows)
+    cof.factorization = fact
+    return cof
+
+
+def s_transform(cof, T, Tp, QTp, layout=None):
+    """Cofactors in another datum (an S-transformation, Baarda): from the
+    cofactors ``Q1`` of a regular datum to those of the datum
+    ``Tp^T dx = 0`` (e.g. minimum trace over chosen points),
+    ``Q2 = S Q1 S^T`` with ``S = I - T (Tp^T T)^-1 Tp^T``.
+
+    Parameters
+    ----------
+    cof : Cofactors of the first datum
+    T : (n_columns, k) the gauge motions (``datum.similarity_motions``)
+    Tp : (n_columns, k) the conditions of the new datum (T restricted to
+        the datum points)
+    QTp : (n_columns, k) ``Q1 Tp`` (``Factorization.solve``)
+    layout : Layout of the result (default: cof's)
+
+    Only the blocks are transformed (``Q2[a,b] = Q1[a,b] - U_a T_b^T -
+    T_a U_b^T + T_a H T_b^T``, ``U = Q1 Tp K^T``, ``K = (Tp^T T)^-1``,
+    ``H = K Tp^T U``); nothing of size n_columns^2 is formed.
+    """
+    lay = layout or cof.layout
+    n_r = lay.n_reduced
+    K = np.linalg.inv(Tp.T @ T)
+    U = QTp @ K.T
+    H = K @ (Tp.T @ U)
+    Tc, Uc = T[:n_r], U[:n_r]
+    Qcc = cof.Qcc - Uc @ Tc.T - Tc @ Uc.T + Tc @ H @ Tc.T
+    pc = lay.point_cols
+    elim = ~lay.reduced_points
+    Te, Ue = T[pc[elim]], U[pc[elim]]                       # (n_e, 3, k)
+    Qee = (cof.Qee - Te @ np.swapaxes(Ue, 1, 2) - Ue @ np.swapaxes(Te, 1, 2)
+           + Te @ H @ np.swapaxes(Te, 1, 2))
+    old = cof._qec_of_points
+
+    def qec_rows(points):
+        Tq, Uq = Te[points], Ue[points]
+        return (old(points) - Uq @ Tc.T - Tq @ Uc.T + Tq @ (H @ Tc.T))
+
+    return Cofactors(lay, Qcc, None, Qee, qec_rows)
+
+
+def _point_cofactors(st, WT, Ainv, ext, AinvGe3, g0):
+    """``Q_ee,p = A_p^-1 + V_p M^-1 V_p^T`` for every eliminated point,
+    summed over the pairs of its E-rows (compiled or numpy, in chunks)."""
+    n_e = len(Ainv)
+    if st.n_e_rows == 0 or st.s == 0:
+        Qee = Ainv.copy()
+        if AinvGe3.shape[2]:
+            MGG = ext[g0:, g0:]
+            Qee += AinvGe3 @ MGG @ np.swapaxes(AinvGe3, 1, 2)
+        return Qee
+    if kernels.active(st.n_e_rows):
+        Qee = np.empty((n_e, 3, 3))
+        kernels.compiled().point_cofactors(WT, Ainv, st.pt_ptr, st.pt_rows, st.e_rcols, ext,
+                                np.ascontiguousarray(AinvGe3), g0, Qee)
+        return Qee
+    Z = np.matmul(Ainv[st.e_point], WT)                           # (n, 3, s)
+    Qee = Ainv.copy()
+    flat9 = np.arange(9)
+    for pt, a, b in st.point_pairs(budget=500_000):
+        Mab = ext[st.e_rcols[a][:, :, None], st.e_rcols[b][:, None, :]]       # (c, s, s)
+        contrib = np.matmul(np.matmul(Z[a], Mab), np.swapaxes(Z[b], 1, 2))  # (c, 3, 3)
+        Qee += np.bincount((pt[:, None] * 9 + flat9).ravel(), weights=contrib.ravel(),
+                           minlength=9 * n_e).reshape(n_e, 3, 3)
+    m = AinvGe3.shape[2]
+    if m:
+        rows = st.pt_rows
+        Xr = np.matmul(Z[rows], ext[st.e_rcols[rows]][:, :, g0:])           # (n, 3, m)
+        X = np.zeros((n_e, 3, m))
+        np.add.at(X, st.e_point[rows], Xr)
+        XA = np.matmul(X, np.swapaxes(AinvGe3, 1, 2))
+        Qee += XA + np.swapaxes(XA, 1, 2) + AinvGe3 @ ext[g0:, g0:] @ np.swapaxes(AinvGe3, 1, 2)
+    return Qee
+
+
+def _qec_rows(st, WT, Ainv, ext, AinvGe3, n_r, points, fixed, chunk_entries=4_000_000):
+    """``Q_ec`` rows (len(points), 3, n_r) of the given eliminated points:
+    ``-(V_p M^-1)`` restricted to the reduced columns, chunk by chunk."""
+    points = np.asarray(points, dtype=np.int64)
+    width = ext.shape[0]
+    g0 = n_r + 1
+    out = np.zeros((len(points), 3, n_r))
+    if len(points) == 0:
+        return out
+    fe3 = fixed[n_r:].reshape(-1, 3)
+    fixed_c = fixed[:n_r]
+    ptr = st.pt_ptr
+    step = max(1, chunk_entries // (3 * width))
+    for lo in range(0, len(points), step):
+        P = points[lo:lo + step]
+        V = np.zeros((len(P), 3, width))
+        counts = ptr[P + 1] - ptr[P]
+        if counts.sum():
+            which = np.repeat(np.arange(len(P)), counts)
+            pos = np.repeat(ptr[P], counts) + np.arange(counts.sum()) - np.repeat(
+                np.cumsum(counts) - counts, counts)
+            rows = st.pt_rows[pos]
+            Z = np.matmul(Ainv[st.e_point[rows]], WT[rows])                # (c, 3, s)
+            idx = (which[:, None, None] * 3 + np.arange(3)[None, :, None]) * width \
+                + st.e_rcols[rows][:, None, :]
+            V = np.bincount(idx.ravel(), weights=Z.ravel(),
+                            minlength=len(P) * 3 * width).reshape(len(P), 3, width)
+        if AinvGe3.shape[2]:
+            V[:, :, g0:] = AinvGe3[P]
+        Q = -(V.reshape(-1, width) @ ext[:, :n_r]).reshape(len(P), 3, n_r)
+        Q *= ~fe3[P][:, :, None]
+        Q[:, :, fixed_c] = 0.0
+        out[lo:lo + step] = Q
+    return out
 
 
 def point_covariances(cof: Cofactors, sigma0_sq=1.0):
