@@ -191,3 +191,16 @@ def test_report_on_an_incomplete_results_folder(runs, tmp_path, capsys):
     (folder / "summary.json").write_text("{ not json")
     assert main(["report", str(folder)]) == 2
     assert "summary.json" in _err(capsys)
+
+
+def test_montecarlo_and_mocap_folders_get_a_report(tmp_path):
+    """The report builds from the summary of any command (mocap writes the
+    project's name, not a table, in summary.json)."""
+    import json
+
+    from photogram.report import write_report
+    folder = tmp_path / "mocap"
+    folder.mkdir()
+    (folder / "summary.json").write_text(json.dumps({"command": "mocap", "project": "ski-ptz",
+                                                     "status": "done"}))
+    assert write_report(folder).stat().st_size > 0

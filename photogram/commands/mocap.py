@@ -66,6 +66,8 @@ def mocap(project, output: str | Path | None = None):
         logger.setLevel(saved[0])
         logger.propagate = saved[1]
     write_outputs(result, project, folder, stream.getvalue())
+    from photogram.report import write_report
+    write_report(folder)                  # report.pdf, as every command
     return folder, result
 
 

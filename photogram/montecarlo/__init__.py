@@ -92,4 +92,6 @@ def run_montecarlo(project, *, runs=None, seed=None, workers=None, scheduler=Non
         lines.append(f"{g}: sigma_mc / sigma_prop median {r['median']:.3f} "
                      f"({r['min']:.3f} .. {r['max']:.3f})")
     atomic_write_text(folder / "log.txt", "\n".join(lines) + "\n")
+    from photogram.report import write_report as write_pdf
+    write_pdf(folder)                     # report.pdf, as every command
     return folder, summary

@@ -57,7 +57,7 @@ class ReportData:
 
     @property
     def info(self) -> dict:
-        return self.summary.get("project") or {}
+        return _project_of(self.summary)
 
     @property
     def name(self) -> str:
@@ -211,7 +211,7 @@ def _project_path(folder: Path, text) -> Path | None:
 def _read_project(folder: Path, summary: dict):
     from photogram.project import read_project
 
-    path = _project_path(folder, (summary.get("project") or {}).get("path"))
+    path = _project_path(folder, _project_of(summary).get("path"))
     if path is None:
         return None, "the project file named in summary.json was not found"
     logger = logging.getLogger("photogram")
@@ -245,7 +245,7 @@ def _summary_only(folder: Path, summary: dict) -> Results:
     motion capture): the summary and empty tables."""
     import pandas as pd
 
-    image_unit = str((summary.get("project") or {}).get("image_unit") or "px")
+    image_unit = str(_project_of(summary).get("image_unit") or "px")
     return Results(folder=folder, summary=summary, image_unit=image_unit, cameras={},
                    stations=pd.DataFrame(columns=["station", "camera", "X0", "Y0", "Z0",
                                                   "omega", "phi", "kappa"]),
@@ -292,3 +292,11 @@ def load(folder: str | Path) -> ReportData:
                       points3d=_read_table(folder / "points3d.csv"),
                       lines3d=_read_table(folder / "lines3d.csv"),
                       project=project, project_note=note)
+
+
+def _project_of(summary) -> dict:
+    """summary["project"] as a dict (mocap writes only the project's name)."""
+    project = summary.get("project")
+    if isinstance(project, dict):
+        return project
+    return {"name": project} if project else {}
