@@ -37,7 +37,7 @@ from photogram.adjust.build import build_problem
 from photogram.adjust.normal import assemble
 from photogram.adjust.schur import damped, invert_point_blocks, reduced_camera_system
 from photogram.adjust.solver import SolverOptions, solve
-from photogram.simulation.network import SyntheticNetwork, look_at, observe, to_project
+from photogram.simulation.network import SyntheticNetwork, observe, to_project, wall_geometry
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bal"
 STAGES = ("jacobian", "blocks", "schur", "factorization", "back_substitution", "cost")
@@ -47,17 +47,7 @@ def wall(n_points, n_stations=100, distance=10.0, rays=20, sigma=0.5, seed=0, ch
     """The geometry of ``photogram.simulation.network.wall_network``, with
     the points projected in chunks (10^6 observations without a 5 GB
     temporary)."""
-    rng = np.random.default_rng(seed)
-    c, w, h = 1000.0, 4000, 3000
-    window = distance * (w / 2 - 50) / c * 2
-    spacing = window / rays
-    length = spacing * n_stations
-    pts = np.stack([rng.uniform(0, length, n_points), rng.uniform(-0.5, 0.5, n_points),
-                    rng.uniform(-distance * 1.2, distance * 1.2, n_points)], axis=1)
-    X0 = np.stack([spacing * (np.arange(n_stations) + 0.5), np.full(n_stations, -distance),
-                   rng.normal(0, 0.2, n_stations)], axis=1)
-    R = look_at(X0, X0 + [0.0, distance, 0.0])
-    io = np.array([c, w / 2, h / 2, 0, 0, 0, 0, 0, 0, 0])
+    pts, X0, R, io, (w, h), rng = wall_geometry(n_stations, n_points, distance, rays, seed)
     cam = np.zeros(n_stations, int)
     parts = [observe("brown", io, cam, R, X0, pts[i:i + chunk], (w, h), sigma=sigma, rng=rng,
                      margin=5) for i in range(0, n_points, chunk)]

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.geometry import matrix_to_opk, opk_derivatives
+from photogram.geometry import angle_increment_map
 
 
 class ResidualBlock:
@@ -100,19 +100,6 @@ class PointPriorBlock(ResidualBlock):
         return e, [J]
 
 
-def _angle_increment_map(R):
-    """Matrix E with ``d(opk) = E delta`` for ``R = expm([delta]x) R0``.
-
-    From ``[delta]x R = sum_j dR/da_j da_j``: the columns of ``E^-1`` are
-    ``vee(dR/da_j R^T)``.
-    """
-    angles = matrix_to_opk(R)
-    dR = opk_derivatives(angles)                       # (n, 3, 3, 3): [..., j]
-    M = np.einsum("nikj,nlk->njil", dR, R)             # (n, j, 3, 3) dR_j R^T
-    Einv = np.stack([M[:, :, 2, 1], M[:, :, 0, 2], M[:, :, 1, 0]], axis=1)  # (n, 3, j)
-    return angles, np.linalg.inv(Einv)
-
-
 class StationPriorBlock(ResidualBlock):
     """Approximate exterior orientations as weighted observations with a
     guessed accuracy (appendix D.2). Angles in radians; angle residuals are
@@ -131,7 +118,7 @@ class StationPriorBlock(ResidualBlock):
 
     def evaluate(self, state, jacobians=True):
         n = len(self.station)
-        ang, E = _angle_increment_map(state.R[self.station])
+        ang, E = angle_increment_map(state.R[self.station])
         e = np.zeros((n, 6))
         e[:, :3] = np.where(np.isfinite(self.position), state.X0[self.station] - self.position, 0.0)
         d = np.angle(np.exp(1j * (ang - self.angles)))

@@ -225,8 +225,8 @@ def orientation_covariance(cof, problem, project, camera_names, s0sq):
     Q = cof.Qcc[np.ix_(cols, cols)]
     n_io = sum(len(c) for c in lay.camera_cols)
     T = np.eye(len(cols))
-    from photogram.adjust.residual_blocks import _angle_increment_map
-    _, E = _angle_increment_map(problem.state.R)
+    from photogram.geometry import angle_increment_map
+    _, E = angle_increment_map(problem.state.R)
     for s in range(len(E)):
         i = n_io + 6 * s + 3
         T[i:i + 3, i:i + 3] = E[s]

@@ -4,7 +4,7 @@ See docs/camera-models.md for the equations and conventions.
 """
 
 from photogram.geometry.rotations import (
-    ANGLE_FACTORS, from_radians, matrix_to_opk, matrix_to_quaternion,
+    ANGLE_FACTORS, angle_increment_map, from_radians, matrix_to_opk, matrix_to_quaternion,
     matrix_to_rodrigues, opk_derivatives, opk_to_matrix, quaternion_to_matrix,
     rodrigues_derivatives, rodrigues_to_matrix, skew, small_rotation, to_radians)
 from photogram.geometry.camera import (
@@ -17,7 +17,7 @@ from photogram.geometry.conversions import (
     brown_to_opencv, fit_distortion, format_grid, opencv_to_brown)
 
 __all__ = [
-    "ANGLE_FACTORS", "from_radians", "matrix_to_opk", "matrix_to_quaternion",
+    "ANGLE_FACTORS", "angle_increment_map", "from_radians", "matrix_to_opk", "matrix_to_quaternion",
     "matrix_to_rodrigues", "opk_derivatives", "opk_to_matrix",
     "quaternion_to_matrix", "rodrigues_derivatives", "rodrigues_to_matrix",
     "skew", "small_rotation", "to_radians",

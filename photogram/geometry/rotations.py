@@ -314,3 +314,17 @@ def _canonical_sign(q):
     first = np.argmax(nz, axis=-1)
     lead = np.take_along_axis(q, first[..., None], axis=-1)
     return np.where(lead < 0, -q, q)
+
+
+def angle_increment_map(R):
+    """``(angles, E)`` with ``d(opk) = E delta`` for ``R = expm([delta]x) R0``:
+    how omega-phi-kappa change under the engine's incremental rotation.
+
+    From ``[delta]x R = sum_j dR/da_j da_j``: the columns of ``E^-1`` are
+    ``vee(dR/da_j R^T)``.
+    """
+    angles = matrix_to_opk(R)
+    dR = opk_derivatives(angles)                       # (n, 3, 3, 3): [..., j]
+    M = np.einsum("nikj,nlk->njil", dR, R)             # (n, j, 3, 3) dR_j R^T
+    Einv = np.stack([M[:, :, 2, 1], M[:, :, 0, 2], M[:, :, 1, 0]], axis=1)  # (n, 3, j)
+    return angles, np.linalg.inv(Einv)

@@ -26,77 +26,16 @@ orientation.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.linalg as la
 
 from photogram.errors import GeometryError, InputError
-from photogram.geometry import (camera_model, matrix_to_opk, opk_derivatives, opk_to_matrix,
-                                skew, small_rotation)
-from photogram.geometry.camera import ideal_projection
+from photogram.geometry import (angle_increment_map, camera_model, opk_to_matrix, skew,
+                                small_rotation)
+from photogram.montecarlo.lean_state import (BundleInputs, BundleState, correct_brown,
+                                              image_residuals)
 
 __all__ = ["LeanBundle", "BundleInputs", "BundleState", "correct_brown", "image_residuals"]
-
-
-@dataclass
-class BundleState:
-    """Values of all unknowns (and of the fixed interior orientation)."""
-
-    io: np.ndarray        # (K, p)
-    R: np.ndarray         # (S, 3, 3)
-    X0: np.ndarray        # (S, 3)
-    X: np.ndarray         # (P, 3)
-
-    def copy(self) -> "BundleState":
-        return BundleState(self.io.copy(), self.R.copy(), self.X0.copy(), self.X.copy())
-
-    @property
-    def angles(self) -> np.ndarray:
-        return matrix_to_opk(self.R)
-
-
-@dataclass
-class BundleInputs:
-    """The observations of one run (same shapes as in the project)."""
-
-    xy: np.ndarray                 # (N, 2) image coordinates
-    reference: np.ndarray          # (n_c, 3) reference coordinates of the control points
-    station_prior: np.ndarray      # (S, 6) prior X0 Y0 Z0 omega phi kappa (radians)
-    interior_prior: np.ndarray     # (n_ip,) prior values of weighted interior parameters
-    distances: np.ndarray          # (n_d,)
-    verticals: np.ndarray          # (n_v, 2) observed slopes (0 for a vertical rod)
-
-    def copy(self) -> "BundleInputs":
-        return BundleInputs(*(np.array(a, dtype=float, copy=True) for a in (
-            self.xy, self.reference, self.station_prior, self.interior_prior,
-            self.distances, self.verticals)))
-
-
-def angle_increment_map(R):
-    """``(angles, E)`` with ``d(opk) = E delta`` for ``R = expm([delta]x) R0``
-    (as :func:`photogram.adjust.residual_blocks._angle_increment_map`; here
-    so that a worker process does not import the engine)."""
-    angles = matrix_to_opk(R)
-    dR = opk_derivatives(angles)
-    M = np.einsum("nikj,nlk->njil", dR, R)
-    Einv = np.stack([M[:, :, 2, 1], M[:, :, 0, 2], M[:, :, 1, 0]], axis=1)
-    return angles, np.linalg.inv(Einv)
-
-
-def correct_brown(model, xy, io, jacobians=False):
-    """Corrected coordinates ``C`` of measured ``xy`` (and ``dC/dio``)."""
-    if jacobians:
-        C, jac = model.correct(xy, io, jacobians=True)
-        return C, jac["io"]
-    return model.correct(xy, io)
-
-
-def image_residuals(C, X, R, X0, c):
-    """``C - ideal`` and the Jacobian of ``ideal`` w.r.t. Xc, with Xc."""
-    Xc = np.einsum("nij,nj->ni", R, X - X0)
-    ideal, J_xc, t = ideal_projection(Xc, c, jacobians=True)
-    return C - ideal, J_xc, Xc, t
 
 
 class LeanBundle:

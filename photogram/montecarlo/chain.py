@@ -38,7 +38,8 @@ from photogram.errors import InputError
 from photogram.geometry import matrix_to_opk, small_rotation
 from photogram.jump.definitions import ANGLE_PARAMETERS, PARAMETERS
 from photogram.jump.stick import ANGLE_FACTORS
-from photogram.montecarlo.bundle import LeanBundle, angle_increment_map
+from photogram.geometry import angle_increment_map
+from photogram.montecarlo.bundle import LeanBundle
 from photogram.montecarlo.intersect import LeanIntersect, local_basis_batch
 
 __all__ = ["Chain", "Outputs"]

@@ -160,10 +160,9 @@ def frame_network(n_stations=8, n_points=60, sigma=0.3, seed=0, model_name="brow
                    (640, 480), sigma=sigma, rng=rng)
 
 
-def wall_network(n_stations=100, n_points=10_000, distance=10.0, rays=20, sigma=0.5, seed=0):
-    """A large synthetic network for scaling tests: points on a wall with
-    relief, stations along it at ``distance``, spaced so that each point is
-    seen by about ``rays`` stations (c = 1000 px, 4000 x 3000 px images)."""
+def wall_geometry(n_stations=100, n_points=10_000, distance=10.0, rays=20, seed=0):
+    """The truth of :func:`wall_network` before observing: ``(points, X0,
+    R, io, image_size, rng)`` (rng positioned for the observation noise)."""
     rng = np.random.default_rng(seed)
     c, w, h = 1000.0, 4000, 3000
     window = distance * (w / 2 - 50) / c * 2          # wall width one image sees
@@ -175,5 +174,13 @@ def wall_network(n_stations=100, n_points=10_000, distance=10.0, rays=20, sigma=
                    rng.normal(0, 0.2, n_stations)], axis=1)
     R = look_at(X0, X0 + [0.0, distance, 0.0])
     io = np.array([c, w / 2, h / 2, 0, 0, 0, 0, 0, 0, 0])
-    return observe("brown", io, np.zeros(n_stations, int), R, X0, pts, (w, h), sigma=sigma,
+    return pts, X0, R, io, (w, h), rng
+
+
+def wall_network(n_stations=100, n_points=10_000, distance=10.0, rays=20, sigma=0.5, seed=0):
+    """A large synthetic network for scaling tests: points on a wall with
+    relief, stations along it at ``distance``, spaced so that each point is
+    seen by about ``rays`` stations (c = 1000 px, 4000 x 3000 px images)."""
+    pts, X0, R, io, size, rng = wall_geometry(n_stations, n_points, distance, rays, seed)
+    return observe("brown", io, np.zeros(n_stations, int), R, X0, pts, size, sigma=sigma,
                    rng=rng, margin=5)

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from photogram.adjust import kernels
-from photogram.adjust.residual_blocks import _angle_increment_map
+from photogram.geometry import angle_increment_map
 from photogram.adjust.schur import solve as schur_solve
 
 
@@ -260,7 +260,7 @@ def station_covariances(cof: Cofactors, R, sigma0_sq=1.0):
     ``d(opk) = E delta``.
     """
     Q = cof.of_columns(cof.layout.station_cols)
-    _, E = _angle_increment_map(R)
+    _, E = angle_increment_map(R)
     T = np.zeros((len(R), 6, 6))
     T[:, :3, :3] = np.eye(3)
     T[:, 3:, 3:] = E

@@ -94,8 +94,8 @@ def interior_sensitivity(problem, camera_names, project, labels):
 
 def station_rotation_to_angles(problem):
     """Block-diagonal (6 n_s, 6 n_s) map from (dX0, delta) to (dX0, d opk)."""
-    from photogram.adjust.residual_blocks import _angle_increment_map
-    _, E = _angle_increment_map(problem.state.R)
+    from photogram.geometry import angle_increment_map
+    _, E = angle_increment_map(problem.state.R)
     n_s = len(E)
     T = np.zeros((6 * n_s, 6 * n_s))
     for s in range(n_s):
