@@ -97,11 +97,15 @@ def cameras_from_project(project) -> MocapCameras:
 
 
 def read_camera_frames(path: Path, cameras: MocapCameras, project, first_frame: int,
-                       n_frames: int) -> MocapCameras:
-    """Rotations (and interior parameters) per frame (module doc)."""
+                       n_frames: int, rotations: bool = True) -> MocapCameras:
+    """Rotations (and interior parameters) per frame (module doc); with
+    ``rotations`` False (rotations estimated from the images) the angle
+    columns are not needed and ignored: the table gives the zoom."""
     extra = sorted({p for m in cameras.models for p in camera_model(m).parameter_names})
-    table = read_table(path, required=("frame", "camera", "omega", "phi", "kappa"),
-                       optional=extra, what="camera frames table")
+    angle_cols = ("omega", "phi", "kappa")
+    table = read_table(path, required=("frame", "camera") + (angle_cols if rotations else ()),
+                       optional=extra + ([] if rotations else list(angle_cols)),
+                       what="camera frames table")
     frame = table.floats("frame", required=True)
     if np.any(frame != np.round(frame)):
         raise table.error(int(np.flatnonzero(frame != np.round(frame))[0]),
@@ -109,7 +113,10 @@ def read_camera_frames(path: Path, cameras: MocapCameras, project, first_frame: 
     frame = frame.astype(int) - first_frame
     cams = table.text("camera")
     unit = project.units.angle
-    angles = np.stack([table.angles(k, unit) for k in ("omega", "phi", "kappa")], -1)
+    if rotations:
+        angles = np.stack([table.angles(k, unit) for k in angle_cols], -1)
+    else:
+        angles = np.zeros((len(frame), 3))
     if np.any(~np.isfinite(angles)):
         raise table.error(int(np.flatnonzero(~np.all(np.isfinite(angles), 1))[0]),
                           "every row needs omega, phi and kappa")
@@ -139,7 +146,33 @@ def read_camera_frames(path: Path, cameras: MocapCameras, project, first_frame: 
         f, c = np.argwhere(~filled)[0]
         raise InputError(f"camera {cameras.names[c]} has no row for frame {f + first_frame}",
                          file=path, hint="give every camera a row for every frame")
+    if not rotations:
+        R = np.broadcast_to(np.eye(3), (1, C, 3, 3)).copy()
     return MocapCameras(cameras.names, cameras.models, io, cameras.X0, R, cameras.image_size)
+
+
+def write_camera_frames(path: Path, frames, cameras: MocapCameras, project,
+                        comment: str = "") -> Path:
+    """Rotations per camera and frame in the layout of ``camera_frames``
+    (angles in the project's angle unit and rotation direction, the
+    per-frame interior parameters of the OpenCV/Brown model), atomically."""
+    from photogram.geometry.rotations import from_radians, matrix_to_opk
+    F, C = len(frames), cameras.n_cameras
+    R = cameras.rotations(F)
+    opk = matrix_to_opk(R.reshape(-1, 3, 3))
+    if project.rotation_direction == "camera_to_world":
+        opk = invert_opk(opk)
+    opk = from_radians(opk, project.units.angle).reshape(F, C, 3)
+    cols = {"frame": np.repeat(np.asarray(frames), C),
+            "camera": np.tile(np.array(cameras.names), F)}
+    for k, name in enumerate(("omega", "phi", "kappa")):
+        cols[name] = np.round(opk[..., k].ravel(), 7)
+    zoom = [p for p in ("fx", "fy", "c") if all(p in camera_model(m).parameter_names
+                                                for m in cameras.models)]
+    for p in zoom:
+        cols[p] = np.round(np.stack([cameras._io_rows(c, F)[:, camera_model(
+            cameras.models[c]).index(p)] for c in range(C)], 1).ravel(), 3)
+    return atomic_write_text(path, format_table(cols, comment=comment))
 
 
 def read_limb_lengths(path: Path, skeleton: Skeleton) -> dict:

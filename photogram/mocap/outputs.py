@@ -81,11 +81,34 @@ def summary(result, project) -> dict:
         "timings": result.info.get("timings", {}),
         "warnings": list(project.warnings),
     }
+    if result.info.get("rotation") == "estimate":
+        out["rotation"] = _rotation_summary(result)
     if result.accuracy is not None:
         out["accuracy"] = result.accuracy
     if result.reference is not None:
         out["reference"] = result.reference
     return to_json_safe(out)
+
+
+def _rotation_summary(result) -> dict:
+    rec = result.reconstruction
+    per = result.info.get("differences", {})
+    cams = {}
+    for c, name in enumerate(result.cameras.names):
+        rd = per.get(name)
+        cams[name] = {"pairs": int(len(rd.ok)) if rd is not None else 0,
+                      "failed_pairs": int(np.sum(~rd.ok)) if rd is not None else None,
+                      "median_inliers": float(np.median(rd.inliers))
+                      if rd is not None and len(rd.ok) else None,
+                      "used": bool(np.any(result.info["weights"][:, c] > 0))
+                      if len(result.info["weights"]) else False}
+    out = {"mode": "estimate", "cameras": cams,
+           "bootstrap_last_change_m": rec.bootstrap_history[-1] if rec.bootstrap_history
+           else None, "rotations_file": "rotations.csv"}
+    for key in ("rotation_errors", "rotation_errors_bootstrap"):
+        if key in result.info:
+            out[key] = result.info[key]
+    return out
 
 
 def _detections_table(result) -> str:
@@ -130,6 +153,17 @@ def write_outputs(result, project, folder: Path, log_text: str = "") -> list[Pat
             "limb": list(bones), "mean": [round(v[0], 6) for v in bones.values()],
             "std": [round(v[1], 6) for v in bones.values()],
             "cv": [round(v[2], 6) for v in bones.values()]})))
+    if result.info.get("rotation") == "estimate":
+        from photogram.mocap.files import write_camera_frames
+        written.append(write_camera_frames(
+            folder / "rotations.csv", result.frames, result.cameras, project,
+            comment="estimated rotations per camera and frame (world to camera; the layout "
+                    "of camera_frames: usable as rotation = \"known\")"))
+        per = result.info.get("differences") or {}
+        if per:
+            from photogram.mocap.rotation_series import write_rotation_differences
+            written.append(write_rotation_differences(folder / "rotation_differences.csv",
+                                                      per, first_frame=int(result.frames[0])))
     written += _plots(result, folder)
     written.append(atomic_write_text(folder / "summary.json", json.dumps(
         summary(result, project), indent=2, allow_nan=False) + "\n"))

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -126,8 +126,10 @@ def run_mocap(project) -> MocapResult:
     timings["tracking_s"] = time.perf_counter() - t0
     first = int(getattr(source, "first_frame", 0))
     F = obs.shape[0]
+    estimate = ms.rotation == "estimate"
     if ms.camera_frames is not None:
-        cameras = read_camera_frames(ms.camera_frames, cameras, project, first, F)
+        cameras = read_camera_frames(ms.camera_frames, cameras, project, first, F,
+                                     rotations=not estimate)
     skeleton = source.skeleton
     if ms.skeleton is not None:
         try:
@@ -158,8 +160,20 @@ def run_mocap(project) -> MocapResult:
         rs["limb_lengths"] = read_limb_lengths(ms.limb_lengths, skeleton)
     from photogram.project.model import LENGTH_UNITS
     rs.setdefault("limb_unit", 0.01 / LENGTH_UNITS[project.units.length])   # 1 cm
-    settings = ReconstructionSettings(**rs)
-    rec = reconstruct(obs, cameras, skeleton, settings, breaks)
+    rotation_info = {}
+    if estimate:
+        from photogram.mocap.estimate import estimate_poses_and_rotations, estimate_settings
+        from photogram.mocap.unknown_rotations import measure_differences
+        t1 = time.perf_counter()
+        dR, weights, per_camera = measure_differences(ms, cameras, tracked, (lo, hi), first,
+                                                      project.warnings, breaks)
+        timings["rotation_differences_s"] = time.perf_counter() - t1
+        rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights,
+                                           estimate_settings(**rs), breaks)
+        cameras = replace(cameras, R=rec.R)
+        rotation_info = {"differences": per_camera, "weights": weights}
+    else:
+        rec = reconstruct(obs, cameras, skeleton, ReconstructionSettings(**rs), breaks)
     log.info("reconstruction: %d frames, %d windows, %s, energy %.6g, %d iterations, %.1f s",
              len(frames), rec.n_windows, rec.solver, rec.energy, rec.iterations, rec.seconds)
     timings["reconstruction_s"] = rec.seconds
@@ -169,7 +183,16 @@ def run_mocap(project) -> MocapResult:
         tracked=tracked, reconstruction=rec, biomechanics=bio,
         reprojection=reprojection_errors(rec.joints, cameras, obs),
         bones=bone_lengths(rec.joints, skeleton), breaks=breaks,
-        info={"source": source.describe(), "timings": timings})
+        info={"source": source.describe(), "timings": timings, "rotation": ms.rotation,
+              **rotation_info})
+    if estimate and ms.truth_rotations is not None:
+        from photogram.mocap.unknown_rotations import rotation_errors
+        truth = read_camera_frames(ms.truth_rotations, cameras, project, first,
+                                   lo + len(frames)).select_frames(np.arange(lo, hi))
+        result.info["rotation_errors"] = rotation_errors(rec.R, truth.rotations(len(frames)),
+                                                         cameras.names)
+        result.info["rotation_errors_bootstrap"] = rotation_errors(
+            rec.R_bootstrap, truth.rotations(len(frames)), cameras.names)["all"]
     if ms.truth is not None:
         _compare_truth(result, ms)
     if ms.reference_trc is not None:

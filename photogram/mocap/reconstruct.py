@@ -77,6 +77,14 @@ class ReconstructionSettings:
     min_confidence: float = 0.0
     support_frames: int = 5         # report a joint only with 2 detections within +-5 frames
     step_tol: float = 1e-5          # converged when no determined position moves more (m)
+    # unknown camera rotations (photogram.mocap.estimate; estimate_settings())
+    rotation: str = "known"         # or "estimate"
+    n_rotation_dct: int = 11        # N_Gamma: DCT coefficients per camera and angle
+    lambda_rot: float = 1e4         # weight of E_rot, eq. (14) (residuals in degrees)
+    bootstrap_iterations: int = 25
+    pose_basis: str = "dct"         # or "free" (ablation: a position per joint and frame)
+    rotation_basis: str = "dct"     # or "free" (ablation: angles per frame)
+    rotation_prior: bool = True     # False: no E_rot (ablation)
 
     def stages(self) -> list[float]:
         s, out = float(self.gnc_start), []

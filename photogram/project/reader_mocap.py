@@ -25,7 +25,11 @@ __all__ = ["MocapSettings", "MocapSource", "read_mocap_project", "MOCAP_KEYS", "
 
 MOCAP_KEYS = ("fps", "skeleton", "calibration", "camera_frames", "frames", "up", "limb_lengths",
               "truth", "reference_trc", "outside_leg", "runs", "source", "tracking",
-              "reconstruction")
+              "reconstruction", "rotation", "rotation_differences", "images", "homography",
+              "truth_rotations")
+ROTATION_MODES = ("known", "estimate")
+HOMOGRAPHY_KEYS = ("n_features", "ransac_px", "min_inliers", "box_margin", "median", "sigma",
+                   "max_failed")
 SOURCE_KINDS = ("openpose", "csv", "mediapipe", "plugin")
 SOURCE_KEYS = ("kind", "path", "cameras", "skeleton", "network", "wide")
 TRACKING_KEYS = ("scale", "wide_scale", "sigma_centre", "sigma_side", "sigma_refine",
@@ -33,7 +37,8 @@ TRACKING_KEYS = ("scale", "wide_scale", "sigma_centre", "sigma_side", "sigma_ref
 RECONSTRUCTION_KEYS = ("solver", "n_dct", "window", "overlap", "sigma2", "lambda_rep",
                        "lambda_limbs", "gnc_start", "max_iterations", "tolerance",
                        "symmetric_limbs", "min_confidence", "support_frames", "limb_unit",
-                       "step_tol")
+                       "step_tol", "n_rotation_dct", "lambda_rot", "bootstrap_iterations",
+                       "pose_basis", "rotation_basis", "rotation_prior")
 _FORBIDDEN = ("points", "observations", "constraints", "intersect", "montecarlo",
               "adjustment")
 
@@ -69,6 +74,11 @@ class MocapSettings:
     runs: tuple = ()
     tracking: dict = field(default_factory=dict)
     reconstruction: dict = field(default_factory=dict)
+    rotation: str = "known"             # or "estimate" (rotations from the images)
+    rotation_differences: Path | None = None
+    images: dict | None = None          # camera -> video file or image folder (absolute)
+    homography: dict = field(default_factory=dict)
+    truth_rotations: Path | None = None
     toml: TomlSource | None = None
 
     def error(self, keypath, what: str, hint: str | None = None) -> InputError:
@@ -158,7 +168,8 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
         raise sec.error("runs", f"runs in {sec.label} must list the first frames (>= 1) of "
                                 f"the runs after the first", hint="e.g. runs = [279, 558]")
     subs = {}
-    for name, keys in (("tracking", TRACKING_KEYS), ("reconstruction", RECONSTRUCTION_KEYS)):
+    for name, keys in (("tracking", TRACKING_KEYS), ("reconstruction", RECONSTRUCTION_KEYS),
+                       ("homography", HOMOGRAPHY_KEYS)):
         sub = sec.table(name, required=False)
         values = {}
         if sub is not None:
@@ -166,19 +177,42 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
             for key in sub.data:
                 if key == "solver":
                     values[key] = sub.string(key, choices=("gauss-newton", "lbfgs"))
-                elif key == "symmetric_limbs":
+                elif key in ("pose_basis", "rotation_basis"):
+                    values[key] = sub.string(key, choices=("dct", "free"))
+                elif key in ("symmetric_limbs", "rotation_prior"):
                     values[key] = sub.boolean(key)
                 elif key in ("n_dct", "window", "overlap", "max_iterations", "crop_size",
-                             "support_frames"):
+                             "support_frames", "n_rotation_dct", "bootstrap_iterations",
+                             "n_features", "min_inliers", "median"):
                     values[key] = sub.integer(key, minimum=0 if key in ("overlap",
                                                                         "support_frames") else 1)
                 else:
-                    values[key] = sub.number(key, nonnegative=key in ("lambda_limbs",
-                                                                      "min_confidence"),
-                                             positive=key not in ("lambda_limbs",
-                                                                  "min_confidence"))
+                    zero_ok = key in ("lambda_limbs", "min_confidence", "lambda_rot",
+                                      "box_margin", "max_failed", "sigma")
+                    values[key] = sub.number(key, nonnegative=zero_ok, positive=not zero_ok)
         subs[name] = values
+    images = None
+    if "images" in sec:
+        sub = sec.table("images")
+        images = {}
+        for name in sub.data:
+            value = Path(sub.string(name))
+            full = value if value.is_absolute() else folder / value
+            if not full.exists():
+                raise sub.error(name, f"camera {name} in {sub.label}: {value} not found",
+                                hint="a video file or a folder of images, relative to the "
+                                     "project folder")
+            images[name] = full
+    rotation = sec.string("rotation", "known", choices=ROTATION_MODES)
+    rot_diff = _path(sec, "rotation_differences", folder)
+    if rotation == "estimate" and rot_diff is None and images is None:
+        raise sec.error("rotation", f"rotation = \"estimate\" in {sec.label} needs the "
+                                    f"camera images or measured rotation differences",
+                        hint='add [mocap.images] (camera = "video.mp4" or a folder) or '
+                             'rotation_differences = "file.csv"')
     return MocapSettings(
+        rotation=rotation, rotation_differences=rot_diff, images=images,
+        homography=subs["homography"], truth_rotations=_path(sec, "truth_rotations", folder),
         source=source, fps=sec.number("fps", 50.0, positive=True),
         skeleton=sec.string("skeleton", None),
         calibration=_path(sec, "calibration", folder),

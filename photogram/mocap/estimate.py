@@ -1,0 +1,205 @@
+"""Poses and camera rotations together: motion capture from pan-tilt cameras
+with unknown orientation (section 4.5 of the paper).
+
+Known: the cameras' projection centres and interior orientation (zoom per
+frame); unknown: their rotations. Measured from the images: the rotation
+differences between consecutive frames (:mod:`photogram.mocap.homography`,
+eqs. (12)-(13)). Steps:
+
+1. **bootstrap** (:mod:`photogram.mocap.bootstrap`): 25 rounds of pose-only
+   reconstruction with cameras aimed at the pose;
+2. **joint optimisation** (:mod:`photogram.mocap.joint`,
+   :mod:`photogram.mocap.joint_solver`): pose coefficients (N_Pi = 11) and
+   camera Euler angles as inverse DCTs (N_Gamma = 11 per camera and axis)
+   over windows, the energy of part 1 plus E_rot of eq. (14) with
+   lambda_rep = 500, lambda_limbs = 1, lambda_rot = 10000 (the paper's
+   values; residual units in docs/mocap.md), by Levenberg-Marquardt on the
+   dense per-window model (the paper ran 1500 L-BFGS iterations; the
+   Gauss-Newton model reaches the minimum in tens);
+3. windows blended as in part 1 (poses) and rotation matrices blended with
+   the same weights and projected to the nearest rotation.
+
+Ablations (Table 2 of the paper): ``pose_basis = "free"`` (a position per
+joint and frame: Ours-A, Ours-B), ``rotation_basis = "free"`` (angles per
+frame) and ``rotation_prior = False`` (no E_rot: rotations optimised
+freely, Ours-B).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.mocap.bootstrap import bootstrap_poses
+from photogram.mocap.camera_motion import euler_from_matrices
+from photogram.mocap.cameras import MocapCameras
+from photogram.mocap.dct import blend_weights, dct_basis
+from photogram.mocap.joint import JointBatch
+from photogram.mocap.joint_solver import solve_joint
+from photogram.mocap.reconstruct import (Reconstruction, ReconstructionSettings, _batches,
+                                         _blend, _given_lengths, _support, limb_lengths)
+from photogram.mocap.skeleton import Skeleton
+
+__all__ = ["ESTIMATE_DEFAULTS", "ABLATIONS", "estimate_settings", "EstimatedRotations",
+           "estimate_poses_and_rotations"]
+
+log = logging.getLogger(__name__)
+
+#: the paper's values for unknown rotations (section 4.5)
+ESTIMATE_DEFAULTS = {"n_dct": 11, "lambda_rep": 500.0, "lambda_limbs": 1.0}
+#: Table 2 of the paper: (pose_basis, rotation_basis, rotation_prior)
+ABLATIONS = {"ours": ("dct", "dct", True), "ours-a": ("free", "dct", True),
+             "ours-b": ("free", "dct", False), "no-erot": ("dct", "dct", False)}
+
+
+def estimate_settings(**overrides) -> ReconstructionSettings:
+    """ReconstructionSettings with the defaults of the unknown-rotation case."""
+    return ReconstructionSettings(**{**ESTIMATE_DEFAULTS, "rotation": "estimate", **overrides})
+
+
+@dataclass
+class EstimatedRotations(Reconstruction):
+    """A :class:`Reconstruction` plus the estimated rotations ``R`` (F, C, 3,
+    3) (world to camera, photogrammetric), the bootstrap's rotations and the
+    mean change of the pose centre per bootstrap round."""
+
+    R: np.ndarray | None = None
+    R_bootstrap: np.ndarray | None = None
+    bootstrap_history: list = field(default_factory=list)
+
+
+def _orthonormal(M):
+    U, _, Vt = np.linalg.svd(M)
+    D = np.ones(M.shape[:-1])
+    D[..., -1] = np.sign(np.linalg.det(U @ Vt))
+    return (U * D[..., None, :]) @ Vt
+
+
+def _blend_rotations(batches, Rw, F, overlap):
+    """Weighted mean of the window rotations (nw, C, T, 3, 3) per frame,
+    projected to the nearest rotation."""
+    C = Rw[0].shape[1]
+    acc = np.zeros((F, C, 3, 3))
+    for (ws, idx, b), R in zip(batches, Rw):
+        w = blend_weights(idx.shape[1], overlap)
+        np.add.at(acc, idx, w[None, :, None, None, None] * R.transpose(0, 2, 1, 3, 4))
+    return _orthonormal(acc)
+
+
+def _free_points(b):
+    """The batch with the identity as pose basis: a free position per joint
+    and frame (ablation Ours-A/B); every observed joint uses all frames."""
+    T = b.B.shape[0]
+    n = np.where(b.n_coef > 0, T, 0)
+    return replace(b, B=np.eye(T), n_coef=n)
+
+
+def _window_rotation_data(idx, R_boot, dR, dR_weight, BG):
+    """R_ref, start coefficients g, measured differences and weights of the
+    windows with frame indices ``idx`` (nw, T)."""
+    nw, T = idx.shape
+    R_ref = R_boot[idx[:, T // 2]]                                  # (nw, C, 3, 3)
+    Rw = R_boot[idx].transpose(0, 2, 1, 3, 4)                        # (nw, C, T, 3, 3)
+    gam = euler_from_matrices(np.swapaxes(R_ref, -1, -2)[:, :, None] @ Rw)
+    g = np.einsum("wcta,tk->wcak", gam, BG)
+    if dR is None:
+        C = R_boot.shape[1]
+        return R_ref, g, np.broadcast_to(np.eye(3), (nw, C, T - 1, 3, 3)).copy(), \
+            np.zeros((nw, C, T - 1))
+    pairs = idx[:, :-1]
+    return (R_ref, g, dR[pairs].transpose(0, 2, 1, 3, 4),
+            dR_weight[pairs].transpose(0, 2, 1))
+
+
+def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: Skeleton,
+                                 rotation_differences=None, difference_weights=None,
+                                 settings: ReconstructionSettings | None = None,
+                                 breaks=()) -> EstimatedRotations:
+    """Reconstruct poses and camera rotations (module doc).
+
+    Parameters
+    ----------
+    observations : (F, C, J, 3)
+        As for :func:`photogram.mocap.reconstruct.reconstruct`.
+    cameras : MocapCameras
+        Projection centres and interior orientation (per frame); their
+        rotations are not used.
+    rotation_differences : (F-1, C, 3, 3) or None
+        Measured ``dR`` with ``R(t+1) = dR(t) R(t)`` (None: no E_rot).
+    difference_weights : (F-1, C) or None
+        0 for pairs without a measurement (default: all 1).
+    settings : ReconstructionSettings
+        :func:`estimate_settings` by default.
+    """
+    s = settings or estimate_settings()
+    obs = np.asarray(observations, dtype=float)
+    F, C, J, _ = obs.shape
+    if obs.shape[1] != cameras.n_cameras or obs.shape[2] != skeleton.n_joints:
+        raise InputError(f"observations must be (frames, {cameras.n_cameras} cameras, "
+                         f"{skeleton.n_joints} joints, 3), got {obs.shape}")
+    dR = None if rotation_differences is None else np.asarray(rotation_differences, float)
+    if dR is not None and dR.shape != (F - 1, C, 3, 3):
+        raise InputError(f"rotation differences must be ({F - 1}, {C}, 3, 3), got {dR.shape}")
+    weights = np.ones((max(F - 1, 0), C)) if difference_weights is None \
+        else np.asarray(difference_weights, float)
+    lambda_rot = s.lambda_rot if (s.rotation_prior and dR is not None) else 0.0
+    t0 = time.perf_counter()
+    if s.pose_basis not in ("dct", "free") or s.rotation_basis not in ("dct", "free"):
+        raise InputError(f"pose_basis and rotation_basis must be dct or free, not "
+                         f"{s.pose_basis!r}, {s.rotation_basis!r}")
+    cams = replace(cameras, R=np.broadcast_to(np.eye(3), (1, C, 3, 3)).copy())
+    if s.pose_basis == "free":
+        windows, batches = _batches(obs, cams, skeleton, replace(s, n_dct=s.window), breaks)
+        batches = [(ws, idx, _free_points(b)) for ws, idx, b in batches]
+    else:
+        windows, batches = _batches(obs, cams, skeleton, s, breaks)
+
+    def blend(coeffs):
+        return _blend(batches, coeffs, F, J, s.overlap)[0]
+
+    conf = np.where(np.isfinite(obs[..., 2]) & np.all(np.isfinite(obs[..., :2]), -1),
+                    obs[..., 2], 0.0)
+    conf = np.where(conf > s.min_confidence, conf, 0.0)
+    xy = np.where((conf > 0)[..., None], obs[..., :2], np.nan)
+    t_obs = cams.to_rays(xy)
+    coeffs, R_boot, history = bootstrap_poses(
+        batches, blend, cams, t_obs, conf, s, s.bootstrap_iterations, log=log,
+        dR=dR if lambda_rot else None, breaks=breaks)
+    t_boot = time.perf_counter() - t0
+    given = _given_lengths(skeleton, s.limb_lengths) if s.limb_lengths else None
+    lengths = given if given is not None else limb_lengths(blend(coeffs), skeleton,
+                                                           s.symmetric_limbs)
+    lam_limbs = s.lambda_limbs / s.limb_unit ** 2
+    L = np.nan_to_num(lengths)
+    energy, iterations, Rw, stages = 0.0, 0, [], []
+    for b, (ws, idx, batch) in enumerate(batches):
+        T = idx.shape[1]
+        BG = np.eye(T) if s.rotation_basis == "free" else dct_basis(T, s.n_rotation_dct)
+        R_ref, g, dRw, wts = _window_rotation_data(idx, R_boot, dR, weights, BG)
+        obs_batch = batch.with_limb_mask(batch.limb_mask * np.isfinite(lengths))
+        jb = JointBatch(obs_batch, cameras.X0, R_ref, dRw, wts, BG)
+        a, g, E, it = solve_joint(jb, coeffs[b], g, s.sigma2, L, s.lambda_rep, lam_limbs,
+                                  lambda_rot, s.max_iterations, s.tolerance,
+                                  step_tol=s.step_tol)
+        coeffs[b] = a
+        Rw.append(jb.rotations(g)[2])
+        energy += float(np.sum(E))
+        iterations = max(iterations, it)
+    X, views = _blend(batches, coeffs, F, J, s.overlap)
+    R = _blend_rotations(batches, Rw, F, s.overlap)
+    n_views = np.sum(np.isfinite(obs[..., 0]) & (np.nan_to_num(obs[..., 2]) >
+                                                  s.min_confidence), axis=1)
+    X[(views == 0) | (_support(n_views, s.support_frames) < 2)] = np.nan
+    seconds = time.perf_counter() - t0
+    stages.append({"step": "bootstrap", "rounds": s.bootstrap_iterations,
+                   "seconds": t_boot, "last_change_m": history[-1] if history else None})
+    stages.append({"step": "joint", "sigma2": s.sigma2, "lambda_rot": lambda_rot,
+                   "energy": energy, "iterations": iterations, "seconds": seconds - t_boot})
+    return EstimatedRotations(joints=X, n_views=n_views, limb_lengths=lengths, energy=energy,
+                              iterations=iterations, seconds=seconds, solver="joint-lm",
+                              n_windows=len(windows), stages=stages, R=R, R_bootstrap=R_boot,
+                              bootstrap_history=history)

@@ -1,0 +1,375 @@
+"""Frame-to-frame rotations of pan-tilt-zoom cameras from their images.
+
+After Bachmann et al. (alpine skiing), eqs. (12)-(13): a camera that only
+turns about its projection centre (and zooms) maps the background of frame
+``t`` onto frame ``t+1`` by the homography ``H = K_{t+1} dR_cv K_t^{-1}``,
+so ``dR_cv = K_{t+1}^{-1} H K_t``. Per camera and pair of consecutive frames:
+
+1. ORB features (``cv2.ORB_create``) of every frame, computed once and used
+   for both pairs the frame belongs to, *outside* the athlete's box (the box
+   enlarged by ``box_margin`` of its size on every side; boxes in
+   full-resolution px, NaN: no box);
+2. keypoints back to full-resolution px (``x_full = (x + 0.5) / s - 0.5``),
+   undistorted with the camera model (``image_to_ray``; the radial OpenCV
+   model by :func:`photogram.mocap.lens.undistort_radius`) and put on an
+   ideal pinhole image of the same resolution (``K_t``: the model's scale
+   and principal point at the image centre, times ``s``);
+3. Hamming matching, guided by the previous pair's rotation (features within
+   ``search_px`` of their predicted position, mutual best), exhaustive with
+   cross-check for the first pair or when guiding finds too few inliers;
+   RANSAC homography (``cv2.findHomography``, ``ransac_px`` at the image's
+   resolution);
+4. the rotation: ``method="homography"`` is eq. (13), the rotation nearest
+   to ``K_{t+1}^{-1} H K_t`` scaled to determinant 1 (SVD);
+   ``method="rays"`` (default) refits a pure rotation to the homography's
+   inliers (orthogonal Procrustes on the unit rays, inliers re-selected by
+   their reprojection error): with a narrow field of view the perspective
+   terms of H are poorly determined, and eq. (13) inherits their errors
+   (about 0.5 deg per pair on the simulated zoomed cameras, against 0.001
+   deg for the refit). The photogrammetric difference is
+   ``dR = D dR_cv D``, ``D = diag(1, -1, -1)``, with ``R(t+1) = dR[t] R(t)``;
+5. a pair with fewer than ``min_inliers`` inliers failed (its dR is NaN).
+
+Filtering (median 7 and Gaussian sigma 3 of the rotation vectors, as in the
+paper), errors against the truth, the check of a camera and the CSV files
+are in :mod:`photogram.mocap.rotation_series`.
+
+Assumed: the camera does not translate (pan-tilt head turning about the
+projection centre), the background is static and far enough from the
+athlete's box, and the interior orientation of every frame is known (zoom
+read from the lens or estimated beforehand).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.geometry import camera_model
+from photogram.mocap.lens import undistort_radius
+
+__all__ = ["HomographySettings", "RotationDifferences", "rotation_differences",
+           "rotation_from_homography", "rotation_from_rays", "pinhole_matrices",
+           "guided_matches", "undistort_points"]
+
+D = np.diag([1.0, -1.0, -1.0])
+
+
+@dataclass
+class HomographySettings:
+    """Settings of the rotation estimation (module doc).
+
+    ``n_levels``/``scale_factor`` are ORB's pyramid (frame-to-frame zoom
+    changes are small, so few levels suffice), ``fast_threshold`` ORB's FAST
+    threshold (snow has little contrast). ``method``: ``"homography"`` is
+    eq. (13) as in the paper (the rotation nearest to ``K^-1 H K``);
+    ``"rays"`` (default) refits a pure rotation to the RANSAC inliers of the
+    homography (orthogonal Procrustes on the unit rays, twice, re-selecting
+    the inliers by their reprojection error): the perspective terms of H are
+    poorly determined by a narrow field of view, and eq. (13) inherits their
+    errors (see :func:`rotation_from_rays`). ``search_px``: matching is
+    guided by the previous pair's rotation (constant angular velocity): a
+    feature is matched only with features within ``search_px`` of its
+    predicted position (mutual best, Hamming distance <= ``max_hamming``);
+    the first pair, a pair after a failure, or a guided pair with too few
+    inliers is matched exhaustively (cross-checked); 0 disables guiding.
+    """
+
+    n_features: int = 1000
+    ransac_px: float = 2.0
+    min_inliers: int = 30
+    box_margin: float = 0.25
+    median: int = 7
+    sigma: float = 3.0
+    max_failed: float = 0.2
+    n_levels: int = 3
+    scale_factor: float = 1.3
+    fast_threshold: int = 12
+    method: str = "rays"
+    search_px: float = 16.0
+    max_hamming: int = 64
+
+
+@dataclass
+class RotationDifferences:
+    """Rotation differences of one camera.
+
+    ``dR[t]`` (F-1, 3, 3) maps frame t to t+1 (``R(t+1) = dR[t] R(t)``,
+    photogrammetric; NaN where the pair failed); ``inliers``, ``matches``
+    (F-1,) int; ``ok`` (F-1,) bool; ``seconds`` the processing time (CPU of
+    this process, images excluded); ``frames`` = F.
+    """
+
+    dR: np.ndarray
+    inliers: np.ndarray
+    matches: np.ndarray
+    ok: np.ndarray
+    seconds: float
+    frames: int
+
+    @property
+    def pairs(self) -> int:
+        return len(self.ok)
+
+    @property
+    def failed(self) -> int:
+        return int(np.count_nonzero(~self.ok))
+
+    @property
+    def median_inliers(self) -> float:
+        return float(np.median(self.inliers)) if len(self.inliers) else 0.0
+
+
+# --------------------------------------------------------------------------
+def pinhole_matrices(model: str, io, image_scale: float = 1.0) -> np.ndarray:
+    """(F, 3, 3) ideal pinhole matrices of the frames at ``image_scale``:
+    the model's pixels per unit of normalised coordinates and principal
+    point at the centre of the image (``fx, fy, cx, cy`` for opencv), with
+    the pixel-centre convention ``x_s = s (x + 0.5) - 0.5``."""
+    m = camera_model(model)
+    io = np.atleast_2d(np.asarray(io, dtype=float))
+    n, eps = len(io), 1e-6
+    zero = m.ray_to_image(np.zeros((n, 2)), io)
+    fx = (m.ray_to_image(np.tile([eps, 0.0], (n, 1)), io)[:, 0] - zero[:, 0]) / eps
+    fy = (m.ray_to_image(np.tile([0.0, eps], (n, 1)), io)[:, 1] - zero[:, 1]) / eps
+    K = np.zeros((n, 3, 3))
+    s = float(image_scale)
+    K[:, 0, 0], K[:, 1, 1] = s * fx, s * fy
+    K[:, 0, 2], K[:, 1, 2] = s * (zero[:, 0] + 0.5) - 0.5, s * (zero[:, 1] + 0.5) - 0.5
+    K[:, 2, 2] = 1.0
+    return K
+
+
+def rotation_from_homography(H, K0, K1) -> np.ndarray:
+    """Photogrammetric rotation difference (eq. (13)) of a homography H
+    between ideal pixels of frames t (``K0``) and t+1 (``K1``): the rotation
+    nearest to ``K1^{-1} H K0`` (scaled to determinant 1), ``D dR_cv D``."""
+    A = np.linalg.solve(K1, H @ K0)
+    det = np.linalg.det(A)
+    A = A / np.cbrt(det)
+    U, _, Vt = np.linalg.svd(A)
+    R = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    return D @ R @ D
+
+
+def rotation_from_rays(p0, p1, K0, K1, threshold: float, iterations: int = 2):
+    """Rotation difference (photogrammetric ``dR``) fitted to corresponding
+    ideal pixels p0 (frame t) and p1 (frame t+1), (n, 2) each.
+
+    The unit rays ``u = normalise(K^-1 (p, 1))`` give ``dR_cv`` by the
+    orthogonal Procrustes problem (Kabsch: maximise ``sum u1 . dR_cv u0``);
+    the pairs whose reprojection ``K1 dR_cv u0`` misses p1 by more than
+    ``threshold`` px are dropped and the fit repeated (``iterations``).
+
+    Returns
+    -------
+    dR : (3, 3)
+    inliers : (n,) bool
+    """
+    def rays(p, K):
+        r = np.column_stack([p, np.ones(len(p))]) @ np.linalg.inv(K).T
+        return r / np.linalg.norm(r, axis=1, keepdims=True)
+
+    u0, u1 = rays(p0, K0), rays(p1, K1)
+    keep = np.ones(len(p0), bool)
+    R = np.eye(3)
+    for _ in range(iterations + 1):
+        if keep.sum() < 3:
+            break
+        U, _, Vt = np.linalg.svd(u1[keep].T @ u0[keep])
+        R = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+        x = (u0 @ R.T) @ K1.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            err = np.linalg.norm(x[:, :2] / x[:, 2:] - p1, axis=1)
+        keep = err < threshold
+    return D @ R @ D, keep
+
+
+def undistort_points(model: str, xy, io_row) -> np.ndarray:
+    """Normalised coordinates (n, 2) of full-resolution pixels (n, 2) of one
+    frame: ``camera_model(model).image_to_ray``, or for the radial OpenCV
+    model (p1 = p2 = 0) the same values by the faster radius inversion."""
+    xy = np.atleast_2d(np.asarray(xy, dtype=float))
+    io = np.asarray(io_row, dtype=float)
+    if model == "opencv" and io[6] == 0 and io[7] == 0:
+        d = (xy - io[2:4]) / io[0:2]
+        rd = np.hypot(d[:, 0], d[:, 1])
+        ru = undistort_radius(rd, io[4], io[5], io[8])
+        return d * np.where(rd > 0, ru / np.where(rd > 0, rd, 1.0), 1.0)[:, None]
+    return camera_model(model).image_to_ray(xy, np.broadcast_to(io, (len(xy), len(io))))
+
+
+def _mask(shape, box, scale, margin, mask):
+    """Detection mask: 255 outside the enlarged athlete box."""
+    mask[:] = 255
+    if box is None or not np.all(np.isfinite(box)):
+        return mask
+    x0, y0, x1, y1 = (scale * (np.asarray(box, float) + 0.5) - 0.5)
+    mw, mh = margin * (x1 - x0), margin * (y1 - y0)
+    H, W = shape
+    a, b = int(max(0, np.floor(x0 - mw))), int(min(W, np.ceil(x1 + mw) + 1))
+    c, d = int(max(0, np.floor(y0 - mh))), int(min(H, np.ceil(y1 + mh) + 1))
+    if a < b and c < d:
+        mask[c:d, a:b] = 0
+    return mask
+
+
+def rotation_differences(images, model: str, io, image_scale: float = 0.5, boxes=None,
+                         settings: HomographySettings | None = None) -> RotationDifferences:
+    """Rotation differences of consecutive frames of one camera (module doc).
+
+    Parameters
+    ----------
+    images : iterable of ndarray
+        The frames (BGR or grey uint8), e.g. :func:`photogram.mocap.video.read_frames`
+        or :func:`photogram.mocap.render.render_camera`; read once, in order.
+    model : str
+        Camera model name (``camera_model``).
+    io : array_like, (F, p) or (p,)
+        Interior orientation per frame at FULL resolution.
+    image_scale : float
+        Image width / full-resolution width (0.5 for 960 x 540 of 1920 x 1080).
+    boxes : array_like (F, 4), optional
+        Athlete box per frame, full-resolution px ``x0, y0, x1, y1`` (NaN:
+        none); features inside the enlarged box are not used.
+    settings : HomographySettings, optional
+
+    Returns
+    -------
+    RotationDifferences
+    """
+    st = settings or HomographySettings()
+    camera_model(model)                                   # InputError if unknown
+    io = np.atleast_2d(np.asarray(io, dtype=float))
+    boxes = None if boxes is None else np.asarray(boxes, dtype=float).reshape(-1, 4)
+    orb = cv2.ORB_create(nfeatures=st.n_features, scaleFactor=st.scale_factor,
+                         nlevels=st.n_levels, fastThreshold=st.fast_threshold)
+    matcher = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True)
+    s = float(image_scale)
+    dR, inl, nm = [], [], []
+    prev = None
+    mask = None
+    K_all = pinhole_matrices(model, io, s)
+    cpu = 0.0
+    n = 0
+    for img in images:
+        t0 = time.process_time()
+        img = np.asarray(img)
+        grey = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.ndim == 3 else img
+        if mask is None or mask.shape != grey.shape:
+            mask = np.empty(grey.shape, np.uint8)
+        row = io[min(n, len(io) - 1)]
+        box = None if boxes is None else boxes[min(n, len(boxes) - 1)]
+        kps, desc = orb.detectAndCompute(grey, _mask(grey.shape, box, s, st.box_margin, mask))
+        K = K_all[min(n, len(K_all) - 1)]
+        if kps:
+            xy = cv2.KeyPoint_convert(kps).astype(float)
+            full = (xy + 0.5) / s - 0.5
+            t = undistort_points(model, full, row)
+            ideal = t @ K[:2, :2].T + K[:2, 2]
+        else:
+            ideal, desc = np.zeros((0, 2)), None
+        cur = (ideal, desc, K)
+        if prev is not None:
+            last = dR[-1] if dR and inl[-1] >= st.min_inliers else None
+            R, k_in, k_m = _pair(prev, cur, matcher, st, last)
+            dR.append(R)
+            inl.append(k_in)
+            nm.append(k_m)
+        prev = cur
+        n += 1
+        cpu += time.process_time() - t0
+    if n < 2:
+        raise InputError(f"{n} image(s): rotation differences need at least two frames")
+    for name, arr in (("interior orientations", io), ("athlete boxes", boxes)):
+        if arr is not None and len(arr) > 1 and len(arr) != n:
+            raise InputError(f"{len(arr)} {name} for {n} images",
+                             hint="give one row per frame (or a single row)")
+    inl, nm = np.array(inl, int), np.array(nm, int)
+    ok = inl >= st.min_inliers
+    dR = np.array(dR)
+    dR[~ok] = np.nan
+    return RotationDifferences(dR, inl, nm, ok, cpu, n)
+
+
+def guided_matches(p0, d0, p1, d1, H, radius: float, max_hamming: int):
+    """Mutual best matches (i0, i1) of binary descriptors among the features
+    of frame t+1 within ``radius`` px of the positions predicted by the
+    homography H (3, 3) for the features of frame t (vectorised: the
+    features of t+1 are bucketed in cells of ``radius``)."""
+    q = np.column_stack([p0, np.ones(len(p0))]) @ H.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = q[:, :2] / q[:, 2:]
+    good = np.all(np.isfinite(q), axis=1) & np.all(np.abs(q) < 1e6, axis=1)
+    i0 = np.flatnonzero(good)
+    q = q[good]
+    cell1 = np.floor(p1 / radius).astype(np.int64)
+    lo_c = np.minimum(cell1.min(0), np.floor(q.min(0, initial=0) / radius)) - 1
+    span = int(max(cell1[:, 1].max(), np.floor(q[:, 1].max(initial=0) / radius)) - lo_c[1] + 2)
+    key1 = (cell1[:, 0] - lo_c[0]) * span + (cell1[:, 1] - lo_c[1])
+    order = np.argsort(key1, kind="stable")
+    sk = key1[order]
+    c0 = np.floor(q / radius).astype(np.int64) - lo_c
+    off = np.array([dx * span + dy for dx in (-1, 0, 1) for dy in (-1, 0, 1)])
+    keys = (c0[:, 0] * span + c0[:, 1])[:, None] + off[None, :]          # (n, 9)
+    lo = np.searchsorted(sk, keys.ravel(), "left")
+    cnt = np.searchsorted(sk, keys.ravel(), "right") - lo
+    i = np.repeat(np.repeat(np.arange(len(q)), 9), cnt)
+    j = order[np.repeat(lo - np.cumsum(cnt) + cnt, cnt) + np.arange(int(cnt.sum()))]
+    dq = (q[i] - p1[j]).astype(np.float32)
+    close = np.einsum("ij,ij->i", dq, dq) < np.float32(radius * radius)
+    i, j = i[close], j[close]
+    if not len(i):
+        return i, j
+    dist = np.bitwise_count(d0.view(np.uint64)[i0[i]] ^ d1.view(np.uint64)[j]).sum(axis=1)
+    keep = dist <= max_hamming
+    i, j, dist = i0[i[keep]], j[keep], dist[keep].astype(np.int64)
+    big = np.iinfo(np.int64).max
+    best_j = np.full(len(p0), big)                  # dist * 2^32 + j, smallest per i
+    np.minimum.at(best_j, i, (dist << 32) + j)
+    best_i = np.full(len(p1), big)
+    np.minimum.at(best_i, j, (dist << 32) + i)
+    a = np.flatnonzero(best_j < big)
+    b = best_j[a] & 0xFFFFFFFF
+    mutual = (best_i[b] & 0xFFFFFFFF) == a
+    return a[mutual], b[mutual]
+
+
+def _pair(prev, cur, matcher, st, predicted):
+    """(dR, inliers, matches) of one pair; ``predicted`` is the previous
+    pair's dR (or None)."""
+    (p0, d0, K0), (p1, d1, K1) = prev, cur
+    nan = np.full((3, 3), np.nan)
+    if d0 is None or d1 is None or len(d0) < 4 or len(d1) < 4:
+        return nan, 0, 0
+    if predicted is not None and st.search_px > 0:
+        H = K1 @ (D @ predicted @ D) @ np.linalg.inv(K0)
+        i0, i1 = guided_matches(p0, d0, p1, d1, H, st.search_px, st.max_hamming)
+        result = _fit(p0[i0], p1[i1], K0, K1, st)
+        if result[1] >= st.min_inliers:
+            return result
+    matches = matcher.match(d0, d1)
+    i0 = np.fromiter((mt.queryIdx for mt in matches), int, len(matches))
+    i1 = np.fromiter((mt.trainIdx for mt in matches), int, len(matches))
+    return _fit(p0[i0], p1[i1], K0, K1, st)
+
+
+def _fit(a, b, K0, K1, st):
+    nan = np.full((3, 3), np.nan)
+    if len(a) < 4:
+        return nan, 0, len(a)
+    H, inliers = cv2.findHomography(a, b, cv2.RANSAC, st.ransac_px, maxIters=2000,
+                                    confidence=0.999)
+    if H is None:
+        return nan, 0, len(a)
+    if st.method == "homography":
+        return rotation_from_homography(H, K0, K1), int(inliers.sum()), len(a)
+    inl = inliers.ravel().astype(bool)
+    if inl.sum() < 3:
+        return nan, int(inl.sum()), len(a)
+    R, keep = rotation_from_rays(a[inl], b[inl], K0, K1, st.ransac_px)
+    return R, int(keep.sum()), len(a)

@@ -1,0 +1,136 @@
+"""Levenberg-Marquardt on the joint pose and rotation energy
+(:class:`photogram.mocap.joint.JointBatch`), all windows of a batch at once.
+
+Every iteration forms the dense Gauss-Newton model of each window (about
+1000 unknowns with N_Pi = N_Gamma = 11) and solves the damped system
+``(H + mu diag(H)) delta = rhs`` by Cholesky (one factorisation per window
+and trial: a loop over windows, never over observations). As in
+:mod:`photogram.mocap.solvers`, the first ``irls_first`` iterations use the
+plain IRLS model (a majoriser of the robust term) and the later ones Triggs'
+second-order correction; a step is accepted only if it lowers the window's
+energy (mu / 3 after a success, x 10 after a failure); a window stops when
+its relative energy decrease falls below the tolerance or no determined
+joint position moves by more than ``step_tol``. Windows are processed in
+chunks so that the dense matrices of a chunk stay below ~100 MB.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
+
+from photogram.mocap.joint import JointBatch
+
+__all__ = ["solve_joint"]
+
+
+def _chunks(ids, n_unknowns, budget=100e6):
+    size = max(1, int(budget // (8.0 * n_unknowns * n_unknowns)))
+    return [ids[i:i + size] for i in range(0, len(ids), size)]
+
+
+def _mask(batch: JointBatch, nw):
+    """1 for the unknowns a window may change: the pose coefficients of
+    observed joints (``n_coef``), every camera coefficient."""
+    _, C, J, T, KP, KG = batch.sizes
+    mp = np.broadcast_to(batch.obs.mask(KP), (nw, J, 3, KP)).reshape(nw, -1)
+    return np.concatenate([mp, np.ones((nw, C * 3 * KG), bool)], axis=1).astype(float)
+
+
+def _moved(batch: JointBatch, da):
+    d = np.abs(batch.obs.positions(da)).max(axis=2)
+    if batch.obs.support is not None:
+        d = np.where(batch.obs.support, d, 0.0)
+    return d.reshape(len(d), -1).max(axis=1)
+
+
+def _solve_dense(A, b):
+    return cho_solve(cho_factor(A, check_finite=False), b, check_finite=False)
+
+
+def _solve_free(A, b, T, J):
+    """Solve with the pose unknowns eliminated frame by frame: with free
+    points (pose basis = identity) the pose block of the normal matrix is
+    block-diagonal over frames (3J x 3J per frame: joints coupled by the
+    limbs only), so the camera unknowns are solved from the Schur complement
+    and the points back-substituted."""
+    nP = 3 * J * T
+    idx = np.arange(nP).reshape(J, 3, T).transpose(2, 0, 1).reshape(T, 3 * J)
+    blocks = A[idx[:, :, None], idx[:, None, :]]                      # (T, 3J, 3J)
+    Hpc = A[idx, nP:]                                                 # (T, 3J, nC)
+    inv = np.linalg.inv(blocks)
+    bp = b[idx]                                                       # (T, 3J)
+    IH = inv @ Hpc
+    S = A[nP:, nP:] - np.einsum("tpc,tpd->cd", Hpc, IH)
+    y = b[nP:] - np.einsum("tpc,tp->c", IH, bp)
+    dc = _solve_dense(S, y)
+    dp = np.einsum("tpq,tq->tp", inv, bp - Hpc @ dc)
+    out = np.empty_like(b)
+    out[idx] = dp
+    out[nP:] = dc
+    return out
+
+
+def solve_joint(batch: JointBatch, a, g, sigma2, lengths, lambda_rep, lambda_limbs,
+                lambda_rot, max_iter=100, tol=1e-9, irls_first=5, step_tol=0.0,
+                second_order=True):
+    """Minimise the joint energy from coefficients ``a`` (nw, J, 3, K_Pi) and
+    ``g`` (nw, C, 3, K_Gamma); returns (a, g, energies (nw,), iterations)."""
+    a, g = a.copy(), g.copy()
+    nw = a.shape[0]
+    _, C, J, T, KP, KG = batch.sizes
+    free = KP == T and np.array_equal(batch.obs.B, np.eye(T))
+    nP = a[0].size
+    args = (sigma2, lengths, lambda_rep, lambda_limbs, lambda_rot)
+    E = batch.energy(a, g, *args)
+    mu = np.full(nw, 1e-3)
+    active = np.ones(nw, bool)
+    it = 0
+    while active.any() and it < max_iter:
+        it += 1
+        corrected = second_order and it > irls_first
+        for ids in _chunks(np.flatnonzero(active), nP + g[0].size):
+            sub = batch.subset(ids)
+            E0, H, rhs = sub.linearize(a[ids], g[ids], *args, second_order=corrected)
+            m = _mask(sub, len(ids))
+            H *= m[:, :, None] * m[:, None, :]
+            rhs *= m
+            d = np.einsum("wii->wi", H).copy()
+            d += 1e-9 * d.max(axis=1, keepdims=True) + 1e-12
+            H[:, np.arange(H.shape[1]), np.arange(H.shape[1])] += 1.0 - m
+            accepted = np.zeros(len(ids), bool)
+            pending = np.ones(len(ids), bool)
+            new_a, new_g, new_E = a[ids].copy(), g[ids].copy(), E0.copy()
+            for _ in range(12):
+                p = np.flatnonzero(pending)
+                steps = np.zeros((len(p), H.shape[1]))
+                solved = np.zeros(len(p), bool)
+                for n, k in enumerate(p):
+                    A = H[k] + np.diag(mu[ids[k]] * d[k] * m[k])
+                    try:
+                        steps[n] = (_solve_free(A, rhs[k], T, J) if free
+                                    else _solve_dense(A, rhs[k]))
+                        solved[n] = True
+                    except (LinAlgError, np.linalg.LinAlgError):
+                        pass
+                ta = a[ids[p]] + steps[:, :nP].reshape(a[ids[p]].shape)
+                tg = g[ids[p]] + steps[:, nP:].reshape(g[ids[p]].shape)
+                E1 = sub.subset(p).energy(ta, tg, *args)
+                ok = solved & (E1 <= E0[p])
+                new_a[p[ok]], new_g[p[ok]], new_E[p[ok]] = ta[ok], tg[ok], E1[ok]
+                accepted[p[ok]] = True
+                mu[ids[p[ok]]] = np.maximum(mu[ids[p[ok]]] / 3.0, 1e-12)
+                mu[ids[p[~ok]]] *= 10.0
+                pending[p[ok]] = False
+                pending &= mu[ids] < 1e10
+                if not pending.any():
+                    break
+            moved = _moved(sub, new_a - a[ids])
+            a[ids], g[ids] = new_a, new_g
+            rel = (E0 - new_E) / np.maximum(np.abs(E0), 1e-300)
+            E[ids] = new_E
+            done = (accepted & ((rel < tol) | (moved < step_tol))) | ~accepted
+            if second_order and it <= irls_first:
+                done[:] = False
+            active[ids[done]] = False
+    return a, g, E, it

@@ -1,0 +1,246 @@
+"""Filtering, evaluation, checks and files of frame-to-frame camera rotations.
+
+The rotation differences of :mod:`photogram.mocap.homography` (estimated
+from SIMULATED or real images) are filtered as in the paper (median filter
+of 7 pairs and Gaussian smoothing with sigma 3 of the rotation vectors, per
+axis, failed pairs interpolated first), compared with the truth
+(simulation), checked (a camera whose images show too little static
+background is reported), and written to / read from CSV files.
+"""
+
+from __future__ import annotations
+
+import csv
+import io as _io
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d, median_filter
+
+from photogram.errors import GeometryError, InputError
+from photogram.geometry import matrix_to_rodrigues, rodrigues_to_matrix
+from photogram.mocap.homography import HomographySettings, RotationDifferences
+
+__all__ = ["filter_rotation_differences", "rotation_difference_errors",
+           "check_rotation_differences", "write_rotation_differences",
+           "read_rotation_differences"]
+
+
+def filter_rotation_differences(dR, ok, median: int = 7, sigma: float = 3.0,
+                                breaks=()) -> np.ndarray:
+    """Outlier removal and smoothing of rotation differences (the paper's).
+
+    The rotation vectors of ``dR`` (F-1, 3, 3) are filled at the failed
+    pairs (``ok`` False or not finite) by linear interpolation from the
+    neighbouring good pairs (constant beyond the ends), then median filtered
+    (``median`` pairs) and Gaussian smoothed (``sigma`` pairs), per axis.
+    ``breaks`` are frames that start a new segment (a new run): segments are
+    filtered separately and the pair that crosses a break is returned as it
+    is (NaN if it failed).
+
+    Returns
+    -------
+    ndarray (F-1, 3, 3)
+
+    Raises
+    ------
+    GeometryError
+        No pair of a segment has a usable estimate.
+    """
+    dR = np.asarray(dR, dtype=float)
+    ok = np.asarray(ok, bool) & np.all(np.isfinite(dR), axis=(1, 2))
+    n = len(dR)
+    out = dR.copy()
+    edges = sorted({int(b) - 1 for b in breaks if 0 < int(b) <= n})   # crossing pairs
+    start = 0
+    for stop in edges + [n]:
+        seg = np.arange(start, stop)
+        if len(seg):
+            good = ok[seg]
+            if not good.any():
+                raise GeometryError(f"no usable rotation difference in frame pairs "
+                                    f"{start}..{stop - 1}",
+                                    hint="the images show too little static background")
+            r = np.zeros((len(seg), 3))
+            r[good] = matrix_to_rodrigues(dR[seg][good])
+            idx = np.arange(len(seg))
+            for k in range(3):
+                r[:, k] = np.interp(idx, idx[good], r[good, k])
+                if median > 1:
+                    r[:, k] = median_filter(r[:, k], size=median, mode="nearest")
+                if sigma > 0:
+                    r[:, k] = gaussian_filter1d(r[:, k], sigma, mode="nearest")
+            out[seg] = rodrigues_to_matrix(r)
+        start = stop + 1
+    return out
+
+
+def rotation_difference_errors(dR, R_true) -> dict:
+    """Errors of rotation differences against the truth, degrees.
+
+    The error rotation ``dR[t] dR_true[t]^T`` (``dR_true = R(t+1) R(t)^T``)
+    as a rotation vector in the camera frame (x right, y up, z backwards:
+    x is tilt, y pan, z roll). Returns ``{"x": {"median", "p95"}, "y": ...,
+    "z": ..., "angle": ..., "n": pairs}`` over the finite pairs (median and
+    95th percentile of the absolute components and of the angle).
+    """
+    dR = np.asarray(dR, float)
+    R_true = np.asarray(R_true, float)
+    true = R_true[1:] @ np.swapaxes(R_true[:-1], -1, -2)
+    good = np.all(np.isfinite(dR), axis=(1, 2))
+    e = np.degrees(matrix_to_rodrigues(dR[good] @ np.swapaxes(true[good], -1, -2)))
+    out = {"n": int(good.sum())}
+    cols = {"x": np.abs(e[:, 0]), "y": np.abs(e[:, 1]), "z": np.abs(e[:, 2]),
+            "angle": np.linalg.norm(e, axis=1)}
+    for key, v in cols.items():
+        out[key] = ({"median": float(np.median(v)), "p95": float(np.percentile(v, 95))}
+                    if len(v) else {"median": np.nan, "p95": np.nan})
+    return out
+
+
+def check_rotation_differences(rd: RotationDifferences, camera_name: str,
+                               settings: HomographySettings | None = None) -> str:
+    """One line about a camera's estimates; raises when too many pairs failed.
+
+    Returns
+    -------
+    str
+        ``"camera C1: 278 frame pairs, 0 failed, median 412 background inliers"``.
+
+    Raises
+    ------
+    GeometryError
+        More than ``settings.max_failed`` of the pairs have fewer than
+        ``settings.min_inliers`` inliers: the camera's rotations cannot be
+        estimated from its images.
+    """
+    st = settings or HomographySettings()
+    med = rd.median_inliers
+    if rd.pairs and rd.failed > st.max_failed * rd.pairs:
+        raise GeometryError(
+            f"camera {camera_name}: {rd.failed} of {rd.pairs} frame pairs have fewer than "
+            f"{st.min_inliers} background inliers (median {med:.0f}); its rotations cannot "
+            f"be estimated from the images",
+            hint="the view shows too little static texture outside the athlete (sky, "
+                 "uniform snow); give this camera's rotations in camera_frames or check "
+                 "the athlete boxes")
+    return (f"camera {camera_name}: {rd.pairs} frame pairs, {rd.failed} failed, median "
+            f"{med:.0f} background inliers")
+
+
+# --------------------------------------------------------------------------
+_COLUMNS = ["frame", "camera", "rx", "ry", "rz", "inliers", "matches", "ok"]
+
+
+def write_rotation_differences(path, per_camera: dict, first_frame: int = 0) -> Path:
+    """Write rotation differences of several cameras as CSV, atomically.
+
+    One row per camera and pair: ``frame`` (t; the difference maps frame t
+    to t+1, numbered from ``first_frame``), ``camera``, ``rx, ry, rz`` (the
+    rotation vector of ``dR``, photogrammetric, degrees; empty if the pair
+    failed), ``inliers``, ``matches``, ``ok`` (1/0).
+    """
+    path = Path(path)
+    buf = _io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(_COLUMNS)
+    for name, rd in per_camera.items():
+        good = np.all(np.isfinite(rd.dR), axis=(1, 2))
+        r = np.full((len(rd.dR), 3), np.nan)
+        if good.any():
+            r[good] = np.degrees(matrix_to_rodrigues(rd.dR[good]))
+        for t in range(len(rd.dR)):
+            vals = ["" if not np.isfinite(v) else f"{v:.9f}" for v in r[t]]
+            w.writerow([first_frame + t, name, *vals, int(rd.inliers[t]), int(rd.matches[t]),
+                        int(bool(rd.ok[t]))])
+    if not path.parent.is_dir():
+        raise InputError("the folder does not exist", file=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="") as handle:
+            handle.write(buf.getvalue())
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+def read_rotation_differences(path, camera_names, n_frames: int,
+                              first_frame: int = 0) -> dict:
+    """Read :func:`write_rotation_differences`'s CSV.
+
+    Every camera of ``camera_names`` needs the ``n_frames - 1`` pairs
+    ``first_frame .. first_frame + n_frames - 2``; other cameras are an error.
+
+    Returns
+    -------
+    dict
+        ``{camera: RotationDifferences}`` (``seconds`` 0).
+
+    Raises
+    ------
+    InputError
+        Missing file, missing columns, malformed row (``file:line``), unknown
+        camera, frame out of range, duplicate or missing pairs.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("no such file", file=path,
+                         hint="estimate the rotation differences first")
+    names = list(camera_names)
+    P = n_frames - 1
+    data = {c: (np.full((P, 3), np.nan), np.zeros(P, int), np.zeros(P, int),
+                np.zeros(P, bool), np.zeros(P, bool)) for c in names}
+    with open(path, newline="") as handle:
+        rows = csv.reader(handle)
+        header = next(rows, None)
+        if header is None or [h.strip() for h in header] != _COLUMNS:
+            raise InputError("expected the columns " + ",".join(_COLUMNS), file=path, line=1)
+        for line, row in enumerate(rows, start=2):
+            if not row or all(not c.strip() for c in row):
+                continue
+            if len(row) != len(_COLUMNS):
+                raise InputError(f"{len(row)} fields, expected {len(_COLUMNS)}", file=path,
+                                 line=line)
+            cam = row[1].strip()
+            if cam not in data:
+                raise InputError(f"unknown camera {cam!r}", file=path, line=line,
+                                 hint="cameras: " + ", ".join(names))
+            try:
+                t = int(row[0]) - first_frame
+                r = [float(v) if v.strip() else np.nan for v in row[2:5]]
+                k_in, k_m, flag = int(row[5]), int(row[6]), int(row[7])
+            except ValueError:
+                raise InputError("malformed number in " + ",".join(row), file=path,
+                                 line=line) from None
+            if not 0 <= t < P:
+                raise InputError(f"frame {row[0]} outside {first_frame}.."
+                                 f"{first_frame + P - 1}", file=path, line=line)
+            if flag not in (0, 1) or (flag and not np.all(np.isfinite(r))):
+                raise InputError("ok must be 0 or 1, and 1 needs rx, ry, rz", file=path,
+                                 line=line)
+            rv, inl, nm, ok, seen = data[cam]
+            if seen[t]:
+                raise InputError(f"duplicate frame {row[0]} of camera {cam}", file=path,
+                                 line=line)
+            rv[t], inl[t], nm[t], ok[t], seen[t] = r, k_in, k_m, bool(flag), True
+    out = {}
+    for cam, (rv, inl, nm, ok, seen) in data.items():
+        if not seen.all():
+            missing = np.flatnonzero(~seen)[:5] + first_frame
+            raise InputError(f"camera {cam} lacks {np.count_nonzero(~seen)} frame pair(s)",
+                             file=path, hint="first missing frames: "
+                             + ", ".join(str(v) for v in missing))
+        dR = np.full((P, 3, 3), np.nan)
+        good = np.all(np.isfinite(rv), axis=1)
+        dR[good] = rodrigues_to_matrix(np.radians(rv[good]))
+        out[cam] = RotationDifferences(dR, inl, nm, ok, 0.0, n_frames)
+    return out

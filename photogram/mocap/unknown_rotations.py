@@ -1,0 +1,117 @@
+"""``rotation = "estimate"`` in a motion-capture project: the measured
+rotation differences, their check, and the comparison with true rotations.
+
+The differences come either from a table (``rotation_differences`` in
+``[mocap]``, written by an earlier run as ``rotation_differences.csv``) or
+from the camera images (``[mocap.images]``: a video file or a folder of
+images per camera), measured by :mod:`photogram.mocap.homography` outside
+the tracked athlete's box. A camera whose pairs mostly failed (too few
+background features) is reported: a warning in the log and summary.json,
+and its differences get weight 0 (its rotations are then estimated without
+E_rot, from the athlete alone), never silently used.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from photogram.errors import GeometryError
+from photogram.geometry.rotations import rodrigues_to_matrix
+
+__all__ = ["measure_differences", "rotation_errors"]
+
+log = logging.getLogger(__name__)
+
+
+def _from_images(ms, cameras, tracked, frame_range, settings):
+    import itertools
+
+    from photogram.mocap.homography import rotation_differences
+    from photogram.mocap.video import read_frames
+    lo, hi = frame_range
+    out = {}
+    for c, name in enumerate(cameras.names):
+        path = ms.images.get(name) if ms.images else None
+        if path is None:
+            continue
+        t0 = time.perf_counter()
+        boxes = None
+        if tracked[c] is not None:
+            boxes = np.asarray(tracked[c].boxes, float)
+        frames = iter(read_frames(path, frames=range(lo, hi)))
+        first = next(frames, None)
+        if first is None:
+            continue
+        width = cameras.image_size[c][0]
+        scale = first.shape[1] / width if np.isfinite(width) else 1.0
+        io = cameras._io_rows(c, hi - lo)
+        rd = rotation_differences(itertools.chain([first], frames), cameras.models[c], io,
+                                  image_scale=scale, boxes=boxes, settings=settings)
+        out[name] = rd
+        log.info("camera %s: %d frame pairs, %d failed, median %d inliers, %.1f s", name,
+                 len(rd.ok), int(np.sum(~rd.ok)), int(np.median(rd.inliers)) if len(rd.ok)
+                 else 0, time.perf_counter() - t0)
+    return out
+
+
+def measure_differences(ms, cameras, tracked, frame_range, first_frame: int, warnings: list,
+                        breaks=()):
+    """Rotation differences (F-1, C, 3, 3) (filtered: median 7, Gaussian 3),
+    weights (F-1, C) and the per-camera measurements (for the results
+    folder) of the frames ``frame_range`` (start, stop; indices into the
+    detections, whose first frame number is ``first_frame``). A table must
+    hold exactly the pairs of these frames."""
+    from photogram.mocap.homography import HomographySettings
+    from photogram.mocap.rotation_series import (check_rotation_differences,
+                                                 filter_rotation_differences,
+                                                 read_rotation_differences)
+    settings = HomographySettings(**ms.homography)
+    lo, hi = frame_range
+    F, C = hi - lo, cameras.n_cameras
+    if ms.rotation_differences is not None:
+        per = read_rotation_differences(ms.rotation_differences, cameras.names, F,
+                                        first_frame=first_frame + lo)
+    else:
+        per = _from_images(ms, cameras, tracked, frame_range, settings)
+    dR = np.broadcast_to(np.eye(3), (max(F - 1, 0), C, 3, 3)).copy()
+    weights = np.zeros((max(F - 1, 0), C))
+    for c, name in enumerate(cameras.names):
+        rd = per.get(name)
+        if rd is None:
+            warnings.append(f"camera {name}: no images and no rotation differences; its "
+                            f"rotations are estimated from the athlete alone (no E_rot)")
+            continue
+        try:
+            log.info(check_rotation_differences(rd, name, settings))
+        except GeometryError as exc:
+            warnings.append(exc.one_line() + "; its rotations are estimated from the athlete "
+                            "alone (no E_rot)")
+            log.warning(warnings[-1])
+            continue
+        dR[:, c] = filter_rotation_differences(rd.dR, rd.ok, settings.median, settings.sigma,
+                                               breaks)
+        weights[:, c] = np.all(np.isfinite(dR[:, c]), axis=(1, 2))
+        dR[~np.all(np.isfinite(dR), axis=(2, 3))] = np.eye(3)
+    return dR, weights, per
+
+
+def rotation_errors(R, R_true, names) -> dict:
+    """Per camera the median and 95th percentile of the angle (deg) between
+    estimated and true rotations (F, C, 3, 3)."""
+    E = np.einsum("fcab,fcdb->fcad", R, R_true)
+    ang = np.degrees(np.arccos(np.clip((np.trace(E, axis1=2, axis2=3) - 1) / 2, -1, 1)))
+    out = {n: {"median_deg": float(np.median(ang[:, c])),
+               "p95_deg": float(np.percentile(ang[:, c], 95)),
+               "max_deg": float(ang[:, c].max())} for c, n in enumerate(names)}
+    out["all"] = {"median_deg": float(np.median(ang)),
+                  "p95_deg": float(np.percentile(ang, 95))}
+    return out
+
+
+def differences_from_vectors(rvec_deg: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of rotation vectors in degrees."""
+    r = np.radians(np.asarray(rvec_deg, float))
+    return rodrigues_to_matrix(r.reshape(-1, 3)).reshape(r.shape[:-1] + (3, 3))
