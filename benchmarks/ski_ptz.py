@@ -65,42 +65,11 @@ def run(sim, solver):
     return rec, time.perf_counter() - t0, time.process_time() - c0
 
 
-def _camera_differences(sim, c, breaks):
-    import cv2
-
-    from photogram.mocap.homography import rotation_differences
+def measure_differences(sim, source):
+    from photogram.geometry.rotations import rodrigues_to_matrix
     from photogram.mocap.rotation_series import (filter_rotation_differences,
                                                  rotation_difference_errors)
-    from photogram.mocap.render import render_camera
-    from photogram.mocap.scene import build_scene
-    cv2.setNumThreads(1)
-    t0 = time.perf_counter()
-    scene = build_scene(sim, seed=0)
-    images = list(render_camera(scene, sim, c))
-    render_s = time.perf_counter() - t0
-    rd = rotation_differences(iter(images), "opencv", sim.cameras.io[c], image_scale=0.5,
-                              boxes=_boxes(sim, c))
-    filt = filter_rotation_differences(rd.dR, rd.ok, 7, 3.0, breaks)
-    Rt = sim.cameras.R[:, c]
-    return (rd, filt, render_s, rotation_difference_errors(rd.dR, Rt),
-            rotation_difference_errors(filt, Rt))
-
-
-def _boxes(sim, c):
-    """The athlete's box per frame from the detections (full-resolution px)."""
-    xy = sim.observations[:, c, :, :2]
-    with np.errstate(all="ignore"):
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            return np.stack([np.nanmin(xy[..., 0], 1), np.nanmin(xy[..., 1], 1),
-                             np.nanmax(xy[..., 0], 1), np.nanmax(xy[..., 1], 1)], -1)
-
-
-def measure_differences(sim, source):
-    from joblib import Parallel, delayed
-
-    from photogram.geometry.rotations import rodrigues_to_matrix
+    from photogram.mocap.simimages import simulated_differences
     F, C = sim.observations.shape[:2]
     R = sim.cameras.R
     true = R[1:] @ np.swapaxes(R[:-1], -1, -2)
@@ -109,10 +78,15 @@ def measure_differences(sim, source):
         noise = rodrigues_to_matrix(rng.normal(0, np.radians(0.02), (F - 1) * C * 3
                                                ).reshape(-1, 3)).reshape(true.shape)
         return noise @ true, {}
-    out = Parallel(n_jobs=2)(delayed(_camera_differences)(sim, c, sim.breaks) for c in range(C))
+    per, render_s = simulated_differences(sim, n_jobs=2)
+    out = []
+    for c, rd in enumerate(per.values()):
+        filt = filter_rotation_differences(rd.dR, rd.ok, 7, 3.0, sim.breaks)
+        out.append((rd, filt, 0.0, rotation_difference_errors(rd.dR, R[:, c]),
+                    rotation_difference_errors(filt, R[:, c])))
     dR = np.stack([o[1] for o in out], 1)
     info = {"pairs": sum(o[0].pairs for o in out), "failed": sum(o[0].failed for o in out),
-            "cpu_s": sum(o[0].seconds for o in out), "render_s": sum(o[2] for o in out),
+            "cpu_s": sum(o[0].seconds for o in out), "render_s": render_s,
             "raw": [o[3] for o in out], "filtered": [o[4] for o in out],
             "inliers": [o[0].median_inliers for o in out]}
     for c, o in enumerate(out):
@@ -166,16 +140,18 @@ def main_estimate(args):
     for key in ("joints", "observations", "image_truth", "outlier", "swapped"):
         setattr(sub, key, getattr(sim, key)[:n])
     sub.cameras, sub.breaks = sim.cameras.select_frames(np.arange(n)), []
-    for name in ("ours", "ours-a", "ours-b"):
-        pose, rot, prior = ABLATIONS[name]
-        s = estimate_settings(pose_basis=pose, rotation_basis=rot, rotation_prior=prior)
+    for name in ("ours", "ours-lbfgs", "ours-a", "ours-b"):
+        pose, rot, prior = ABLATIONS[name.replace("-lbfgs", "")]
+        s = estimate_settings(pose_basis=pose, rotation_basis=rot, rotation_prior=prior,
+                              solver="lbfgs" if name.endswith("lbfgs") else "gauss-newton")
         t1 = time.perf_counter()
         rec = estimate_poses_and_rotations(sub.observations, sub.cameras, SKI24, dR[:n - 1],
                                            None, s)
         acc = evaluate(rec, sub)
         rows[name + f"@{n}"] = (rec, time.perf_counter() - t1, acc, None)
         print(f"{name + '@' + str(n):>12}: MPJPE {acc['mpjpe']:.3f} m (hip-centred body "
-              f"{acc['mpjpe_hip_body']:.4f} m), speed MAE {acc['speed_mae']:.3f} m/s, "
+              f"{acc['mpjpe_hip_body']:.4f} m), speed MAE {acc['speed_mae']:.3f} m/s, energy "
+              f"{rec.energy:.1f}, {rec.iterations} iterations, "
               f"{time.perf_counter() - t1:.1f} s")
     rec, wall, acc, re = rows["ours"]
     worse = rows["no-erot"][2]["mpjpe"] / acc["mpjpe"]
@@ -189,6 +165,9 @@ def main_estimate(args):
             f"{rows['no-erot'][2]['mpjpe']:.3f} no_erot_ratio={worse:.1f} time_s={wall:.1f}")
     for name in ("ours", "ours-a", "ours-b"):
         line += f" {name.replace('-', '_')}{n}_mpjpe_m={rows[name + f'@{n}'][2]['mpjpe']:.3f}"
+    lm, lb = rows[f"ours@{n}"], rows[f"ours-lbfgs@{n}"]
+    line += (f" lm{n}_energy={lm[0].energy:.1f} lm{n}_s={lm[1]:.1f} lbfgs{n}_energy="
+             f"{lb[0].energy:.1f} lbfgs{n}_s={lb[1]:.1f}")
     if info:
         line += (f" homography_fps_per_core={fps:.0f} dR_err_median_deg="
                  f"{np.median([r['angle']['median'] for r in info['filtered']]):.4f}")

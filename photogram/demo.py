@@ -8,7 +8,9 @@ projects, in the order a user runs it.
 4. ``montecarlo projects/jumps/montecarlo.prj --runs 200``  accuracy by
    simulation of orient + intersect, Monte Carlo versus propagated sigmas
 5. ``mocap projects/ski-ptz/ski-ptz.prj``  markerless motion capture of a
-   simulated giant-slalom run (6 pan-tilt cameras, known rotations)
+   simulated giant-slalom run (6 pan-tilt cameras, known rotations), and
+   ``mocap projects/ski-ptz/ski-ptz-estimate.prj`` the same with the rotations
+   unknown (estimated from rotation differences measured on rendered images)
 6. ``calibrate projects/camcal/camcal.prj``  DBAT's real CAMCAL network, and
    ``mocap projects/pose2sim-demo/demo.prj``  Pose2Sim's real demo, when
    ../shared/data is present beside the repository
@@ -53,6 +55,7 @@ def steps():
             ("intersect", intersect_and_write, PROJECTS / "jumps" / "jumps.prj", None),
             ("montecarlo", _montecarlo, PROJECTS / "jumps" / "montecarlo.prj", None),
             ("mocap", _mocap, PROJECTS / "ski-ptz" / "ski-ptz.prj", None),
+            ("mocap", _mocap, PROJECTS / "ski-ptz" / "ski-ptz-estimate.prj", None),
             ("calibrate", calibrate, PROJECTS / "camcal" / "camcal.prj",
              ROOT.parent / "shared" / "data" / "dbat" / "camcal"),
             ("mocap", _mocap, PROJECTS / "pose2sim-demo" / "demo.prj",

@@ -62,6 +62,7 @@ def bearing_adjustment(X0, Q, m, P, R0, robust=0.01, iterations=50, tol=1e-10,
     up"). Without it the bearings of a short path (60 frames, 20 m) fit an
     upside-down mirror solution better than the truth."""
     ok = np.all(np.isfinite(m), axis=-1)
+    ok &= (ok.sum(axis=1) >= 2)[:, None]            # a point needs two rays
     m = np.where(ok[..., None], m, 0.0)
     m = m / np.maximum(np.linalg.norm(m, axis=-1, keepdims=True), 1e-300)
     P, R0 = P.copy(), R0.copy()

@@ -34,7 +34,7 @@ from photogram.simulation.network import look_at
 
 __all__ = ["aim_cameras", "athlete_directions", "bootstrap_poses", "apparent_size",
            "size_trilateration", "chain_rotations", "procrustes_cameras",
-           "triangulate_directions", "level_start"]
+           "triangulate_directions", "level_start", "fill_path"]
 
 
 def athlete_directions(t_obs: np.ndarray, conf: np.ndarray) -> np.ndarray:
@@ -198,16 +198,36 @@ def level_start(X0, P, directions, Q, breaks=()) -> np.ndarray:
     return R
 
 
-def triangulate_directions(X0, R, directions) -> np.ndarray:
+def triangulate_directions(X0, R, directions, min_eig: float = 0.01):
     """Least-squares intersection (F, 3) of the rays from X0 (C, 3) along the
-    world directions ``R^T d`` (NaN directions left out)."""
+    world directions ``R^T d`` (NaN directions left out), and whether it is
+    determined (F,): at least two rays whose normal matrix ``sum(I - u u^T)``
+    has its smallest eigenvalue above ``min_eig`` (rays at least ~6 deg
+    apart)."""
     u = np.einsum("fcba,fcb->fca", R, directions)
     ok = np.all(np.isfinite(u), axis=-1)
     u = np.where(ok[..., None], u, 0.0)
     Pm = (np.eye(3) - u[..., :, None] * u[..., None, :]) * ok[..., None, None]
-    A = Pm.sum(axis=1) + 1e-9 * np.eye(3)
+    A = Pm.sum(axis=1)
+    good = (ok.sum(axis=1) >= 2) & (np.linalg.eigvalsh(A)[:, 0] > min_eig)
     rhs = np.einsum("fcab,cb->fa", Pm, X0)
-    return np.linalg.solve(A, rhs[..., None])[..., 0]
+    return np.linalg.solve(A + 1e-9 * np.eye(3), rhs[..., None])[..., 0], good
+
+
+def fill_path(P, good, breaks=()) -> np.ndarray:
+    """P (F, 3) with the frames that are not ``good`` interpolated linearly
+    from the good ones of their segment (constant beyond the ends; the
+    centre of the segment's good frames if none is good... kept as is)."""
+    P = P.copy()
+    F = len(P)
+    for s, e in _segments(F, breaks):
+        g = np.flatnonzero(good[s:e])
+        if len(g) == 0 or len(g) == e - s:
+            continue
+        t = np.arange(e - s)
+        for k in range(3):
+            P[s:e, k] = np.interp(t, g, P[s:e, k][g])
+    return P
 
 
 def _joint_directions(t_obs, conf):
@@ -278,9 +298,11 @@ def bootstrap_poses(batches, blend, cameras: MocapCameras, t_obs, conf, settings
     if Q is not None:
         R = level_start(X0, P, directions, Q, breaks)
         for s, e in _segments(F, breaks):
-            P[s:e], R0, _ = bearing_adjustment(X0, Q[s:e], directions[s:e], P[s:e],
-                                               np.linalg.inv(Q[s]) @ R[s])
+            _, R0, _ = bearing_adjustment(X0, Q[s:e], directions[s:e], P[s:e],
+                                          np.linalg.inv(Q[s]) @ R[s])
             R[s:e] = Q[s:e] @ R0[None]
+        P_tri, good = triangulate_directions(X0, R, directions)
+        P = fill_path(P_tri, good, breaks)
     else:
         R = aim_cameras(X0, P, directions)
     coeffs = []

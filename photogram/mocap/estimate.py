@@ -39,7 +39,7 @@ from photogram.mocap.camera_motion import euler_from_matrices
 from photogram.mocap.cameras import MocapCameras
 from photogram.mocap.dct import blend_weights, dct_basis
 from photogram.mocap.joint import JointBatch
-from photogram.mocap.joint_solver import solve_joint
+from photogram.mocap.joint_solver import solve_joint, solve_joint_lbfgs
 from photogram.mocap.reconstruct import (Reconstruction, ReconstructionSettings, _batches,
                                          _blend, _given_lengths, _support, limb_lengths)
 from photogram.mocap.skeleton import Skeleton
@@ -182,9 +182,13 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
         R_ref, g, dRw, wts = _window_rotation_data(idx, R_boot, dR, weights, BG)
         obs_batch = batch.with_limb_mask(batch.limb_mask * np.isfinite(lengths))
         jb = JointBatch(obs_batch, cameras.X0, R_ref, dRw, wts, BG)
-        a, g, E, it = solve_joint(jb, coeffs[b], g, s.sigma2, L, s.lambda_rep, lam_limbs,
-                                  lambda_rot, s.max_iterations, s.tolerance,
-                                  step_tol=s.step_tol)
+        if s.solver == "lbfgs":       # the paper's, for comparison (1500 iterations)
+            a, g, E, it = solve_joint_lbfgs(jb, coeffs[b], g, s.sigma2, L, s.lambda_rep,
+                                            lam_limbs, lambda_rot, 15 * s.max_iterations)
+        else:
+            a, g, E, it = solve_joint(jb, coeffs[b], g, s.sigma2, L, s.lambda_rep, lam_limbs,
+                                      lambda_rot, s.max_iterations, s.tolerance,
+                                      step_tol=s.step_tol)
         coeffs[b] = a
         Rw.append(jb.rotations(g)[2])
         energy += float(np.sum(E))
@@ -200,6 +204,7 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
     stages.append({"step": "joint", "sigma2": s.sigma2, "lambda_rot": lambda_rot,
                    "energy": energy, "iterations": iterations, "seconds": seconds - t_boot})
     return EstimatedRotations(joints=X, n_views=n_views, limb_lengths=lengths, energy=energy,
-                              iterations=iterations, seconds=seconds, solver="joint-lm",
+                              iterations=iterations, seconds=seconds,
+                              solver="joint-lbfgs" if s.solver == "lbfgs" else "joint-lm",
                               n_windows=len(windows), stages=stages, R=R, R_bootstrap=R_boot,
                               bootstrap_history=history)

@@ -151,9 +151,11 @@ class JointBatch:
                     Jx0=Jx0, Jx1=Jx1, Jg0=Jg0, Jg1=Jg1)
 
     def linearize(self, a, g, sigma2, lengths, lambda_rep, lambda_limbs, lambda_rot,
-                  second_order=True):
+                  second_order=True, hessian=True):
         """Energy (nw,), dense normal matrix (nw, n, n) and right-hand side
-        (nw, n) over ``[a.ravel(), g.ravel()]`` per window."""
+        (nw, n) over ``[a.ravel(), g.ravel()]`` per window (the gradient of
+        the energy is ``-2 rhs``); ``hessian`` False skips the matrix (None),
+        for the L-BFGS comparison."""
         nw, C, J, T, KP, KG = self.sizes
         q = self.residual_jacobians(a, g, sigma2, lambda_rep)
         r0, r1, e2 = q["r0"], q["r1"], q["e2"]
@@ -173,7 +175,7 @@ class JointBatch:
         Mpp = np.empty((nw, J, 3, 3, T))
         Mcc = np.empty((nw, C, 3, 3, T))
         Q = np.empty((nw, J, C, 3, 3, T))
-        for i in range(3):
+        for i in range(3 if hessian else 0):
             for k in range(3):
                 if k >= i:
                     Mpp[:, :, i, k] = Mpp[:, :, k, i] = np.sum(block(i, k), axis=1)
@@ -183,10 +185,11 @@ class JointBatch:
         gc = np.stack([np.sum(W * JtR[3 + i], axis=2) for i in range(3)], axis=2)  # (nw,C,3,T)
         BP, BG = self.obs.B, self.BG
         nP, nC = J * 3 * KP, C * 3 * KG
-        Hpp = np.zeros((nw, J, 3 * KP, J, 3 * KP))
+        Hpp = np.zeros((nw, J, 3 * KP, J, 3 * KP) if hessian else (nw, J, 1, J, 1))
         jj = np.arange(J)
-        Hpp[:, jj, :, jj, :] = _kron_blocks(Mpp, BP, BP).reshape(
-            nw, J, 3 * KP, 3 * KP).transpose(1, 0, 2, 3)
+        if hessian:
+            Hpp[:, jj, :, jj, :] = _kron_blocks(Mpp, BP, BP).reshape(
+                nw, J, 3 * KP, 3 * KP).transpose(1, 0, 2, 3)
         rp = -(gp.reshape(-1, T) @ BP).reshape(nw, J, 3, KP)
         Etot = q["E"].copy()
         limbs = self.obs.limbs
@@ -197,7 +200,8 @@ class JointBatch:
                 nw, len(limbs), 3, KP)
             lw = lambda_limbs * self.obs.limb_mask
             Ml = lw[:, :, None, None, None] * ul[:, :, :, None, :] * ul[:, :, None, :, :]
-            Hl = _kron_blocks(Ml, BP, BP).reshape(nw, len(limbs), 3 * KP, 3 * KP)
+            Hl = _kron_blocks(Ml, BP, BP).reshape(nw, len(limbs), 3 * KP, 3 * KP) \
+                if hessian else np.zeros((nw, len(limbs), 1, 1))
             for m, (p, s) in enumerate(limbs):
                 rp[:, p] -= gl[:, m]
                 rp[:, s] += gl[:, m]
@@ -205,9 +209,8 @@ class JointBatch:
                 Hpp[:, s, :, s, :] += Hl[:, m]
                 Hpp[:, p, :, s, :] -= Hl[:, m]
                 Hpp[:, s, :, p, :] -= Hl[:, m]
-        Hcc = np.zeros((nw, C, 3 * KG, C, 3 * KG))
         cc = np.arange(C)
-        Hc_diag = _kron_blocks(Mcc, BG, BG).reshape(nw, C, 3 * KG, 3 * KG)
+        Hc_diag = _kron_blocks(Mcc, BG, BG).reshape(nw, C, 3 * KG, 3 * KG) if hessian else 0.0
         rc = -(gc.reshape(-1, T) @ BG).reshape(nw, C, 3, KG)
         if lambda_rot:
             r, D0, D1 = self._rot(q["E_rot"], q["dE"], True)          # (nw,C,T-1,3[,3])
@@ -215,9 +218,14 @@ class JointBatch:
             # Jacobian with respect to the coefficients: (nw, C, T-1, 3, 3, KG)
             Jr = D0[..., None] * BG[:-1, None, None, :] + D1[..., None] * BG[1:, None, None, :]
             Jr = Jr.reshape(nw, C, T - 1, 3, 3 * KG)
-            Hc_diag = Hc_diag + np.einsum("wctik,wctil->wckl", w * Jr, Jr)
+            if hessian:
+                Hc_diag = Hc_diag + np.einsum("wctik,wctil->wckl", w * Jr, Jr)
             rc = rc - np.einsum("wctik,wcti->wck", w * Jr, r).reshape(nw, C, 3, KG)
             Etot += lambda_rot * np.sum(self.rot_w[..., None] * r * r, axis=(1, 2, 3))
+        rhs = np.concatenate([rp.reshape(nw, nP), rc.reshape(nw, nC)], axis=1)
+        if not hessian:
+            return Etot, None, rhs
+        Hcc = np.zeros((nw, C, 3 * KG, C, 3 * KG))
         Hcc[:, cc, :, cc, :] = Hc_diag.transpose(1, 0, 2, 3)
         Hpc = _kron_blocks(Q, BP, BG)                       # (nw,J,C,3,KP,3,KG)
         Hpc = Hpc.transpose(0, 1, 3, 4, 2, 5, 6).reshape(nw, nP, nC)
@@ -226,5 +234,4 @@ class JointBatch:
         H[:, nP:, nP:] = Hcc.reshape(nw, nC, nC)
         H[:, :nP, nP:] = Hpc
         H[:, nP:, :nP] = Hpc.transpose(0, 2, 1)
-        rhs = np.concatenate([rp.reshape(nw, nP), rc.reshape(nw, nC)], axis=1)
         return Etot, H, rhs

@@ -21,7 +21,7 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from photogram.mocap.joint import JointBatch
 
-__all__ = ["solve_joint"]
+__all__ = ["solve_joint", "solve_joint_lbfgs"]
 
 
 def _chunks(ids, n_unknowns, budget=100e6):
@@ -134,3 +134,31 @@ def solve_joint(batch: JointBatch, a, g, sigma2, lengths, lambda_rep, lambda_lim
                 done[:] = False
             active[ids[done]] = False
     return a, g, E, it
+
+
+def solve_joint_lbfgs(batch: JointBatch, a, g, sigma2, lengths, lambda_rep, lambda_limbs,
+                      lambda_rot, max_iter=1500, tol=1e-12):
+    """The paper's solver for comparison: L-BFGS (scipy, ``maxcor`` 20) on
+    the sum of the window energies with the analytic gradient (``-2 rhs`` of
+    :meth:`JointBatch.linearize` without the matrix), ``max_iter``
+    iterations (the paper ran 1500); returns (a, g, energies, iterations)."""
+    from scipy.optimize import minimize
+    nw = a.shape[0]
+    nP = a[0].size
+    mask = _mask(batch, nw)
+    args = (sigma2, lengths, lambda_rep, lambda_limbs, lambda_rot)
+
+    def split(x):
+        x = x.reshape(nw, -1)
+        return x[:, :nP].reshape(a.shape), x[:, nP:].reshape(g.shape)
+
+    def fun(x):
+        E, _, rhs = batch.linearize(*split(x), *args, second_order=False, hessian=False)
+        return float(np.sum(E)), (-2.0 * rhs * mask).ravel()
+
+    x0 = np.concatenate([a.reshape(nw, -1), g.reshape(nw, -1)], axis=1).ravel()
+    res = minimize(fun, x0, jac=True, method="L-BFGS-B",
+                   options={"maxiter": max_iter, "maxcor": 20, "ftol": tol, "gtol": 1e-12,
+                            "maxfun": 2 * max_iter})
+    a1, g1 = split(res.x)
+    return a1, g1, batch.energy(a1, g1, *args), int(res.nit)

@@ -105,7 +105,7 @@ def _rotation_summary(result) -> dict:
     out = {"mode": "estimate", "cameras": cams,
            "bootstrap_last_change_m": rec.bootstrap_history[-1] if rec.bootstrap_history
            else None, "rotations_file": "rotations.csv"}
-    for key in ("rotation_errors", "rotation_errors_bootstrap"):
+    for key in ("rotation_errors", "rotation_errors_bootstrap", "difference_errors_deg"):
         if key in result.info:
             out[key] = result.info[key]
     return out

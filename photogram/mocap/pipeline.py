@@ -193,6 +193,11 @@ def run_mocap(project) -> MocapResult:
                                                          cameras.names)
         result.info["rotation_errors_bootstrap"] = rotation_errors(
             rec.R_bootstrap, truth.rotations(len(frames)), cameras.names)["all"]
+        from photogram.mocap.rotation_series import rotation_difference_errors
+        Rt = truth.rotations(len(frames))
+        result.info["difference_errors_deg"] = {
+            name: rotation_difference_errors(rd.dR, Rt[:, cameras.index(name)])
+            for name, rd in rotation_info["differences"].items()}
     if ms.truth is not None:
         _compare_truth(result, ms)
     if ms.reference_trc is not None:

@@ -134,16 +134,20 @@ def check_rotation_differences(rd: RotationDifferences, camera_name: str,
 _COLUMNS = ["frame", "camera", "rx", "ry", "rz", "inliers", "matches", "ok"]
 
 
-def write_rotation_differences(path, per_camera: dict, first_frame: int = 0) -> Path:
+def write_rotation_differences(path, per_camera: dict, first_frame: int = 0,
+                               comment: str = "") -> Path:
     """Write rotation differences of several cameras as CSV, atomically.
 
     One row per camera and pair: ``frame`` (t; the difference maps frame t
     to t+1, numbered from ``first_frame``), ``camera``, ``rx, ry, rz`` (the
     rotation vector of ``dR``, photogrammetric, degrees; empty if the pair
-    failed), ``inliers``, ``matches``, ``ok`` (1/0).
+    failed), ``inliers``, ``matches``, ``ok`` (1/0). ``comment`` lines go
+    first, each prefixed with ``# `` (the reader skips them).
     """
     path = Path(path)
     buf = _io.StringIO()
+    for text in comment.splitlines():
+        buf.write(f"# {text}\n")
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(_COLUMNS)
     for name, rd in per_camera.items():
@@ -200,38 +204,43 @@ def read_rotation_differences(path, camera_names, n_frames: int,
     data = {c: (np.full((P, 3), np.nan), np.zeros(P, int), np.zeros(P, int),
                 np.zeros(P, bool), np.zeros(P, bool)) for c in names}
     with open(path, newline="") as handle:
-        rows = csv.reader(handle)
-        header = next(rows, None)
-        if header is None or [h.strip() for h in header] != _COLUMNS:
-            raise InputError("expected the columns " + ",".join(_COLUMNS), file=path, line=1)
-        for line, row in enumerate(rows, start=2):
-            if not row or all(not c.strip() for c in row):
-                continue
-            if len(row) != len(_COLUMNS):
-                raise InputError(f"{len(row)} fields, expected {len(_COLUMNS)}", file=path,
-                                 line=line)
-            cam = row[1].strip()
-            if cam not in data:
-                raise InputError(f"unknown camera {cam!r}", file=path, line=line,
-                                 hint="cameras: " + ", ".join(names))
-            try:
-                t = int(row[0]) - first_frame
-                r = [float(v) if v.strip() else np.nan for v in row[2:5]]
-                k_in, k_m, flag = int(row[5]), int(row[6]), int(row[7])
-            except ValueError:
-                raise InputError("malformed number in " + ",".join(row), file=path,
-                                 line=line) from None
-            if not 0 <= t < P:
-                raise InputError(f"frame {row[0]} outside {first_frame}.."
-                                 f"{first_frame + P - 1}", file=path, line=line)
-            if flag not in (0, 1) or (flag and not np.all(np.isfinite(r))):
-                raise InputError("ok must be 0 or 1, and 1 needs rx, ry, rz", file=path,
-                                 line=line)
-            rv, inl, nm, ok, seen = data[cam]
-            if seen[t]:
-                raise InputError(f"duplicate frame {row[0]} of camera {cam}", file=path,
-                                 line=line)
-            rv[t], inl[t], nm[t], ok[t], seen[t] = r, k_in, k_m, bool(flag), True
+        lines = handle.read().splitlines()
+    skip = 0
+    while skip < len(lines) and lines[skip].lstrip().startswith("#"):
+        skip += 1
+    rows = csv.reader(lines[skip:])
+    header = next(rows, None)
+    if header is None or [h.strip() for h in header] != _COLUMNS:
+        raise InputError("expected the columns " + ",".join(_COLUMNS), file=path,
+                         line=skip + 1)
+    for line, row in enumerate(rows, start=skip + 2):
+        if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
+            continue
+        if len(row) != len(_COLUMNS):
+            raise InputError(f"{len(row)} fields, expected {len(_COLUMNS)}", file=path,
+                             line=line)
+        cam = row[1].strip()
+        if cam not in data:
+            raise InputError(f"unknown camera {cam!r}", file=path, line=line,
+                             hint="cameras: " + ", ".join(names))
+        try:
+            t = int(row[0]) - first_frame
+            r = [float(v) if v.strip() else np.nan for v in row[2:5]]
+            k_in, k_m, flag = int(row[5]), int(row[6]), int(row[7])
+        except ValueError:
+            raise InputError("malformed number in " + ",".join(row), file=path,
+                             line=line) from None
+        if not 0 <= t < P:
+            raise InputError(f"frame {row[0]} outside {first_frame}.."
+                             f"{first_frame + P - 1}", file=path, line=line)
+        if flag not in (0, 1) or (flag and not np.all(np.isfinite(r))):
+            raise InputError("ok must be 0 or 1, and 1 needs rx, ry, rz", file=path,
+                             line=line)
+        rv, inl, nm, ok, seen = data[cam]
+        if seen[t]:
+            raise InputError(f"duplicate frame {row[0]} of camera {cam}", file=path,
+                             line=line)
+        rv[t], inl[t], nm[t], ok[t], seen[t] = r, k_in, k_m, bool(flag), True
     out = {}
     for cam, (rv, inl, nm, ok, seen) in data.items():
         if not seen.all():

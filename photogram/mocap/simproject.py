@@ -22,7 +22,7 @@ from photogram.mocap.simulate import SkiSimulation
 from photogram.mocap.skeleton import SKI24
 from photogram.project.atomic import atomic_write_text
 
-__all__ = ["write_simulated_project"]
+__all__ = ["write_simulated_project", "write_estimate_project"]
 
 
 def _csv(header, rows, comment):
@@ -103,3 +103,24 @@ def write_simulated_project(sim: SkiSimulation, folder: Path, name: str = "ski-p
     written.append(atomic_write_text(folder / "truth" / "outliers.csv", _csv(
         ["frame", "camera", "joint", "kind"], rows, head)))
     return written
+
+
+def write_estimate_project(sim: SkiSimulation, folder: Path, name: str = "ski-ptz",
+                           command: str = "projects/ski-ptz/generate.py") -> Path:
+    """``<name>-estimate.prj``: the project of :func:`write_simulated_project`
+    with the rotations unknown (``rotation = "estimate"``): the zoom from
+    ``camera_frames.csv`` (its angles are not read), the rotation
+    differences from ``rotation_differences.csv`` (measured on rendered
+    images), and the known rotations as ``truth_rotations``."""
+    text = (Path(folder) / f"{name}.prj").read_text(encoding="utf-8")
+    text = text.replace(f"# Run: photogram mocap projects/{name}/{name}.prj",
+                        f"# Rotations UNKNOWN (estimated). Run: photogram mocap "
+                        f"projects/{name}/{name}-estimate.prj")
+    text = text.replace(
+        'camera_frames = "camera_frames.csv"   # rotations and zoom per frame (known)',
+        'rotation = "estimate"                 # rotations unknown: estimated with the poses\n'
+        'camera_frames = "camera_frames.csv"   # the zoom per frame (its angles are not read)\n'
+        'rotation_differences = "rotation_differences.csv"   # measured on rendered images\n'
+        'truth_rotations = "camera_frames.csv" # the true rotations, for the comparison')
+    text = text.replace('folder = "results"', 'folder = "results-estimate"')
+    return atomic_write_text(Path(folder) / f"{name}-estimate.prj", text)

@@ -4,7 +4,9 @@ A giant-slalom run with three turns (279 frames at 50 fps, 15.5-19.5 m/s),
 a 24-joint skier with skis and poles, six pan-tilt-zoom cameras on a circle
 of 40 m radius around the course that follow the athlete (known rotations
 and zoom per frame), noisy 2D detections with confidences, 5 % outliers and
-occasional left/right swaps; the truth in truth/. The scene is described in
+occasional left/right swaps; the truth in truth/; the camera images are
+rendered and the rotation differences measured on them for the project
+with unknown rotations (ski-ptz-estimate.prj). The scene is described in
 photogram/mocap/simulate.py, the files in photogram/mocap/simproject.py.
 
 Run:  .venv/bin/python projects/ski-ptz/generate.py [--out DIR] [--runs N]
@@ -19,7 +21,9 @@ import argparse
 from pathlib import Path
 
 import photogram  # noqa: F401  (one BLAS thread before numpy)
-from photogram.mocap.simproject import write_simulated_project
+from photogram.mocap.rotation_series import write_rotation_differences
+from photogram.mocap.simimages import simulated_differences
+from photogram.mocap.simproject import write_estimate_project, write_simulated_project
 from photogram.mocap.simulate import simulate_session
 
 SEED = 8
@@ -30,10 +34,21 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=HERE, help="folder to write (default: here)")
     ap.add_argument("--runs", type=int, default=1, help="runs of 279 frames (default 1)")
+    ap.add_argument("--no-differences", action="store_true",
+                    help="skip rendering the images and measuring the rotation differences")
     args = ap.parse_args(argv)
     sim = simulate_session(seed=SEED, n_runs=args.runs)
     for path in write_simulated_project(sim, args.out):
         print(path)
+    if not args.no_differences:
+        per, _ = simulated_differences(sim, n_jobs=2)
+        print(write_rotation_differences(
+            args.out / "rotation_differences.csv", per, comment=(
+                f"SIMULATED data (photogram.mocap.simulate, seed {SEED}): not measured.\n"
+                "Written by projects/ski-ptz/generate.py: the camera images rendered by "
+                "photogram.mocap.render (960 x 540),\nthe rotation differences measured on "
+                "them by photogram.mocap.homography (raw; photogram filters them).")))
+        print(write_estimate_project(sim, args.out))
 
 
 if __name__ == "__main__":
