@@ -86,7 +86,15 @@ def _common_options() -> argparse.ArgumentParser:
     return common
 
 
+#: commands that write a results folder (guarded by photogram.project.output_policy)
+WRITERS = {"calibrate": False, "orient": False, "intersect": False, "montecarlo": True,
+           "mocap": True}        # command -> resumable
+
+
 def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
+    if name in WRITERS:
+        sub.add_argument("--force", action="store_true",
+                         help="replace the results of an earlier run in the output folder")
     if name == "check":
         sub.add_argument("--force", action="store_true",
                          help="with --output: replace existing files")
@@ -183,6 +191,15 @@ def run_command(args: argparse.Namespace) -> int:
     project = read_project(args.project)
     if args.output is not None and args.command != "check":
         project.output.folder = str(Path(args.output).absolute())
+    if args.command in WRITERS:
+        from photogram.project.output_policy import claim_output, project_inputs
+        folder = project.output_folder()
+        mode = claim_output(folder, command=args.command, inputs=project_inputs(project),
+                            force=args.force, resumable=WRITERS[args.command])
+        if mode != "new":
+            logging.getLogger("photogram").info(
+                "%s the earlier run in %s", "resuming" if mode == "resume" else "replacing",
+                folder)
     return int(load_command(args.command)(project, args) or 0)
 
 

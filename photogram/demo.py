@@ -73,7 +73,14 @@ def run(args=None):
             continue
         if not path.is_file():
             continue
-        folder, result = function(read_project(path))
+        project = read_project(path)
+        from photogram.project.output_policy import claim_output, project_inputs
+        mode = claim_output(project.output_folder(), command=command, force=True,
+                            inputs=project_inputs(project), resumable=command == "montecarlo")
+        if mode != "new":                 # the demo replaces its own results, and says so
+            print(f"{command} {path.relative_to(ROOT)}: replacing the earlier results in "
+                  f"{project.output_folder().relative_to(ROOT)}")
+        folder, result = function(project)
         if result is not None:
             announce(f"{command} {path.relative_to(ROOT)}", folder, result.summary, args)
         folders.append(folder)

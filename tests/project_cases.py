@@ -194,7 +194,7 @@ CASES = [
          lambda d: append(d / "image_points.csv", "S4,C1,10.0,20.0,0\n"),
          "image_points.csv", "S4,C1,10.0,20.0,0", ("sigma must be > 0",)),
     Case("constraint unknown point", _e("lab.prj", 'to = "2"', 'to = "22"'), "lab.prj",
-         'from = "1"', ("unknown point '22'", "[[constraints.distance]] #1")),
+         'to = "22"', ("unknown point '22'", "[[constraints.distance]] #1")),
     Case("constraint csv unknown point", _e("distances.csv", "T1,T4", "T1,T9"),
          "distances.csv", "T1,T9", ("unknown point 'T9'",), project="field"),
     Case("inner constraints unknown point", _e("field.prj", '"T4"]', '"T5"]'), "field.prj",

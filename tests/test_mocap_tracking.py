@@ -166,5 +166,5 @@ def test_plugin_source_end_to_end_through_the_command(tmp_path, capsys):
     assert len(det) == 2 + 2 * 8 * 17
     (tmp_path / "p.prj").write_text((tmp_path / "p.prj").read_text().replace(
         "mynet:detect", "mynet:nothing"))
-    assert main(["mocap", str(tmp_path / "p.prj")]) == 2
+    assert main(["mocap", str(tmp_path / "p.prj"), "--force"]) == 2
     assert "has no function 'nothing'" in capsys.readouterr().err

@@ -26,7 +26,7 @@ from photogram.adjust.residual_blocks import (
     StationPriorBlock, VerticalBlock)
 from photogram.adjust.solver import Problem
 from photogram.adjust.state import Layout, State
-from photogram.errors import InputError
+from photogram.errors import GeometryError, InputError
 from photogram.geometry import camera_model, opk_to_matrix
 
 
@@ -48,6 +48,48 @@ def _missing_approximations(project):
     return bad_st, bad_pt
 
 
+def _blind_stations(project):
+    """Names of the stations without any image observation (point or line)."""
+    n = len(project.stations)
+    seen = np.zeros(n, dtype=bool)
+    for table in (project.image_points, project.image_lines):
+        st = np.asarray(getattr(table, "station", np.zeros(0, int)), dtype=int)
+        seen[st[(st >= 0) & (st < n)]] = True
+    return [name for name, ok in zip(project.stations.names, seen) if not ok]
+
+
+def _check_blind_stations(project):
+    """A station that sees nothing has 6 undetermined parameters: name it
+    (instead of a singular normal matrix later)."""
+    blind = _blind_stations(project)
+    if blind:
+        more = f" and {len(blind) - 5} more" if len(blind) > 5 else ""
+        raise GeometryError(
+            (f"station {blind[0]} sees nothing: no image observations, so its orientation "
+             f"cannot be determined" if len(blind) == 1 else
+             f"stations {', '.join(blind[:5])}{more} see nothing: no image observations, "
+             f"so their orientation cannot be determined"),
+            hint="measure points in their images or remove them from the stations table")
+
+
+def _reasons(project, names):
+    """Why the approximation chain could not reach ``names`` (the chain
+    leaves one warning per unreached station/point, "point P7: ..."), as
+    "P7: rays nearly parallel ...; S3: ..." (at most 3)."""
+    out = []
+    for name in names:
+        for w in getattr(project, "warnings", []):
+            for kind in ("point", "station"):
+                head = f"{kind} {name}: "
+                if w.startswith(head):
+                    out.append(f"{name}: {w[len(head):]}")
+                    break
+            else:
+                continue
+            break
+    return "; ".join(out[:3])
+
+
 def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
     """Build the engine problem of ``project``.
 
@@ -63,12 +105,18 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
         Hold every exterior orientation fixed (``photogram intersect``).
     """
     adj = project.adjustment
+    _check_blind_stations(project)
     bad_st, bad_pt = _missing_approximations(project)
     if bad_st or bad_pt:
-        raise InputError(
-            f"no approximate values for station(s) {', '.join(bad_st[:5]) or '-'} "
-            f"and point(s) {', '.join(bad_pt[:5]) or '-'}",
-            file=project.path, hint="run the approximation chain or give them in the tables")
+        what = " and ".join(f"{label}(s) {', '.join(names[:5])}"
+                            + (f" and {len(names) - 5} more" if len(names) > 5 else "")
+                            for label, names in (("station", bad_st), ("point", bad_pt)) if names)
+        why = _reasons(project, bad_st + bad_pt)
+        raise InputError(f"no approximate values for {what}" + (f" ({why})" if why else ""),
+                         file=project.path,
+                         hint="give them in the tables, or measure them so that the "
+                              "approximation chain can reach them" if why else
+                              "run the approximation chain or give them in the tables")
     cam_names = list(project.cameras)
     cam_index = {n: i for i, n in enumerate(cam_names)}
     cams = [project.cameras[n] for n in cam_names]

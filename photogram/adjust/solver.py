@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from photogram.adjust.diagnostics import worst_observations
 from photogram.adjust.normal import Structure, assemble
 from photogram.adjust.schur import solve as schur_solve
 from photogram.errors import GeometryError
@@ -226,6 +227,8 @@ def _solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     s.final_cost = cost
     s.sigma0 = float(np.sqrt(2 * cost / s.redundancy)) if s.redundancy > 0 else float("nan")
     s.timings["solve"] = time.perf_counter() - t0
+    if s.status in ("failed", "max_iterations"):
+        s.message += worst_observations(problem, state)
     if s.status == "failed":
         raise GeometryError(s.message, hint="check the approximate values, the datum and gross errors")
     return s

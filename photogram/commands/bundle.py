@@ -42,6 +42,7 @@ class BundleResult:
     point_sigma: np.ndarray             # (n_p, 3)
     residuals: dict                     # column -> array
     covariances: dict = field(default_factory=dict)
+    point_extra: dict = field(default_factory=dict)   # further points.csv columns
 
 
 def _options(adj):
@@ -119,6 +120,7 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
         _with_calibration_covariance(result, built, s0sq, summary)
     red = redundancy_numbers(problem, cof)
     result.residuals = _residual_columns(problem, red)
+    _flag_weak_points(result, problem, summary)
     t_stats = time.perf_counter()
     summary.update({
         "status": s.status, "message": s.message, "iterations": iterations,
@@ -137,6 +139,23 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
         summary["warnings"].append(s.message)
     result.summary = summary
     return result
+
+
+def _flag_weak_points(result, problem, summary):
+    """Largest intersection angle per point; points below WEAK_ANGLE_DEG
+    are flagged (points.csv ``est_weak_angle``, a summary warning,
+    ``summary["weak_points"]``)."""
+    from photogram.stats.geometry import (
+        WEAK_ANGLE_DEG, problem_intersection_angles, weak_angle_warning, weak_points)
+    angles = problem_intersection_angles(problem)
+    weak = weak_points(angles)
+    ids = result.project.points.ids
+    result.point_extra = {"est_angle": angles, "est_weak_angle": weak.astype(int)}
+    summary["weak_points"] = {"threshold_deg": WEAK_ANGLE_DEG, "count": int(weak.sum()),
+                              "ids": [ids[i] for i in np.flatnonzero(weak)]}
+    warning = weak_angle_warning(ids, angles)
+    if warning:
+        summary["warnings"].append(warning)
 
 
 def _apriori_image_sigma(problem):
@@ -272,7 +291,7 @@ def run(project, *, command, output=None, fix_interior=False):
     _check_finite(result)
     write_results(folder, result.project, result.summary, camera_sigma=result.camera_sigma,
                   station_sigma=result.station_sigma, point_sigma=result.point_sigma,
-                  residuals=result.residuals,
+                  residuals=result.residuals, point_extra=result.point_extra,
                   log_text=_log_text(command, project.path, result.summary))
     _write_covariance(folder / "covariance.npz", result)
     from photogram.report import write_report

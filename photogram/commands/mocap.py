@@ -48,7 +48,9 @@ def mocap(project, output: str | Path | None = None):
         raise InputError("this project has no [mocap] section", file=project.path,
                          hint="a motion-capture project needs [mocap] and [mocap.source]; "
                               "see docs/mocap.md")
-    folder = Path(output) if output is not None else project.output_folder()
+    if output is not None:                # the resumable state goes there too
+        project.output.folder = str(Path(output).absolute())
+    folder = project.output_folder()
     stream = io.StringIO()
     logger = logging.getLogger("photogram.mocap")
     tee = _Tee(stream, logger.getEffectiveLevel())
@@ -68,6 +70,10 @@ def mocap(project, output: str | Path | None = None):
     write_outputs(result, project, folder, stream.getvalue())
     from photogram.report import write_report
     write_report(folder)                  # report.pdf, as every command
+    import shutil
+
+    from photogram.project.output_policy import PARTIAL
+    shutil.rmtree(folder / PARTIAL, ignore_errors=True)   # the run is complete
     return folder, result
 
 

@@ -117,6 +117,11 @@ def approximate(project, model=None, *, min_points: int = 4, min_angle_deg: floa
                 f"transformation); given coordinates are kept but are in another frame")
     ch.finish(S)
     out = _updated_project(project, S, ch)
+    # one warning per unreached station/point ("point P7: ..."), so that a
+    # later "no approximate values" error can say why
+    unreached = list(rep.unreached_stations.values()) + list(rep.unreached_points.values())
+    if unreached:
+        out = dataclasses.replace(out, warnings=list(project.warnings) + unreached)
     return out, rep
 
 

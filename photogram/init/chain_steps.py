@@ -173,7 +173,8 @@ class _Chain:
         for k in np.nonzero(~ok)[0]:                      # loop over failures only
             p = int(res.point_index[k])
             if res.reason[k] is not None:
-                self.fail_point[p] = res.reason[k]
+                names = sorted({self.sname(int(x)) for x in st[o.point[rows] == p]})
+                self.fail_point[p] = f"{res.reason[k]} from stations {', '.join(names)}"
             elif res.behind[k]:
                 self.fail_point[p] = (f"point {self.pname(p)}: intersection lies behind "
                                       f"{res.behind[k]} of its {res.n_rays[k]} cameras "

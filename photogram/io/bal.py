@@ -91,6 +91,24 @@ def _open_text(path: Path) -> str:
     return raw.decode("ascii")
 
 
+def _is_float(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def _token_line(text: str, k: int) -> int:
+    """1-based line of the ``k``-th whitespace-separated token of ``text``."""
+    seen = 0
+    for number, line in enumerate(text.splitlines(), 1):
+        seen += len(line.split())
+        if seen > k:
+            return number
+    return number
+
+
 def read_bal(path) -> BALProblem:
     """Read a BAL problem file (plain, .bz2 or .gz).
 
@@ -109,9 +127,11 @@ def read_bal(path) -> BALProblem:
     tokens = text.split()
     try:
         n_c, n_p, n_o = (int(t) for t in tokens[:3])
+        if len(tokens) < 3 or min(n_c, n_p, n_o) < 0:
+            raise ValueError
     except ValueError:
         raise InputError("BAL header must be 'n_cameras n_points n_observations'",
-                         file=path, line=1) from None
+                         file=path, line=1, hint="three counts >= 0") from None
     need = 3 + 4 * n_o + 9 * n_c + 3 * n_p
     if len(tokens) < need:
         raise InputError(f"BAL file is truncated: {len(tokens)} numbers, {need} expected",
@@ -119,10 +139,22 @@ def read_bal(path) -> BALProblem:
     try:
         values = np.array(tokens[3:need], dtype=float)
     except ValueError:
-        raise InputError("BAL file contains a non-numeric entry", file=path) from None
+        k = next(k for k, t in enumerate(tokens[3:need], 3) if not _is_float(t))
+        raise InputError(f"BAL file contains a non-numeric entry {tokens[k]!r}", file=path,
+                         line=_token_line(text, k), hint="every entry is a number") from None
+    finite = np.isfinite(values)
+    if not finite.all():
+        k = 3 + int(np.flatnonzero(~finite)[0])
+        raise InputError(f"BAL entry {tokens[k]!r} is not a finite number", file=path,
+                         line=_token_line(text, k), hint="NaN and infinity are not allowed")
     obs = values[:4 * n_o].reshape(n_o, 4)
     cams = values[4 * n_o:4 * n_o + 9 * n_c].reshape(n_c, 9)
     pts = values[4 * n_o + 9 * n_c:].reshape(n_p, 3)
+    bad = np.any(obs[:, :2] != np.round(obs[:, :2]), axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"BAL observation {i}: camera and point indices must be integers",
+                         file=path, line=i + 2, hint="camera point x y")
     cam_idx = obs[:, 0].astype(np.int64)
     pt_idx = obs[:, 1].astype(np.int64)
     bad = (cam_idx < 0) | (cam_idx >= n_c) | (pt_idx < 0) | (pt_idx >= n_p)

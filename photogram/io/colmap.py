@@ -76,7 +76,8 @@ def _int(text: LineText, no: int, s: str, what: str) -> int:
     try:
         return int(s)
     except ValueError:
-        raise text.error(no, f"{what} {s!r} is not an integer") from None
+        raise text.error(no, f"{what} {s!r} is not an integer",
+                         hint="COLMAP ids are whole numbers (see COLMAP's text format)") from None
 
 
 def _read_cameras(path: Path, shift: float) -> dict[int, tuple]:

@@ -22,6 +22,7 @@ to pixels.
 
 from __future__ import annotations
 
+import math
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -30,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
+from photogram.project.text_input import decode_utf8
 from photogram.project.model import (AdjustmentSettings, Camera, ImagePoints, Parameter,
                                      Points, Project, Stations, Units)
 
@@ -43,9 +45,10 @@ __all__ = ["DbatImagePoints", "DbatControlPoints", "DbatCamera", "read_image_poi
 def _rows(path: Path):
     """(line number, fields) of the non-empty, non-comment lines."""
     try:
-        text = Path(path).read_text(encoding="utf-8-sig")
+        data = Path(path).read_bytes()
     except OSError as e:
         raise InputError(f"cannot read {path}: {e.strerror or e}", file=path) from None
+    text = decode_utf8(data, path)
     for no, line in enumerate(text.splitlines(), start=1):
         s = line.split("#", 1)[0].strip()
         if s:
@@ -54,9 +57,13 @@ def _rows(path: Path):
 
 def _float(s: str, path, no, what) -> float:
     try:
-        return float(s)
+        value = float(s)
     except ValueError:
         raise InputError(f"{what} is not a number: {s!r}", file=path, line=no) from None
+    if not math.isfinite(value):
+        raise InputError(f"{what} is not a finite number: {s!r}", file=path, line=no,
+                         hint="NaN and infinity are not allowed") from None
+    return value
 
 
 def _ident(s: str) -> str:
@@ -65,7 +72,7 @@ def _ident(s: str) -> str:
         f = float(s)
     except ValueError:
         return s
-    return str(int(f)) if f == int(f) else s
+    return str(int(f)) if math.isfinite(f) and f == int(f) else s
 
 
 @dataclass
@@ -215,10 +222,13 @@ class DbatCamera:
 def _numbers(text, path, what) -> list[float]:
     vals = [v.strip() for v in (text or "").split(",") if v.strip()]
     try:
-        return [float(v) for v in vals]
+        out = [float(v) for v in vals]
     except ValueError:
-        raise InputError(f"camera XML: <{what}> is not a list of numbers: {text!r}",
-                         file=path) from None
+        out = None
+    if out is None or not all(math.isfinite(v) for v in out):
+        raise InputError(f"camera XML: <{what}> is not a list of finite numbers: {text!r}",
+                         file=path, hint="comma-separated numbers") from None
+    return out
 
 
 def read_camera_xml(path) -> list[DbatCamera]:

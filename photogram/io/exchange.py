@@ -89,7 +89,9 @@ class LineText:
             text = data.decode("utf-8-sig")
         except UnicodeDecodeError as exc:
             line = data[:exc.start].count(b"\n") + 1
-            raise InputError(f"{what} is not UTF-8 text", file=self.path, line=line) from None
+            raise InputError(f"{what} is not UTF-8 text: byte 0x{data[exc.start]:02X} cannot be "
+                             f"decoded", file=self.path, line=line,
+                             hint="save it as UTF-8 (or plain ASCII)") from None
         self.lines = text.splitlines()
 
     def error(self, line: int | None, what: str, hint: str | None = None) -> InputError:

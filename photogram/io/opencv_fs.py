@@ -84,13 +84,41 @@ def _node(fs, names):
     return None, None
 
 
+def _opencv_matrix(path, key, node) -> np.ndarray:
+    """An ``!!opencv-matrix`` node read item by item: ``node.mat()`` trusts
+    rows, cols and dt (a negative or huge size makes OpenCV allocate
+    gigabytes or corrupt its heap), so they are checked against the data."""
+    def fail(what):
+        return InputError(f"{key}: {what}", file=path, line=_line_of(path, key),
+                          hint="an opencv-matrix has rows, cols (integers), dt (e.g. d) and "
+                               "data: a list of rows x cols numbers")
+    r, c, dt, data = (node.getNode(k) for k in ("rows", "cols", "dt", "data"))
+    if not (r.isInt() and c.isInt()):
+        raise fail("rows and cols must be integers")
+    if not data.isSeq():
+        raise fail("data must be a list of numbers")
+    rows, cols = int(r.real()), int(c.real())
+    m = re.fullmatch(r"(\d*)([ucwsifdh])", dt.string().strip() if dt.isString() else "d")
+    if m is None:
+        raise fail(f"unknown dt {dt.string()!r}")
+    channels = int(m.group(1) or 1)
+    if rows < 0 or cols < 0 or not 1 <= channels <= 4 or data.size() != rows * cols * channels:
+        raise fail(f"data has {data.size()} numbers, rows x cols = {rows} x {cols}"
+                   + (f" x {channels} channels" if channels != 1 else ""))
+    values = []
+    for i in range(data.size()):
+        item = data.at(i)
+        if not (item.isReal() or item.isInt()):
+            raise fail(f"data item {i + 1} is not a number")
+        values.append(item.real())
+    shape = (rows, cols) if channels == 1 else (rows, cols, channels)
+    return np.asarray(values, dtype=float).reshape(shape)
+
+
 def _matrix(path, fs, key, node, shape=None):
     """A numeric node as a float array (matrix, sequence or number)."""
     if node.isMap():
-        a = node.mat()
-        if a is None:
-            raise InputError(f"{key} is not a matrix", file=path, line=_line_of(path, key))
-        a = np.asarray(a, dtype=float)
+        a = _opencv_matrix(path, key, node)
     elif node.isSeq():
         vals = []
         for i in range(node.size()):

@@ -25,6 +25,7 @@ from photogram.lines import cameras_from_project, intersect_line_from_points
 from photogram.lines.skis import check_ski_labels, swap_labels
 from photogram.stats.covariance import cofactors, point_covariances
 from photogram.stats.propagation import orientation_sensitivity, propagate_orientation
+from photogram.stats.geometry import problem_intersection_angles, weak_angle_warning
 
 
 @dataclass
@@ -73,6 +74,9 @@ def intersect_points(project, orientation=None):
         idx = np.arange(n)
         cov = cov + joint.reshape(n, 3, n, 3)[idx, :, idx, :]
     out = _copy_with_points(project, built.problem.state.points)
+    weak = weak_angle_warning(project.points.ids, problem_intersection_angles(built.problem))
+    if weak:
+        summary["warnings"].append(weak)
     summary.update({"status": s.status, "iterations": s.iterations, "sigma0": s.sigma0,
                     "redundancy": s.redundancy, "message": s.message})
     return out, cov, joint, summary

@@ -22,6 +22,7 @@ missing values.
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +33,7 @@ from photogram.mocap.cameras import MocapCameras
 from photogram.mocap.skeleton import Skeleton
 from photogram.project.atomic import atomic_write_text
 from photogram.project.camera_schema import invert_opk
-from photogram.project.tables import format_table, read_table, suggest
+from photogram.project.tables import _delimiter, format_table, read_table, suggest
 
 __all__ = ["cameras_from_project", "read_camera_frames", "read_limb_lengths", "read_joints",
            "write_joints", "cameras_from_views"]
@@ -107,9 +108,10 @@ def read_camera_frames(path: Path, cameras: MocapCameras, project, first_frame: 
                        optional=extra + ([] if rotations else list(angle_cols)),
                        what="camera frames table")
     frame = table.floats("frame", required=True)
-    if np.any(frame != np.round(frame)):
-        raise table.error(int(np.flatnonzero(frame != np.round(frame))[0]),
-                          "frame must be an integer")
+    bad = np.flatnonzero((frame != np.round(frame)) | (np.abs(frame) >= 2**31))
+    if len(bad):
+        raise table.error(int(bad[0]), "frame must be an integer",
+                          hint="frames count from 0 (or the first frame) upwards")
     frame = frame.astype(int) - first_frame
     cams = table.text("camera")
     unit = project.units.angle
@@ -126,6 +128,7 @@ def read_camera_frames(path: Path, cameras: MocapCameras, project, first_frame: 
     R = np.full((n_frames, C, 3, 3), np.nan)
     io = [np.repeat(p[:1], n_frames, axis=0) for p in cameras.io]
     filled = np.zeros((n_frames, C), bool)
+    first_row = np.zeros((n_frames, C), int)
     index = {n: k for k, n in enumerate(cameras.names)}
     Rm = opk_to_matrix(angles)
     cols = {p: table.floats(p) for p in extra if table.has(p)}
@@ -136,6 +139,11 @@ def read_camera_frames(path: Path, cameras: MocapCameras, project, first_frame: 
         if not 0 <= f < n_frames:
             continue
         c = index[name]
+        if filled[f, c]:
+            raise table.error(i, f"a second row for camera {name}, frame {f + first_frame} "
+                                 f"(first on line {first_row[f, c]})",
+                              hint="give every camera one row per frame")
+        first_row[f, c] = table.records[i]
         R[f, c] = Rm[i]
         filled[f, c] = True
         m = camera_model(cameras.models[c])
@@ -195,21 +203,38 @@ def read_limb_lengths(path: Path, skeleton: Skeleton) -> dict:
 
 def read_joints(path: Path, skeleton: Skeleton):
     """Frames (n,) and joints (n, J, 3) of a joints table (module doc);
-    joints missing from the table are NaN."""
-    import pandas as pd
-    try:
-        df = pd.read_csv(path, comment="#")
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read the joints table: {exc}", file=path) from None
-    if "frame" not in df.columns:
-        raise InputError("the joints table has no column 'frame'", file=path, line=1)
-    X = np.full((len(df), skeleton.n_joints, 3), np.nan)
+    joints missing from the table, and empty cells, are NaN. Columns of
+    other joints are ignored.
+
+    Raises
+    ------
+    InputError
+        Missing or non-UTF-8 file, no column ``frame``, a cell that is not a
+        finite number, a frame that is not an integer (``file:line``).
+    """
+    from photogram.project.text_input import read_text
+    path = Path(path)
+    text = read_text(path, "joints table")
+    header = next((ln for ln in text.splitlines()
+                   if ln.strip() and not ln.strip().startswith("#")), "")
+    columns = [c.strip() for c in next(csv.reader([header], delimiter=_delimiter(header)), [])]
+    table = read_table(path, required=("frame",),
+                       optional=[c for c in dict.fromkeys(columns) if c and c != "frame"],
+                       what="joints table")
+    frame = table.floats("frame", required=True)
+    bad = np.flatnonzero((frame != np.round(frame)) | (np.abs(frame) >= 2**31))
+    if len(bad):
+        raise table.error(int(bad[0]), "frame must be an integer",
+                          hint="frames count from 0 upwards")
+    if table.has("time"):
+        table.floats("time")                     # checked, not used
+    X = np.full((len(table), skeleton.n_joints, 3), np.nan)
     for j, name in enumerate(skeleton.joints):
         for k, ax in enumerate("XYZ"):
             col = f"{name}_{ax}"
-            if col in df.columns:
-                X[:, j, k] = pd.to_numeric(df[col], errors="coerce").to_numpy(float)
-    return df["frame"].to_numpy(int), X
+            if table.has(col):
+                X[:, j, k] = table.floats(col)
+    return frame.astype(int), X
 
 
 def write_joints(path: Path, frames, times, X: np.ndarray, skeleton: Skeleton,

@@ -165,8 +165,10 @@ def run_mocap(project) -> MocapResult:
         from photogram.mocap.estimate import estimate_poses_and_rotations, estimate_settings
         from photogram.mocap.unknown_rotations import measure_differences
         t1 = time.perf_counter()
-        dR, weights, per_camera = measure_differences(ms, cameras, tracked, (lo, hi), first,
-                                                      project.warnings, breaks)
+        from photogram.project.output_policy import PARTIAL
+        dR, weights, per_camera = measure_differences(
+            ms, cameras, tracked, (lo, hi), first, project.warnings, breaks,
+            cache=project.output_folder() / PARTIAL / "rotation_differences")
         timings["rotation_differences_s"] = time.perf_counter() - t1
         rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights,
                                            estimate_settings(**rs), breaks)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io as _io
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -177,6 +178,14 @@ def write_rotation_differences(path, per_camera: dict, first_frame: int = 0,
     return path
 
 
+def _integer(text: str) -> int:
+    """An integer cell: digits with an optional sign (not '1_0', not '1e3')."""
+    text = text.strip()
+    if not re.fullmatch(r"[+-]?[0-9]+", text):
+        raise ValueError(text)
+    return int(text)
+
+
 def read_rotation_differences(path, camera_names, n_frames: int,
                               first_frame: int = 0) -> dict:
     """Read :func:`write_rotation_differences`'s CSV.
@@ -203,8 +212,8 @@ def read_rotation_differences(path, camera_names, n_frames: int,
     P = n_frames - 1
     data = {c: (np.full((P, 3), np.nan), np.zeros(P, int), np.zeros(P, int),
                 np.zeros(P, bool), np.zeros(P, bool)) for c in names}
-    with open(path, newline="") as handle:
-        lines = handle.read().splitlines()
+    from photogram.project.text_input import read_text
+    lines = read_text(path, "rotation differences table").splitlines()
     skip = 0
     while skip < len(lines) and lines[skip].lstrip().startswith("#"):
         skip += 1
@@ -212,35 +221,44 @@ def read_rotation_differences(path, camera_names, n_frames: int,
     header = next(rows, None)
     if header is None or [h.strip() for h in header] != _COLUMNS:
         raise InputError("expected the columns " + ",".join(_COLUMNS), file=path,
-                         line=skip + 1)
+                         line=skip + 1, hint="the header names exactly these columns")
+    first_line = {}
     for line, row in enumerate(rows, start=skip + 2):
         if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
             continue
         if len(row) != len(_COLUMNS):
             raise InputError(f"{len(row)} fields, expected {len(_COLUMNS)}", file=path,
-                             line=line)
+                             line=line, hint="one cell per column: " + ",".join(_COLUMNS))
         cam = row[1].strip()
         if cam not in data:
             raise InputError(f"unknown camera {cam!r}", file=path, line=line,
                              hint="cameras: " + ", ".join(names))
         try:
-            t = int(row[0]) - first_frame
+            t = _integer(row[0]) - first_frame
             r = [float(v) if v.strip() else np.nan for v in row[2:5]]
-            k_in, k_m, flag = int(row[5]), int(row[6]), int(row[7])
+            k_in, k_m, flag = _integer(row[5]), _integer(row[6]), _integer(row[7])
         except ValueError:
             raise InputError("malformed number in " + ",".join(row), file=path,
-                             line=line) from None
+                             line=line, hint="frame, inliers, matches and ok are integers; "
+                             "rx, ry, rz numbers (deg) or empty") from None
         if not 0 <= t < P:
             raise InputError(f"frame {row[0]} outside {first_frame}.."
-                             f"{first_frame + P - 1}", file=path, line=line)
+                             f"{first_frame + P - 1}", file=path, line=line,
+                             hint="frame is the first frame of each pair of the detections")
+        if np.any(np.abs(np.asarray(r)) > 360.0):          # inf included, NaN not
+            raise InputError("a rotation difference of more than 360 deg", file=path,
+                             line=line, hint="rx, ry, rz: the rotation vector from this frame "
+                             "to the next one, in degrees")
         if flag not in (0, 1) or (flag and not np.all(np.isfinite(r))):
             raise InputError("ok must be 0 or 1, and 1 needs rx, ry, rz", file=path,
-                             line=line)
+                             line=line, hint="finite rx, ry, rz (deg) where ok is 1")
         rv, inl, nm, ok, seen = data[cam]
         if seen[t]:
-            raise InputError(f"duplicate frame {row[0]} of camera {cam}", file=path,
-                             line=line)
+            raise InputError(f"duplicate frame {row[0]} of camera {cam} (first on line "
+                             f"{first_line[cam, t]})", file=path, line=line,
+                             hint="give each camera one row per frame pair")
         rv[t], inl[t], nm[t], ok[t], seen[t] = r, k_in, k_m, bool(flag), True
+        first_line[cam, t] = line
     out = {}
     for cam, (rv, inl, nm, ok, seen) in data.items():
         if not seen.all():

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -26,7 +27,52 @@ __all__ = ["measure_differences", "rotation_errors"]
 log = logging.getLogger(__name__)
 
 
-def _from_images(ms, cameras, tracked, frame_range, settings):
+def _cache_key(path, c, cameras, frame_range, boxes, settings) -> str:
+    """What the measurement of one camera depends on: the images (path,
+    size and modification time of the file or of every file in the folder),
+    the frames, the interior orientation, the boxes and the settings."""
+    import dataclasses
+    import hashlib
+    p = Path(path)
+    files = sorted(p.iterdir()) if p.is_dir() else [p]
+    h = hashlib.sha256()
+    for f in files:
+        st = f.stat()
+        h.update(f"{f.name}:{st.st_size}:{st.st_mtime_ns};".encode())
+    lo, hi = frame_range
+    h.update(np.ascontiguousarray(cameras._io_rows(c, hi - lo)).tobytes())
+    if boxes is not None:
+        h.update(np.ascontiguousarray(np.nan_to_num(boxes, nan=-1.0)).tobytes())
+    h.update(repr((str(p.resolve()), lo, hi, cameras.models[c],
+                   dataclasses.asdict(settings))).encode())
+    return h.hexdigest()
+
+
+def _load_cached(file: Path, key: str):
+    from photogram.mocap.homography import RotationDifferences
+    try:
+        with np.load(file, allow_pickle=False) as z:
+            if str(z["key"]) != key:
+                return None
+            return RotationDifferences(dR=z["dR"], inliers=z["inliers"], matches=z["matches"],
+                                       ok=z["ok"], seconds=float(z["seconds"]),
+                                       frames=int(z["frames"]))
+    except (OSError, KeyError, ValueError):
+        return None
+
+
+def _save_cached(file: Path, key: str, rd) -> None:
+    import io as _io
+
+    from photogram.project.atomic import atomic_write_bytes
+    buf = _io.BytesIO()
+    np.savez(buf, key=np.array(key), dR=rd.dR, inliers=rd.inliers, matches=rd.matches,
+             ok=rd.ok, seconds=np.array(rd.seconds), frames=np.array(rd.frames))
+    file.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(file, buf.getvalue())
+
+
+def _from_images(ms, cameras, tracked, frame_range, settings, cache=None):
     import itertools
 
     from photogram.mocap.homography import rotation_differences
@@ -41,6 +87,13 @@ def _from_images(ms, cameras, tracked, frame_range, settings):
         boxes = None
         if tracked[c] is not None:
             boxes = np.asarray(tracked[c].boxes, float)
+        key = _cache_key(path, c, cameras, frame_range, boxes, settings)
+        cached = None if cache is None else _load_cached(Path(cache) / f"{name}.npz", key)
+        if cached is not None:
+            out[name] = cached
+            log.info("camera %s: rotation differences of an interrupted run reused (%s)",
+                     name, cache)
+            continue
         frames = iter(read_frames(path, frames=range(lo, hi)))
         first = next(frames, None)
         if first is None:
@@ -51,6 +104,8 @@ def _from_images(ms, cameras, tracked, frame_range, settings):
         rd = rotation_differences(itertools.chain([first], frames), cameras.models[c], io,
                                   image_scale=scale, boxes=boxes, settings=settings)
         out[name] = rd
+        if cache is not None:
+            _save_cached(Path(cache) / f"{name}.npz", key, rd)
         log.info("camera %s: %d frame pairs, %d failed, median %d inliers, %.1f s", name,
                  len(rd.ok), int(np.sum(~rd.ok)), int(np.median(rd.inliers)) if len(rd.ok)
                  else 0, time.perf_counter() - t0)
@@ -58,12 +113,15 @@ def _from_images(ms, cameras, tracked, frame_range, settings):
 
 
 def measure_differences(ms, cameras, tracked, frame_range, first_frame: int, warnings: list,
-                        breaks=()):
+                        breaks=(), cache=None):
     """Rotation differences (F-1, C, 3, 3) (filtered: median 7, Gaussian 3),
     weights (F-1, C) and the per-camera measurements (for the results
     folder) of the frames ``frame_range`` (start, stop; indices into the
     detections, whose first frame number is ``first_frame``). A table must
-    hold exactly the pairs of these frames."""
+    hold exactly the pairs of these frames. With ``cache`` (a folder) every
+    camera's measurement from images is saved there as soon as it is done
+    and reused by a later run with the same images and settings: an
+    interrupted run resumes with the next camera."""
     from photogram.mocap.homography import HomographySettings
     from photogram.mocap.rotation_series import (check_rotation_differences,
                                                  filter_rotation_differences,
@@ -75,7 +133,7 @@ def measure_differences(ms, cameras, tracked, frame_range, first_frame: int, war
         per = read_rotation_differences(ms.rotation_differences, cameras.names, F,
                                         first_frame=first_frame + lo)
     else:
-        per = _from_images(ms, cameras, tracked, frame_range, settings)
+        per = _from_images(ms, cameras, tracked, frame_range, settings, cache)
     dR = np.broadcast_to(np.eye(3), (max(F - 1, 0), C, 3, 3)).copy()
     weights = np.zeros((max(F - 1, 0), C))
     for c, name in enumerate(cameras.names):

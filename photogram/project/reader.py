@@ -331,20 +331,21 @@ def _read_constraints(sec: Section | None, project: Project) -> None:
 
 
 def _check_pair(a: str, b: str, known: dict[str, int], project: Project, fail) -> None:
-    for pid in (a, b):
+    for k, pid in enumerate((a, b)):
         if pid not in known:
             fail(f"unknown point '{pid}' (not in the points table)",
-                 suggest(pid, project.points.ids, noun="points"))
+                 suggest(pid, project.points.ids, noun="points"), k)
     if a == b:
-        fail(f"a constraint needs two different points, not {a} twice", "fix from/to")
+        fail(f"a constraint needs two different points, not {a} twice", "fix from/to", 1)
 
 
 def _constraint_entry(entry: Section, fields, project: Project) -> tuple:
     entry.check_keys(fields + ("file",), required=fields)
     a, b = entry.ident(fields[0]), entry.ident(fields[1])
 
-    def fail(what, hint):
-        raise entry.error(fields[0], f"{what} in {entry.label}", hint=hint)
+    def fail(what, hint, k=0):
+        # k: the field (0 from, 1 to) whose line the message names
+        raise entry.error(fields[k], f"{what} in {entry.label}", hint=hint)
 
     _check_pair(a, b, project.points.index(), project, fail)
     numbers = tuple(entry.number(f, positive=True) for f in fields[2:])
@@ -357,7 +358,7 @@ def _constraint_rows(table: Table, fields, project: Project) -> list[tuple]:
     known = project.points.index()
     rows = []
     for i in range(len(table)):
-        def fail(what, hint, i=i):
+        def fail(what, hint, k=0, i=i):
             raise table.error(i, what, hint=hint)
 
         _check_pair(ids[0][i], ids[1][i], known, project, fail)

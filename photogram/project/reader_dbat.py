@@ -76,7 +76,11 @@ def _observation_entries(sec: Section) -> list[Section]:
     if isinstance(value, str):
         return [Section(sec.source, sec.keypath + ("points",), {"file": value},
                         "[observations] points")]
-    return sec.table_array("points")
+    entries = sec.table_array("points")
+    if not entries:
+        raise sec.error("points", "points = [] names no image points table",
+                        hint='give a file, e.g. points = "image_points.csv"')
+    return entries
 
 
 def _dbat_columns(text: str) -> str:

@@ -142,12 +142,14 @@ def _station_table(project: Project, station_sigma) -> str:
     return format_table(cols)
 
 
-def _point_table(project: Project, point_sigma) -> str:
+def _point_table(project: Project, point_sigma, point_extra=None) -> str:
     cols = point_columns(project)
     if point_sigma is not None:
         sig = np.asarray(point_sigma, float).reshape(len(project.points), 3)
         for j, c in enumerate("XYZ"):
             cols[f"est_s{c}"] = sig[:, j]
+    for name, values in dict(point_extra or {}).items():
+        cols[str(name)] = np.asarray(values).reshape(len(project.points))
     return format_table(cols)
 
 
@@ -165,7 +167,7 @@ def _residual_table(project: Project, residuals) -> str:
 
 def write_results(folder: str | Path, project: Project, summary: Mapping, *,
                   camera_sigma: Mapping | None = None, station_sigma=None, point_sigma=None,
-                  residuals=None, log_text: str = "") -> Path:
+                  residuals=None, log_text: str = "", point_extra: Mapping | None = None) -> Path:
     """Write a results folder.
 
     Parameters
@@ -188,6 +190,10 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
         written as ids.
     log_text : str
         Content of log.txt.
+    point_extra : mapping, optional
+        Further points.csv columns, name -> (n_points,) values (the
+        engine's ``est_angle``, the largest intersection angle in degrees,
+        and ``est_weak_angle`` 0/1; ``est_`` columns are ignored by the readers).
 
     Returns
     -------
@@ -211,7 +217,7 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
     files = {"summary.json": text + "\n",
              "cameras.toml": _cameras_toml(project, camera_sigma),
              "stations.csv": _station_table(project, station_sigma),
-             "points.csv": _point_table(project, point_sigma),
+             "points.csv": _point_table(project, point_sigma, point_extra),
              "residuals.csv": _residual_table(project, residuals),
              "log.txt": log_text}
     for name, content in files.items():

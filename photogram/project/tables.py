@@ -107,6 +107,8 @@ class Table:
         if required:
             self.text(column)
         try:
+            if any("_" in c for c in cells):      # float() reads '1_0' as 10: not in a table
+                raise ValueError
             values = np.array([c if c else "nan" for c in cells], dtype=str).astype(float)
         except ValueError:
             values = np.array([self._parse(i, column, c) for i, c in enumerate(cells)])
@@ -131,6 +133,8 @@ class Table:
         if not cell:
             return math.nan
         try:
+            if "_" in cell:
+                raise ValueError(cell)
             return float(cell)
         except ValueError:
             hint = "use a point as decimal separator" if "," in cell else \

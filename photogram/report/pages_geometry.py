@@ -10,12 +10,23 @@ from photogram.report.layout import decorate
 from photogram.report.numbers import num, pct
 from photogram.report.registry import section
 from photogram.report.shapes import convex_hull, coverage_fraction, polygon_area
+from photogram.stats.geometry import WEAK_ANGLE_DEG
 
 _INTRO = ("Rays: the images a point was measured (and used) in. Intersection angle: the "
           "largest angle between two rays of a point, at the point; small angles (below "
-          "about 10 deg) give poor depth. Coverage: the part of the image format inside "
+          "about 10 deg) give poor depth; points below 5 deg are flagged weak (red "
+          "list, dashed line). Coverage: the part of the image format inside "
           "the convex hull of the measured points (per image), and inside the union of "
           "these hulls (per camera); a calibration needs points out to the corners.")
+
+
+def weak_angle_points(data, threshold: float = WEAK_ANGLE_DEG) -> list:
+    """Ids of the points (2+ used rays) whose largest intersection angle is
+    below ``threshold`` degrees, smallest angle first (the same flag as
+    :func:`photogram.stats.geometry.weak_points`)."""
+    a = data.rays["angle"].astype(float)
+    a = a[np.isfinite(a) & (a < threshold)]
+    return list(a.sort_values(kind="stable").index)
 
 
 def coverage(data):
@@ -53,10 +64,19 @@ def build(doc, data):
                      num(a.min(), 3), num(a.mean(), 3), num(a.max(), 3)])
     doc.table(["points", "number", "rays", "mean rays", "min angle [deg]", "mean angle [deg]",
                "max angle [deg]"], rows, align="lrrrrrr", title="Rays and intersection angles")
-    small = rays.sort_values("angle").head(8)
-    doc.table(["point", "angle [deg]", "rays"],
-              [(p, num(x["angle"], 3), str(int(x["rays"]))) for p, x in small.iterrows()],
-              title="Smallest intersection angles")
+    weak = weak_angle_points(data)
+    small = rays.sort_values("angle").head(max(8, min(len(weak), 30)))
+    doc.table(["point", "angle [deg]", "rays", "weak"],
+              [(p, num(x["angle"], 3), str(int(x["rays"])), "WEAK" if p in weak else "")
+               for p, x in small.iterrows()],
+              align="lrrl", title="Smallest intersection angles")
+    if weak:
+        more = f" and {len(weak) - 30} more" if len(weak) > 30 else ""
+        doc.text(f"Weak intersection: {len(weak)} point(s) with an intersection angle below "
+                 f"{WEAK_ANGLE_DEG:g} deg (poor depth, large sigma along the rays): "
+                 f"{', '.join(map(str, weak[:30]))}{more}.", size=8.5, color="tab:red")
+    else:
+        doc.text(f"No point has an intersection angle below {WEAK_ANGLE_DEG:g} deg.", size=8.5)
     per_station, union = coverage(data)
     doc.table(["station", "camera", "points", "convex hull", "rectangle"],
               [(st, str(cam), str(n), pct(h, 0), pct(rc, 0))
@@ -75,5 +95,6 @@ def build(doc, data):
     a = a[np.isfinite(a)]
     if len(a):
         ax_a.hist(a, bins=min(30, max(5, len(a) // 3)), color="tab:green")
+    ax_a.axvline(WEAK_ANGLE_DEG, color="tab:red", lw=0.8, ls="--")
     decorate(ax_a, "intersection angle per point", "largest angle between rays [deg]",
              "points [-]", ypad=0.42)

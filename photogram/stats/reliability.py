@@ -46,18 +46,132 @@ def normalized_residuals(problem, redundancy):
     return out
 
 
+SCALES = ("apriori", "aposteriori", "robust")
+
+
+def variance_scale(problem, w=None, scale="apriori", blocks=("image points",)):
+    """The factor by which the a-priori sigmas are multiplied in the tests.
+
+    ``"apriori"``: 1 (Baarda's w-test, the a-priori sigmas are trusted);
+    ``"aposteriori"``: sigma0 of the current adjustment (Pope's tau test
+    with the normal quantile; inflated while blunders remain);
+    ``"robust"``: ``median(|w|) / 0.6745`` over the coordinates of the active
+    observations of the tested blocks (the normalized MAD; barely moved by
+    a few percent of blunders).
+    """
+    if scale == "apriori":
+        return 1.0
+    if scale == "aposteriori":
+        rs, _ = problem.evaluate(problem.state, jacobians=False)
+        r = problem.redundancy()
+        return float(np.sqrt(sum(float(np.sum(x * x)) for x in rs) / r)) if r > 0 else 1.0
+    if scale == "robust":
+        vals = [np.abs(w[k][problem.active[k]]).ravel() for k, b in enumerate(problem.blocks)
+                if b.name in blocks and problem.active[k].any()]
+        vals = np.concatenate(vals) if vals else np.zeros(0)
+        return float(np.median(vals) / 0.6745) if len(vals) else 1.0
+    raise ValueError(f"unknown variance scale {scale!r}; known: {', '.join(SCALES)}")
+
+
+def leverages(problem, cof, k, rows):
+    """``h_i = diag(J Q J^T)`` (whitened by the a-priori sigmas and variance
+    factors only, not by activity or robust weights) of the records ``rows``
+    of block ``k``: (len(rows), d). For an observation that is not in the
+    adjustment ``1 + h_i`` is the variance factor of its predicted residual."""
+    blk = problem.blocks[k]
+    rows = np.asarray(rows, dtype=int)
+    _, J = blk.evaluate(problem.state)
+    with np.errstate(divide="ignore"):
+        wgt = 1.0 / (blk.sigma[rows] * np.sqrt(problem.variance[blk.group]))
+    wgt = np.where(np.isfinite(wgt), wgt, 0.0)
+    h = np.zeros((len(rows), blk.dim))
+    for a, (Ja, ca) in enumerate(zip(J, blk.slot_cols)):
+        Ja = Ja[rows] * wgt[:, :, None] * problem.layout.free[ca[rows]][:, None, :]
+        for b, (Jb, cb) in enumerate(zip(J, blk.slot_cols)):
+            Jb = Jb[rows] * wgt[:, :, None] * problem.layout.free[cb[rows]][:, None, :]
+            Q = cof.block(ca[rows], cb[rows])
+            h += np.einsum("nda,nab,ndb->nd", Ja, Q, Jb)
+    return h
+
+
 @dataclass
 class SnoopingResult:
     alpha: float
     critical_value: float
-    rejected: list = field(default_factory=list)   # dicts: block, row, label, w
+    rejected: list = field(default_factory=list)   # dicts: block, k (its index), row, label, w
     rounds: int = 0
+    scale: float = 1.0                               # final variance scale of the tests
+    readmitted: list = field(default_factory=list)   # dicts: block, row, label, w
+    unremovable: list = field(default_factory=list)  # above the critical value, not removable
 
 
-def data_snooping(problem, alpha=0.001, max_rejections=None, options=None, blocks=("image points",)):
+def removable(problem, k, i, min_rays=2, min_station_points=4):
+    """Whether record ``i`` of image-point block ``k`` can be left out
+    without leaving its object point with fewer than ``min_rays`` rays or its
+    station with fewer than ``min_station_points`` image points (unless the
+    point / station is fixed or has an active prior). A blunder in such an
+    observation cannot be located by leaving it out (its redundancy is nil
+    or nearly so)."""
+    blk = problem.blocks[k]
+    if not hasattr(blk, "point") or not hasattr(blk, "station"):
+        return True
+    lay = problem.layout
+    p, st = int(blk.point[i]), int(blk.station[i])
+    rays = pts = 0
+    prior_p = prior_s = False
+    for kk, b in enumerate(problem.blocks):
+        act = problem.active[kk]
+        if b.name == "image points":
+            rays += int(np.count_nonzero(act & (b.point == p)))
+            pts += int(np.count_nonzero(act & (b.station == st)))
+        elif b.name == "control coordinates":
+            prior_p |= bool(np.any(act & (b.point == p)))
+        elif b.name == "station priors":
+            prior_s |= bool(np.any(act & (b.station == st)))
+    if lay.free[lay.point_cols[p]].any() and not prior_p and rays - 1 < min_rays:
+        return False
+    if lay.free[lay.station_cols[st]].any() and not prior_s and pts - 1 < min_station_points:
+        return False
+    return True
+
+
+def _label(blk, i):
+    return blk.labels[i] if getattr(blk, "labels", None) is not None else i
+
+
+def data_snooping(problem, alpha=0.001, max_rejections=None, options=None, blocks=("image points",),
+                  scale="apriori", per_round="one", readmit=False, swap_rays=0):
     """Iterative data snooping: while the largest |w| among the tested blocks
     exceeds the critical value, deactivate that observation (the whole
     record, e.g. both coordinates of an image point) and readjust.
+
+    Parameters
+    ----------
+    alpha : float
+        Significance level of one test (one coordinate); the critical value
+        is the two-sided normal quantile.
+    scale : "apriori" | "aposteriori" | "robust"
+        What the a-priori sigmas are multiplied by in the test (see
+        :func:`variance_scale`); recomputed every round. ``"apriori"`` is
+        Baarda's w-test; the others suit data whose a-priori sigmas are off
+        (CAMCAL: sigma0 1.6).
+    per_round : "one" | "point"
+        ``"one"``: the classical procedure, one rejection per readjustment.
+        ``"point"``: every round rejects, among the observations above the
+        critical value, the worst of each object point and station whose
+        |w| is at least half the largest (a blunder spreads into the other
+        rays of its point and the other points of its image, never by more
+        than it shows itself); many fewer readjustments with many blunders.
+    swap_rays : int
+        For every rejected observation of an object point that keeps at
+        most this many active rays, try rejecting each other ray of the
+        point instead; keep the configuration of least cost. With three
+        rays a blunder smears into the others and the largest |w| may be a
+        good ray; 0 (default) skips this.
+    readmit : bool
+        After the rejections, test every rejected observation against the
+        cleaned adjustment (predicted residual, variance ``1 + h``) and put
+        back those below the critical value; repeated until nothing changes.
 
     Returns
     -------
@@ -65,26 +179,147 @@ def data_snooping(problem, alpha=0.001, max_rejections=None, options=None, block
     """
     k_crit = float(norm.ppf(1.0 - alpha / 2.0))
     result = SnoopingResult(alpha, k_crit)
+    kept = set()        # above the critical value but not removable
     limit = max_rejections if max_rejections is not None else max(
         1, sum(len(b) for b in problem.blocks) // 10)
     while len(result.rejected) < limit:
         red = redundancy_numbers(problem)
         w = normalized_residuals(problem, red)
-        best = (0.0, None, None)
+        s = variance_scale(problem, w, scale, blocks)
+        result.scale = s
+        cands = []
         for k, blk in enumerate(problem.blocks):
             if blk.name not in blocks or not problem.active[k].any():
                 continue
-            aw = np.abs(w[k]).max(axis=1) * problem.active[k]
-            i = int(np.argmax(aw))
-            if aw[i] > best[0]:
-                best = (float(aw[i]), k, i)
-        if best[1] is None or best[0] <= k_crit:
+            aw = np.abs(w[k]).max(axis=1) * problem.active[k] / s
+            for i in np.flatnonzero(aw > k_crit):
+                if (k, int(i)) in kept:
+                    continue
+                if not removable(problem, k, int(i)):
+                    kept.add((k, int(i)))
+                    result.unremovable.append({"block": blk.name, "k": k, "row": int(i),
+                                               "label": _label(blk, int(i)), "w": float(aw[i])})
+                    continue
+                cands.append((float(aw[i]), k, int(i)))
+        if not cands:
             break
-        _, k, i = best
-        problem.active[k][i] = False
-        blk = problem.blocks[k]
-        label = blk.labels[i] if getattr(blk, "labels", None) is not None else i
-        result.rejected.append({"block": blk.name, "row": i, "label": label, "w": best[0]})
+        cands.sort(reverse=True)
+        if per_round == "one":
+            chosen = cands[:1]
+        elif per_round == "point":
+            chosen, seen_pt, seen_st = [], set(), set()
+            top = cands[0][0]
+            for wi, k, i in cands:
+                blk = problem.blocks[k]
+                pt = ("p", int(blk.point[i])) if hasattr(blk, "point") else ("r", k, i)
+                st = ("s", int(blk.station[i])) if hasattr(blk, "station") else ("r", k, i)
+                if wi < 0.5 * top or pt in seen_pt or st in seen_st:
+                    continue
+                seen_pt.add(pt), seen_st.add(st)
+                chosen.append((wi, k, i))
+        else:
+            raise ValueError(f"per_round must be 'one' or 'point', not {per_round!r}")
+        chosen = chosen[:limit - len(result.rejected)]
+        for wi, k, i in chosen:
+            if not removable(problem, k, i):       # two of the chosen share a point
+                continue
+            problem.active[k][i] = False
+            result.rejected.append({"block": problem.blocks[k].name, "k": k, "row": i,
+                                    "label": _label(problem.blocks[k], i), "w": wi})
         result.rounds += 1
         solve(problem, options)
+    if readmit and result.rejected:
+        _readmit(problem, result, options, scale, blocks)
+    if swap_rays and result.rejected:
+        swap_within_points(problem, result.rejected, options, swap_rays)
     return result
+
+
+def swap_within_points(problem, rejected, options, max_rays=4):
+    """Local search for weakly separable blunders: for every rejected image
+    point whose object point keeps at most ``max_rays`` active rays, try
+    each other active ray of that point rejected instead (same number of
+    observations); keep the swap that lowers the cost. ``rejected`` (dicts
+    with k, row, label) is updated in place. Returns the number of swaps."""
+    swaps = 0
+    for rec in rejected:
+        k, i = rec["k"], rec["row"]
+        blk = problem.blocks[k]
+        if not hasattr(blk, "point"):
+            continue
+        p = int(blk.point[i])
+        others = [(kk, int(j)) for kk, b in enumerate(problem.blocks) if b.name == "image points"
+                  for j in np.flatnonzero(problem.active[kk] & (b.point == p))]
+        if not others or len(others) > max_rays:
+            continue
+        best = (problem.cost(problem.state), None, problem.state)
+        start = problem.state
+        for kk, j in others:
+            problem.active[k][i] = True
+            problem.active[kk][j] = False
+            problem.state = start
+            try:
+                solve(problem, options)
+                c = problem.cost(problem.state)
+            except Exception:       # the swap leaves something undetermined
+                c = np.inf
+            if c < best[0] * (1 - 1e-9):
+                best = (c, (kk, j), problem.state)
+            problem.active[kk][j] = True
+            problem.active[k][i] = False
+        problem.state = best[2]
+        if best[1] is not None:
+            kk, j = best[1]
+            problem.active[k][i] = True
+            problem.active[kk][j] = False
+            rec.update({"k": kk, "row": j, "block": problem.blocks[kk].name,
+                        "label": _label(problem.blocks[kk], j), "swapped_from": rec["label"]})
+            swaps += 1
+    if swaps:
+        solve(problem, options)
+    return swaps
+
+
+def _readmit(problem, result, options, scale, blocks, max_rounds=20):
+    """Put back rejected observations whose predicted residual passes."""
+    for _ in range(max_rounds):
+        cof = cofactors(problem)
+        red = redundancy_numbers(problem, cof)
+        w = normalized_residuals(problem, red)
+        s = variance_scale(problem, w, scale, blocks)
+        back = []
+        by_block = {}
+        for j, rej in enumerate(result.rejected):
+            k = rej["k"]
+            by_block.setdefault(k, []).append(j)
+        for k, js in by_block.items():
+            blk = problem.blocks[k]
+            rows = np.array([result.rejected[j]["row"] for j in js])
+            e, _ = blk.evaluate(problem.state, jacobians=False)
+            with np.errstate(divide="ignore"):
+                wgt = 1.0 / (blk.sigma[rows] * np.sqrt(problem.variance[blk.group]))
+            h = leverages(problem, cof, k, rows)
+            t = np.abs(e[rows] * wgt) / np.sqrt(1.0 + h) / s
+            for j, tj in zip(js, t.max(axis=1)):
+                if tj < result.critical_value:
+                    back.append((j, k, float(tj)))
+        if not back:
+            break
+        # one per object point and round, the best fitting first: two
+        # rejected rays of one point each look fine while the other is out
+        back.sort(key=lambda x: x[2])
+        seen, keep = set(), []
+        for j, k, tj in back:
+            blk = problem.blocks[k]
+            pt = int(blk.point[result.rejected[j]["row"]]) if hasattr(blk, "point") else ("r", k, j)
+            if pt in seen:
+                continue
+            seen.add(pt)
+            keep.append((j, k, tj))
+        back = keep
+        for j, k, tj in back:
+            problem.active[k][result.rejected[j]["row"]] = True
+            result.readmitted.append(dict(result.rejected[j], w=tj))
+        drop = {j for j, _, _ in back}
+        result.rejected = [r for j, r in enumerate(result.rejected) if j not in drop]
+        solve(problem, options)

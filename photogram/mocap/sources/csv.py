@@ -5,7 +5,8 @@
     0,C1,neck,1010.9,421.7,0.91
 
 ``frame`` integers (the first frame of the file is frame 0 of the
-sequence; gaps are frames without detections), ``camera`` names of the
+sequence; gaps are frames without detections; the frames of a table span
+at most :data:`MAX_FRAMES`), ``camera`` names of the
 project's cameras, ``joint`` names of the source skeleton (or 0-based
 indices), ``confidence`` in [0, 1] (0 or empty: not detected), ``person``
 optional ids when a camera sees several people. Comment lines start with
@@ -26,6 +27,7 @@ from photogram.project.tables import read_table, suggest
 __all__ = ["CsvSource", "COLUMNS"]
 
 COLUMNS = ("frame", "camera", "joint", "x", "y", "confidence")
+MAX_FRAMES = 100_000        # frames a table may span (33 min at 50 fps)
 
 
 class CsvSource(ObservationSource):
@@ -42,6 +44,15 @@ class CsvSource(ObservationSource):
         bad = np.flatnonzero(frame != np.round(frame))
         if len(bad):
             raise table.error(int(bad[0]), "frame must be an integer")
+        if len(frame):
+            # a frame far from the others (a typo, 1e300) would make the
+            # sequence absurdly long: name its row
+            mid = np.median(frame)
+            far = int(np.argmax(np.abs(frame - mid)))
+            if not abs(frame[far]) < 2**31 or np.ptp(frame) >= MAX_FRAMES:
+                raise table.error(far, f"frame {table.cells('frame')[far]} is out of range: "
+                                       f"the frames of a table span at most {MAX_FRAMES}",
+                                  hint="frames count from 0 (or the first frame) upwards")
         frame = frame.astype(int)
         cams = np.array(table.text("camera"))
         known = set(cameras)
