@@ -43,21 +43,33 @@ _SKIP = {"results", "results-estimate"}
 
 def stage(base: Path) -> Path:
     """Copy the example projects (and importer sources) into ``base``;
-    returns ``base``. The lab and field results stay (the jumps and
-    Monte-Carlo projects read them)."""
+    returns ``base``. The lab and field results are computed there (the
+    jumps and Monte-Carlo projects and the importer sources read them)."""
     base = Path(base)
     if (base / ".staged").is_file():
         return base
     for name in ("lab", "field", "jumps", "designs", "ski-ptz"):
-        keep_results = name in ("lab", "field")
-
-        def ignore(folder, names, keep=keep_results):
-            return [n for n in names if n in _SKIP and not keep]
-        shutil.copytree(PROJECTS / name, base / name, ignore=ignore)
+        shutil.copytree(PROJECTS / name, base / name,
+                        ignore=lambda folder, names: [n for n in names if n in _SKIP])
+    _results(base)
     _trim_mocap(base / "ski-ptz", FRAMES)
     _importer_sources(base / "import")
     (base / ".staged").write_text("ok")
     return base
+
+
+def _results(base: Path) -> None:
+    """The lab and field results the jumps project and the importer sources
+    read, computed in the staged copy (a fresh clone has none)."""
+    import contextlib
+    import io
+
+    from photogram_cli.main import main
+    for command, prj in (("calibrate", "lab/lab.prj"), ("orient", "field/field.prj")):
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            code = main([command, str(base / prj), "-q"])
+        if code != 0:
+            raise RuntimeError(f"photogram {command} {prj} failed while staging the corpus")
 
 
 FRAMES = 12     # frames kept of projects/ski-ptz (the reading stage then takes ~0.05 s)
