@@ -20,6 +20,7 @@ import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from photogram.mocap.joint import JointBatch
+from photogram.mocap.solvers import damping_update, moved_positions
 
 __all__ = ["solve_joint", "solve_joint_lbfgs"]
 
@@ -35,13 +36,6 @@ def _mask(batch: JointBatch, nw):
     _, C, J, T, KP, KG = batch.sizes
     mp = np.broadcast_to(batch.obs.mask(KP), (nw, J, 3, KP)).reshape(nw, -1)
     return np.concatenate([mp, np.ones((nw, C * 3 * KG), bool)], axis=1).astype(float)
-
-
-def _moved(batch: JointBatch, da):
-    d = np.abs(batch.obs.positions(da)).max(axis=2)
-    if batch.obs.support is not None:
-        d = np.where(batch.obs.support, d, 0.0)
-    return d.reshape(len(d), -1).max(axis=1)
 
 
 def _solve_dense(A, b):
@@ -118,14 +112,9 @@ def solve_joint(batch: JointBatch, a, g, sigma2, lengths, lambda_rep, lambda_lim
                 E1 = sub.subset(p).energy(ta, tg, *args)
                 ok = solved & (E1 <= E0[p])
                 new_a[p[ok]], new_g[p[ok]], new_E[p[ok]] = ta[ok], tg[ok], E1[ok]
-                accepted[p[ok]] = True
-                mu[ids[p[ok]]] = np.maximum(mu[ids[p[ok]]] / 3.0, 1e-12)
-                mu[ids[p[~ok]]] *= 10.0
-                pending[p[ok]] = False
-                pending &= mu[ids] < 1e10
-                if not pending.any():
+                if not damping_update(mu, ids, p, ok, accepted, pending):
                     break
-            moved = _moved(sub, new_a - a[ids])
+            moved = moved_positions(sub.obs, new_a - a[ids])
             a[ids], g[ids] = new_a, new_g
             rel = (E0 - new_E) / np.maximum(np.abs(E0), 1e-300)
             E[ids] = new_E

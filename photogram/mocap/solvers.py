@@ -36,7 +36,7 @@ import numpy as np
 
 from photogram.mocap.energy import Linearization, WindowBatch
 
-__all__ = ["solve_gauss_newton", "solve_lbfgs"]
+__all__ = ["solve_gauss_newton", "solve_lbfgs", "damping_update", "moved_positions"]
 
 
 def _inv3(A):
@@ -125,14 +125,9 @@ def solve_gauss_newton(batch: WindowBatch, a, sigma2, L, lam_rep, lam_limbs, max
             E1 = sub.subset(p).energy(trial, sigma2, L, lam_rep, lam_limbs)
             ok = E1 <= E0[p]
             new_a[p[ok]], new_E[p[ok]] = trial[ok], E1[ok]
-            accepted[p[ok]] = True
-            mu[ids[p[ok]]] = np.maximum(mu[ids[p[ok]]] / 3.0, 1e-12)
-            mu[ids[p[~ok]]] *= 10.0
-            pending[p[ok]] = False
-            pending &= mu[ids] < 1e10
-            if not pending.any():
+            if not damping_update(mu, ids, p, ok, accepted, pending):
                 break
-        moved = _moved(sub, new_a - a[ids])
+        moved = moved_positions(sub, new_a - a[ids])
         a[ids] = new_a
         rel = (E0 - new_E) / np.maximum(np.abs(E0), 1e-300)
         E[ids] = new_E
@@ -142,7 +137,20 @@ def solve_gauss_newton(batch: WindowBatch, a, sigma2, L, lam_rep, lam_limbs, max
     return a, E, it
 
 
-def _moved(batch: WindowBatch, step) -> np.ndarray:
+def damping_update(mu, ids, p, ok, accepted, pending) -> bool:
+    """Levenberg-Marquardt bookkeeping after trial steps of the windows
+    ``ids[p]`` (``ok``: lowered their energy): mu / 3 after a success, x 10
+    after a failure, a window stays pending until it succeeds or mu reaches
+    1e10. Returns whether any window is still pending."""
+    accepted[p[ok]] = True
+    mu[ids[p[ok]]] = np.maximum(mu[ids[p[ok]]] / 3.0, 1e-12)
+    mu[ids[p[~ok]]] *= 10.0
+    pending[p[ok]] = False
+    pending &= mu[ids] < 1e10
+    return bool(pending.any())
+
+
+def moved_positions(batch: WindowBatch, step) -> np.ndarray:
     """Largest position change of a step per window, over the frames where
     each joint is determined (``batch.support``; all frames without it)."""
     d = np.abs(batch.positions(step)).max(axis=2)                 # (n, J, T)

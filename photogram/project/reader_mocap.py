@@ -101,6 +101,19 @@ def _path(sec: Section, key: str, folder: Path, *, kind: str = "file") -> Path |
     return full
 
 
+def _camera_paths(sub: Section, base: Path, hint: str) -> dict:
+    """camera -> existing file or folder (absolute) of a ``{ C1 = "..." }``
+    table, relative paths from ``base``."""
+    out = {}
+    for name in sub.data:
+        value = Path(sub.string(name))
+        full = value if value.is_absolute() else base / value
+        if not full.exists():
+            raise sub.error(name, f"camera {name} in {sub.label}: {value} not found", hint=hint)
+        out[name] = full
+    return out
+
+
 def _read_source(sec: Section, folder: Path) -> MocapSource:
     sec.check_keys(SOURCE_KEYS, required=("kind",))
     kind = sec.string("kind", choices=SOURCE_KINDS)
@@ -108,17 +121,10 @@ def _read_source(sec: Section, folder: Path) -> MocapSource:
     path = _path(sec, "path", folder, kind=want)
     cams = None
     if "cameras" in sec:
-        sub = sec.table("cameras")
-        base = path if path is not None and path.is_dir() else folder
-        cams = {}
-        for name in sub.data:
-            value = Path(sub.string(name))
-            full = value if value.is_absolute() else base / value
-            if not full.exists():
-                raise sub.error(name, f"camera {name} in {sub.label}: {value} not found",
-                                hint="relative to path of [mocap.source] (or the project "
-                                     "folder without path)")
-            cams[name] = full
+        cams = _camera_paths(sec.table("cameras"),
+                             path if path is not None and path.is_dir() else folder,
+                             "relative to path of [mocap.source] (or the project folder "
+                             "without path)")
     if kind == "csv" and path is None:
         raise sec.error(None, f"{sec.label} of kind csv needs path = \"detections.csv\"")
     if kind != "csv" and path is None and cams is None:
@@ -193,16 +199,8 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
         subs[name] = values
     images = None
     if "images" in sec:
-        sub = sec.table("images")
-        images = {}
-        for name in sub.data:
-            value = Path(sub.string(name))
-            full = value if value.is_absolute() else folder / value
-            if not full.exists():
-                raise sub.error(name, f"camera {name} in {sub.label}: {value} not found",
-                                hint="a video file or a folder of images, relative to the "
-                                     "project folder")
-            images[name] = full
+        images = _camera_paths(sec.table("images"), folder, "a video file or a folder of "
+                               "images, relative to the project folder")
     rotation = sec.string("rotation", "known", choices=ROTATION_MODES)
     rot_diff = _path(sec, "rotation_differences", folder)
     if rotation == "estimate" and rot_diff is None and images is None:
