@@ -245,7 +245,8 @@ class MonteCarloSettings:
     (e.g. helmet tie points); ``align`` removes from them a translation and
     a rotation about the vertical per run (``"none"`` or ``"plan"``) before
     their scatter is taken. ``scheduler`` is the address of a Dask
-    cluster (``tcp://host:port``; None: local processes).
+    cluster (``tcp://host:port``; None: local processes); it is set only
+    from the command line (``--scheduler``), never from a project file.
     """
 
     orient: str | None = None

@@ -50,6 +50,10 @@ PROJECT_KEYS = ("name", "length_unit", "angle_unit", "image_unit", "rotation",
                 "rotation_direction")
 MONTECARLO_KEYS = ("orient", "calibrate", "intersect", "perturb", "interior_covariance", "truth",
                    "points", "align", "runs", "seed", "chunk", "workers", "scheduler")
+#: limits of [montecarlo] (and --runs, --workers): refused before anything is
+#: allocated or started (docs/reliability.md)
+MAX_RUNS = 100_000
+MAX_WORKERS = 256
 ADJUSTMENT_KEYS = ("datum", "max_iterations", "tolerance", "sigma_image", "sigma_control",
                    "damping", "robust", "variance_components", "snooping_alpha",
                    "inner_constraints")
@@ -201,11 +205,20 @@ def _read_montecarlo(sec: Section | None, prj: Path) -> MonteCarloSettings | Non
     if not perturb:
         raise sec.error("perturb", f"perturb in {sec.label} is empty",
                         hint='e.g. perturb = ["image", "reference"]')
-    scheduler = sec.string("scheduler", None)
-    if scheduler is not None and not scheduler.startswith(("tcp://", "tls://", "inproc://")):
-        raise sec.error("scheduler", f"scheduler in {sec.label} must be an address like "
-                                     f"tcp://HOST:PORT, not '{scheduler}'",
-                        hint="remove it to run in local processes")
+    if "scheduler" in sec:
+        # a cluster receives the pickled project and sends back pickles that
+        # photogram loads: only the person running the command may choose it
+        raise sec.error("scheduler", f"scheduler in {sec.label} is not allowed in a project "
+                                     f"file: a Dask cluster address is given only on the "
+                                     f"command line",
+                        hint="remove the line; to run on a cluster you trust, add "
+                             "--scheduler tcp://HOST:PORT to the command")
+    for key, top in (("runs", MAX_RUNS), ("workers", MAX_WORKERS)):
+        value = sec.data.get(key)
+        if isinstance(value, int) and not isinstance(value, bool) and value > top:
+            raise sec.error(key, f"{key} in {sec.label} must be at most {top}, not {value}",
+                            hint="1000 runs give sigmas to 2 %" if key == "runs" else
+                            "one worker per CPU core")
     return MonteCarloSettings(
         orient=path("orient"), calibrate=path("calibrate"), intersect=path("intersect"),
         perturb=tuple(dict.fromkeys(perturb)),
@@ -216,8 +229,7 @@ def _read_montecarlo(sec: Section | None, prj: Path) -> MonteCarloSettings | Non
         runs=sec.integer("runs", out.runs, minimum=1),
         seed=sec.integer("seed", out.seed, minimum=0),
         chunk=sec.integer("chunk", out.chunk, minimum=1),
-        workers=sec.integer("workers", out.workers, minimum=1),
-        scheduler=scheduler)
+        workers=sec.integer("workers", out.workers, minimum=1))
 
 
 def _read_project_section(sec: Section, project: Project) -> None:

@@ -77,12 +77,15 @@ from photogram.project.model import (
     ANGLE_UNITS, DATUMS, LENGTH_UNITS, PERTURBATIONS, AdjustmentSettings, Camera,
     DistanceConstraint, ImagePoints, OutputSettings, Parameter, Points, Project, Stations,
     Units, VerticalConstraint)
+from photogram.project.reader import MAX_RUNS, MAX_WORKERS
 from photogram.project.toml_source import Section, TomlSource
 from photogram.simulation.network import look_at, observe, roll
 
 __all__ = ["Design", "read_design", "simulate_design", "write_simulation", "BUILTINS"]
 
 BUILTINS = ("lab", "arena")
+#: most exposures of a simulated jump (the design is refused above it)
+MAX_EXPOSURES = 1000
 PARAMS = camera_model("brown").parameter_names
 _ANGLE = {"rad": 1.0, "deg": np.pi / 180.0, "gon": np.pi / 200.0}
 
@@ -203,6 +206,7 @@ def read_design(path) -> Design:
         if bad:
             raise j.error("points", f"unknown jumper point '{bad[0]}'",
                           hint="P1 helmet, P2 hip, P3 right and P4 left binding")
+        _at_most(j, "exposures", MAX_EXPOSURES, "a jump at 30 fps has about 100")
         des.jumper = {"exposures": j.integer("exposures", 24, minimum=2), "points": pts,
                       "every": j.integer("every", 1, minimum=1)}
     ids = [p[0] for p in des.points] + [f"{r['id']}{e}" for r in des.rods for e in "ab"]
@@ -213,11 +217,21 @@ def read_design(path) -> Design:
     return des
 
 
+def _at_most(sec: Section, key: str, top: int, hint: str):
+    """Refuse an integer above ``top`` before anything is allocated."""
+    value = sec.data.get(key)
+    if isinstance(value, int) and not isinstance(value, bool) and value > top:
+        raise sec.error(key, f"{key} in {sec.label} must be at most {top}, not {value}",
+                        hint=hint)
+
+
 def _montecarlo(root):
     m = root.table("montecarlo", required=False)
     if m is None:
         return None
     m.check_keys(("runs", "seed", "perturb", "workers", "chunk"))
+    _at_most(m, "runs", MAX_RUNS, "1000 runs give sigmas to 2 %")
+    _at_most(m, "workers", MAX_WORKERS, "one worker per CPU core")
     perturb = m.ids("perturb", ["image", "reference", "constraints"])
     for p in perturb:
         if p not in PERTURBATIONS:
