@@ -31,10 +31,11 @@ ROOT = Path(__file__).resolve().parents[1]
 PROJECTS = ROOT / "projects"
 
 
-def _montecarlo(project, runs=200):
-    """The demo's Monte Carlo: 200 runs (the project says 1000)."""
+def _montecarlo(project, runs=200, force=False):
+    """The demo's Monte Carlo: 200 runs (the project says 1000); ``force``
+    computes every run again (when the demo replaces earlier results)."""
     from photogram.montecarlo import run_montecarlo
-    folder, summary = run_montecarlo(project, runs=runs, progress=False)
+    folder, summary = run_montecarlo(project, runs=runs, progress=False, force=force)
     ratios = {g: h["ratio"]["median"] for g, h in summary["headline"].items()}
     print(f"montecarlo: {summary['runs']} runs; sigma_mc / sigma_prop median per group: "
           + ", ".join(f"{g} {r:.2f}" for g, r in ratios.items()) + f"; results in {folder}")
@@ -80,7 +81,10 @@ def run(args=None):
         if mode != "new":                 # the demo replaces its own results, and says so
             print(f"{command} {path.relative_to(ROOT)}: replacing the earlier results in "
                   f"{project.output_folder().relative_to(ROOT)}")
-        folder, result = function(project)
+        if command == "montecarlo":      # replaced means computed again, never resumed
+            folder, result = function(project, force=mode != "new")
+        else:
+            folder, result = function(project)
         if result is not None:
             announce(f"{command} {path.relative_to(ROOT)}", folder, result.summary, args)
         folders.append(folder)

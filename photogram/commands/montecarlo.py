@@ -9,7 +9,8 @@ from photogram.montecarlo import run_montecarlo
 def run(project, args=None):
     folder, summary = run_montecarlo(
         project, runs=getattr(args, "runs", None), seed=getattr(args, "seed", None),
-        workers=getattr(args, "workers", None), scheduler=getattr(args, "scheduler", None))
+        workers=getattr(args, "workers", None), scheduler=getattr(args, "scheduler", None),
+        force=bool(getattr(args, "force", False)))
     if not getattr(args, "quiet", False):
         parts = [f"{g} {h['ratio']['median']:.2f}" for g, h in summary["headline"].items()]
         ex = summary["execution"]

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from photogram.errors import InputError
+from photogram.project.reader import MAX_RUNS, MAX_WORKERS
 
 __all__ = ["run_montecarlo", "Chain", "Runner"]
 
@@ -48,6 +49,11 @@ def settings_of(project, *, runs=None, seed=None, workers=None, scheduler=None, 
         if key in changes and int(changes[key]) < 1:
             raise InputError(f"--{key} must be at least 1, not {changes[key]}",
                              hint=f"e.g. --{key} 1000" if key == "runs" else None)
+    for key, top in (("runs", MAX_RUNS), ("workers", MAX_WORKERS)):
+        if key in changes and int(changes[key]) > top:
+            raise InputError(f"--{key} must be at most {top}, not {changes[key]}",
+                             hint="1000 runs give sigmas to 2 %" if key == "runs"
+                             else "one worker per CPU core")
     if "seed" in changes and int(changes["seed"]) < 0:
         raise InputError(f"--seed must be >= 0, not {changes['seed']}")
     if changes.get("scheduler") is not None and \
@@ -57,9 +63,19 @@ def settings_of(project, *, runs=None, seed=None, workers=None, scheduler=None, 
     return dataclasses.replace(s, **changes)
 
 
+#: largest number of sample values (runs x output quantities) kept in memory
+MAX_SAMPLE_VALUES = 200_000_000          # 1.6 GB of float64
+
+
 def run_montecarlo(project, *, runs=None, seed=None, workers=None, scheduler=None,
-                   chunk=None, output=None, progress=True, on_chunk=None):
+                   chunk=None, output=None, progress=True, on_chunk=None, force=False):
     """Run (or resume) the Monte-Carlo simulation of a chain project.
+
+    Finished runs in the output folder's ``samples/`` are reused only if
+    they were computed from the same input files (by content), settings
+    and program (:mod:`photogram.montecarlo.manifest`); ``force`` computes
+    every run again. The cluster address ``scheduler`` comes only from the
+    caller (``--scheduler``), never from the project file.
 
     Returns ``(folder, summary)``; the files are described in
     :mod:`photogram.montecarlo.report`.
@@ -74,10 +90,17 @@ def run_montecarlo(project, *, runs=None, seed=None, workers=None, scheduler=Non
     folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     chain = Chain(s)
+    n_out = len(chain.outputs.names)
+    if s.runs * n_out > MAX_SAMPLE_VALUES:
+        raise InputError(f"{s.runs} runs of {n_out} quantities are {s.runs * n_out:.3g} values, "
+                         f"more than {MAX_SAMPLE_VALUES:.3g} (1.6 GB) in memory",
+                         file=project.path, hint=f"at most {MAX_SAMPLE_VALUES // n_out} runs "
+                                                 f"for this chain")
     sigma_prop, sigma_cmd = chain.propagate()
     t_setup = time.perf_counter() - t0
     runner = Runner(chain, folder, runs=s.runs, seed=s.seed, chunk=s.chunk, workers=s.workers,
-                    scheduler=s.scheduler, progress=progress, on_chunk=on_chunk)
+                    scheduler=s.scheduler, progress=progress, on_chunk=on_chunk,
+                    force=force)
     samples, failed, info = runner.run()
     info.update({"seed": s.seed, "setup_seconds": t_setup})
     summary = write_report(folder, chain, samples, failed, sigma_prop, sigma_cmd, info)

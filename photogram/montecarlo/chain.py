@@ -24,13 +24,16 @@ picklable; :meth:`Chain.trial` runs one simulation from one
 
 :meth:`Chain.propagate` gives, for the same vector, the sigma of
 first-order covariance propagation through the same chain (``sigma_prop``)
-and the sigma the commands report (``sigma_cmd``); see docs/montecarlo.md.
+and :attr:`Chain.sigma_cmd` the sigma the commands report, computed by the
+commands' own code at the setup (:mod:`photogram.montecarlo.reported`); see
+docs/montecarlo.md.
 """
 
 from __future__ import annotations
 
 import fnmatch
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -41,6 +44,7 @@ from photogram.jump.stick import ANGLE_FACTORS
 from photogram.geometry import angle_increment_map
 from photogram.montecarlo.bundle import LeanBundle
 from photogram.montecarlo.intersect import LeanIntersect, local_basis_batch
+from photogram.montecarlo.manifest import project_files
 
 __all__ = ["Chain", "Outputs"]
 
@@ -82,7 +86,7 @@ def _wrap(x):
     return np.angle(np.exp(1j * x))
 
 
-def _interior_covariance(settings, project, camera_names, parameter_names):
+def _interior_covariance(settings, project, camera_names, parameter_names, files=None):
     from photogram.commands.bundle import read_orientation_covariance
     folder = settings.interior_covariance
     if folder is None:
@@ -93,6 +97,8 @@ def _interior_covariance(settings, project, camera_names, parameter_names):
                              "calibration results folder", file=project.path,
                              hint="give [montecarlo] interior_covariance = \"../lab/results\"")
         folder = next(iter(srcs)).parent
+    if files is not None:
+        files.append(Path(folder) / "covariance.npz")
     try:
         labels, matrix = read_orientation_covariance(folder)
     except FileNotFoundError:
@@ -111,18 +117,26 @@ class Chain:
     """One Monte-Carlo chain (see the module docstring)."""
 
     def __init__(self, settings, *, project_reader=None):
-        from photogram.montecarlo.truth import adjusted_truth, project_points, simulation_truth
+        from photogram.montecarlo.reported import command_sigmas
+        from photogram.montecarlo.truth import adjusted_result, project_points, simulation_truth
         from photogram.project import read_project
         read = project_reader or read_project
         self.settings = settings
         self.perturb = set(settings.perturb)
         self.fix_interior = settings.orient is not None
         prj1 = read(settings.orient or settings.calibrate)
+        #: every file the runs depend on (their content is hashed into the
+        #: manifest of the samples folder, photogram.montecarlo.manifest)
+        self.input_files = project_files(prj1)
         self.units = prj1.units
         if settings.truth == "simulation":
+            self.input_files += [Path(prj1.folder) / "truth" / f
+                                 for f in ("cameras.csv", "stations.csv", "points.csv")]
             truth1 = simulation_truth(prj1)
+            result1 = None
         else:
-            truth1 = adjusted_truth(prj1, fix_interior=self.fix_interior)
+            result1 = adjusted_result(prj1, fix_interior=self.fix_interior)
+            truth1 = result1.project
         b = LeanBundle(truth1, fix_interior=self.fix_interior)
         self.bundle = b
         K, p = b.start.io.shape
@@ -149,7 +163,7 @@ class Chain:
         if self.fix_interior:
             try:
                 self.io_cov = _interior_covariance(settings, prj1, b.camera_names,
-                                                   b.parameter_names)
+                                                   b.parameter_names, self.input_files)
             except InputError:
                 if "interior" in self.perturb:
                     raise
@@ -160,10 +174,19 @@ class Chain:
             self.io_random = np.flatnonzero(b.io_free.ravel())
         self.collect = self._collected_points(truth1)
         self.intersect = None
+        prj2 = None
         if settings.intersect is not None:
-            self._setup_intersect(read(settings.intersect))
+            prj2 = read(settings.intersect)
+            self.input_files += project_files(prj2)
+            if settings.truth == "simulation":
+                self.input_files += [Path(prj2.folder) / "truth" / f
+                                     for f in ("jumper_points.csv", "skis.csv")]
+            self._setup_intersect(prj2)
         self.outputs = self._outputs()
         self.truth = self._evaluate_truth()
+        #: what the commands report for every output (internal units, NaN:
+        #: not reported), by the commands' own code (montecarlo.reported)
+        self.sigma_cmd = command_sigmas(self, prj1, prj2, result1)
 
     # ------------------------------------------------------------------ setup
     def _collected_points(self, truth1):

@@ -6,10 +6,14 @@
   distributed.
 * Runs are grouped in chunks of ``chunk`` runs; a finished chunk is written
   at once, atomically, as ``samples/chunk-NNNNN.csv`` (17 significant
-  digits: the numbers read back bit for bit). A new start skips the chunks
-  already written (``samples/manifest.json`` must match the settings, or
-  they are discarded), so an interrupted simulation loses nothing it had
-  finished.
+  digits: the numbers read back bit for bit), its first line naming the
+  digest of the manifest it was computed under. A new start skips the chunks
+  already written only if ``samples/manifest.json`` is identical: the same
+  content of every input file, the same settings, the same program
+  (:mod:`photogram.montecarlo.manifest`); otherwise, and always with
+  ``force``, every run is computed again, with one line saying why. An
+  interrupted simulation loses nothing it had finished, and never mixes
+  runs of different inputs.
 * Engines: in this process (one worker), local processes (joblib, loky
   backend) or a Dask distributed cluster (``scheduler="tcp://HOST:PORT"``;
   the optional extra ``photogram[cluster]``). Every trial runs with one BLAS
@@ -19,7 +23,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import logging
@@ -30,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import GeometryError, InputError
+from photogram.montecarlo.manifest import fingerprint, manifest_digest, why_different
 from photogram.project.atomic import atomic_write_text
 
 __all__ = ["run_chunk", "Runner", "seeds_for", "chunk_ranges"]
@@ -64,15 +68,6 @@ def run_chunk(chain, index, seeds):
     return index, values, failed, time.process_time() - cpu
 
 
-def _fingerprint(chain, chunk, seed):
-    s = chain.settings
-    names = hashlib.sha256("\n".join(chain.outputs.names).encode()).hexdigest()[:16]
-    return {"seed": int(seed), "chunk": int(chunk), "perturb": sorted(s.perturb),
-            "truth": s.truth, "orient": s.orient, "calibrate": s.calibrate,
-            "intersect": s.intersect, "points": list(s.points), "align": s.align,
-            "interior_covariance": s.interior_covariance, "outputs": names}
-
-
 class Runner:
     """Run (or resume) the trials of a chain into ``folder/samples``.
 
@@ -89,14 +84,17 @@ class Runner:
     on_chunk : callable, optional
         Called as ``on_chunk(index)`` after a chunk is written (a hook for
         tests and front ends).
+    force : bool
+        Compute every run again, even if the samples folder holds finished
+        chunks of the same inputs and settings.
     """
 
     def __init__(self, chain, folder, *, runs, seed, chunk=50, workers=1, scheduler=None,
-                 progress=True, on_chunk=None):
+                 progress=True, on_chunk=None, force=False):
         self.chain, self.folder = chain, Path(folder)
         self.runs, self.seed, self.chunk = int(runs), int(seed), int(chunk)
         self.workers, self.scheduler = int(workers), scheduler
-        self.progress, self.on_chunk = progress, on_chunk
+        self.progress, self.on_chunk, self.force = progress, on_chunk, bool(force)
         self.samples = self.folder / "samples"
         self.ranges = chunk_ranges(self.runs, self.chunk)
         self.names = ["run"] + list(chain.outputs.names)
@@ -106,21 +104,25 @@ class Runner:
         return self.samples / f"chunk-{index:05d}.csv"
 
     def _prepare(self):
+        """Write the manifest of this run; discard finished chunks unless it
+        equals the one they were computed under (or with ``force``)."""
         self.samples.mkdir(parents=True, exist_ok=True)
         manifest = self.samples / "manifest.json"
-        fp = _fingerprint(self.chain, self.chunk, self.seed)
+        fp = fingerprint(self.chain, seed=self.seed, chunk=self.chunk)
+        self.digest = manifest_digest(fp)
+        finished = sorted(self.samples.glob("chunk-*.csv"))
+        old = None
         if manifest.is_file():
             try:
                 old = json.loads(manifest.read_text(encoding="utf-8"))
             except (OSError, ValueError):
                 old = None
-            if old != fp:
-                stale = sorted(self.samples.glob("chunk-*.csv"))
-                if stale:
-                    log.warning("montecarlo: the settings changed; discarding %d finished "
-                                "chunk(s) in %s", len(stale), self.samples)
-                for f in stale:
-                    f.unlink()
+        reason = "--force" if self.force else why_different(old, fp)
+        if reason is not None and finished:
+            log.warning("montecarlo: computing all %d runs again (%s); discarding %d finished "
+                        "chunk(s) in %s", self.runs, reason, len(finished), self.samples)
+            for f in finished:
+                f.unlink()
         atomic_write_text(manifest, json.dumps(fp, indent=1) + "\n")
 
     def _read_chunk(self, index, start, stop):
@@ -131,6 +133,8 @@ class Runner:
             return None
         try:
             with open(path, encoding="utf-8") as f:
+                if f.readline().strip() != f"# manifest {self.digest}":
+                    return None           # computed under other inputs or settings
                 header = f.readline().strip().split(",")
                 data = np.loadtxt(f, delimiter=",", ndmin=2)
         except (OSError, ValueError):
@@ -145,6 +149,7 @@ class Runner:
         data = np.column_stack([np.arange(start, start + len(values)), values * factor,
                                 failed.astype(int)])
         buf = io.StringIO()
+        buf.write(f"# manifest {self.digest}\n")
         buf.write(",".join(self.names + ["failed"]) + "\n")
         np.savetxt(buf, data, delimiter=",", fmt="%.17g")
         atomic_write_text(self.chunk_path(index), buf.getvalue())
@@ -158,7 +163,8 @@ class Runner:
         todo = [r for r in self.ranges if self._read_chunk(*r) is None]
         done_runs = self.runs - sum(stop - start for _, start, stop in todo)
         if done_runs:
-            log.info("montecarlo: resuming, %d of %d runs already done", done_runs, self.runs)
+            log.info("montecarlo: resuming, %d of %d runs already done with the same inputs "
+                     "and settings", done_runs, self.runs)
         seeds = seeds_for(self.seed, self.runs)
         jobs = [(k, start, seeds[start:stop]) for k, start, stop in todo]
         starts = {k: start for k, start, _ in todo}

@@ -17,12 +17,9 @@ the norm of its row of ``Phi``:
 
 ``sigma_prop`` counts only the perturbed kinds and the correlations the chain
 creates (the stations of ``orient`` move with the drawn interior
-orientation). ``sigma_cmd`` is what the commands report for the same truth
-(a-priori sigma0 = 1): ``orient``'s covariance of the stations (interior
-fixed), the calibration's covariance of the interior orientation, and for
-the intersect step the two summed as independent (as ``photogram intersect``
-does with the covariance.npz files of ``[intersect] orientation``) with the
-ski directions from their image noise only.
+orientation). ``sigma_cmd``, what the commands report, is not modelled here:
+the commands' own code computes it at the chain's setup
+(:mod:`photogram.montecarlo.reported`).
 """
 
 from __future__ import annotations
@@ -56,9 +53,9 @@ def _stage2_vector(chain, io, R, X0):
     return v
 
 
-def _stage2(chain, Phi_theta, Phi_theta_cmd, thetas):
+def _stage2(chain, Phi_theta, thetas):
     """Rows of the intersect outputs: orientation part (Phi) and the image
-    variances, for the chain and for the commands."""
+    variances."""
     b, li = chain.bundle, chain.intersect
     io, R, X0 = b.start.io, b.start.R, b.start.X0
     f0 = _stage2_vector(chain, io, R, X0)
@@ -66,7 +63,7 @@ def _stage2(chain, Phi_theta, Phi_theta_cmd, thetas):
     n_angle = chain.outputs.angle[-n2:]
     G = np.zeros((n2, len(thetas)))
     for i, which in enumerate(thetas):
-        s = max(np.linalg.norm(Phi_theta[i]), np.linalg.norm(Phi_theta_cmd[i]))
+        s = np.linalg.norm(Phi_theta[i])
         if s == 0:
             continue
         h = 1e-3 * s
@@ -76,7 +73,6 @@ def _stage2(chain, Phi_theta, Phi_theta_cmd, thetas):
         d[n_angle] = np.angle(np.exp(1j * d[n_angle]))
         G[:, i] = d / (2 * h)
     orient = G @ Phi_theta
-    orient_cmd = G @ Phi_theta_cmd
     # image noise of the intersect step (at the truth)
     X, covX = li.intersect_points(io, R, X0, li.inputs_points, chain.X2, covariance=True)
     LP, LD, covL, _ = li.intersect_lines(io, R, X0, li.inputs_lines, (chain.LP2, chain.LD2),
@@ -91,17 +87,7 @@ def _stage2(chain, Phi_theta, Phi_theta_cmd, thetas):
     img_model = li.stick(P, LPe, LDe, cov_points=cov_p, cov_dirs=cov_d)
     var_img = np.concatenate([np.diagonal(cov_p, axis1=2, axis2=3).ravel(),
                               np.diagonal(img_model.cov, axis1=1, axis2=2).ravel()])
-    # the commands: points with image + orientation (within an exposure
-    # correlated), directions image only, stick model per exposure
-    Cp = np.zeros((E, 12, 12))
-    for k in range(4):
-        Cp[:, 3 * k:3 * k + 3, 3 * k:3 * k + 3] = cov_p[:, k]
-    Op = orient_cmd[:12 * E].reshape(E, 12, -1)
-    Cp = Cp + Op @ np.swapaxes(Op, 1, 2)
-    cmd_model = li.stick(P, LPe, LDe, cov_points=Cp, cov_dirs=cov_d)
-    var_cmd = np.concatenate([np.diagonal(Cp, axis1=1, axis2=2).ravel(),
-                              np.diagonal(cmd_model.cov, axis1=1, axis2=2).ravel()])
-    return orient, var_img, var_cmd
+    return orient, var_img
 
 
 def local_basis_batch_of(D):
@@ -111,7 +97,8 @@ def local_basis_batch_of(D):
 
 def propagate(chain):
     """``(sigma_prop, sigma_cmd)`` for every output of the chain (internal
-    units, in the order of ``chain.outputs``)."""
+    units, in the order of ``chain.outputs``); ``sigma_cmd`` is
+    :attr:`Chain.sigma_cmd`."""
     b = chain.bundle
     f = chain.perturb
     J, Q, Jio = b.linearize(b.start, b.inputs)
@@ -121,43 +108,29 @@ def propagate(chain):
     Aio = -Q @ (J.T @ (Jio @ L)) if L.shape[1] else np.zeros((b.n, 0))
     use = np.isin(b.sources, list(f)).astype(float)
     Phi = np.hstack([A * use[None, :], Aio * ("interior" in f)])
-    Phi_cmd = np.hstack([A, np.zeros_like(Aio)])
     M = Phi.shape[1]
     K, p = chain.shape_io
     # interior orientation used by the run, all K p parameters
     io_rows = np.zeros((K * p, M))
-    io_cmd = np.zeros((K * p, M))
     if chain.fix_interior:
         io_rows[:, m:] = L * ("interior" in f)
-        io_cmd[:, m:] = L
     else:
         free = b.io_free.ravel()
         io_rows[free] = Phi[b.io_cols[b.io_free]]
-        io_cmd[free] = Phi_cmd[b.io_cols[b.io_free]]
     rows = [station_rows(b, Phi, b.start.R), io_rows[chain.io_random]]
-    cmd = [station_rows(b, Phi_cmd, b.start.R), io_cmd[chain.io_random]]
     if len(chain.collect):
         pr = Phi[b.point_cols[chain.collect].ravel()]
-        pc = Phi_cmd[b.point_cols[chain.collect].ravel()]
         if chain.settings.align == "plan":
-            X = b.start.X[chain.collect]
-            pr, pc = _s_transform(pr, X), _s_transform(pc, X)
+            pr = _s_transform(pr, b.start.X[chain.collect])
         rows.append(pr)
-        cmd.append(pc)
     var = np.concatenate([np.sum(r * r, axis=1) for r in rows])
-    var_cmd = np.concatenate([np.sum(r * r, axis=1) for r in cmd])
     if chain.intersect is not None:
         S = len(b.station_names)
         thetas = [int(i) for i in chain.io_random] + [("station", s, q)
                                                        for s in range(S) for q in range(6)]
         st_rows = Phi[b.station_cols.ravel()]
-        st_cmd = Phi_cmd[b.station_cols.ravel()]
         Phi_theta = np.vstack([io_rows[chain.io_random], st_rows])
-        # the commands: the calibration's and the orientation's covariance
-        # as independent blocks (calibrate: one joint covariance)
-        Phi_theta_cmd = np.vstack([io_cmd[chain.io_random], st_cmd])
-        orient, var_img, var_cmd2 = _stage2(chain, Phi_theta, Phi_theta_cmd, thetas)
+        orient, var_img = _stage2(chain, Phi_theta, thetas)
         var2 = np.sum(orient * orient, axis=1) + var_img * ("image" in f)
         var = np.concatenate([var, var2])
-        var_cmd = np.concatenate([var_cmd, var_cmd2])
-    return np.sqrt(var), np.sqrt(var_cmd)
+    return np.sqrt(var), np.asarray(chain.sigma_cmd, dtype=float)

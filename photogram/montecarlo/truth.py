@@ -29,7 +29,8 @@ from photogram.errors import GeometryError, InputError
 from photogram.geometry import camera_model, matrix_to_opk
 from photogram.project.tables import angle_to_rad
 
-__all__ = ["adjusted_truth", "simulation_truth", "read_truth_table", "line_observations"]
+__all__ = ["adjusted_truth", "adjusted_result", "simulation_truth", "read_truth_table",
+           "line_observations"]
 
 
 def read_truth_table(path: Path, required=()):
@@ -45,15 +46,21 @@ def read_truth_table(path: Path, required=()):
     return frame
 
 
-def adjusted_truth(project, *, fix_interior: bool):
-    """The adjusted project of the adjustment step (the truth world)."""
+def adjusted_result(project, *, fix_interior: bool):
+    """The adjustment command's result for the adjustment step (its project
+    is the truth world; its sigmas are what the command reports)."""
     from photogram.commands.bundle import adjust
     result = adjust(project, fix_interior=fix_interior)
     if result.summary["status"] != "converged":
         raise GeometryError(f"montecarlo: the adjustment of {project.path} did not converge "
                             f"({result.summary['message']})",
                             hint="the adjusted solution is the truth of the simulation")
-    return result.project       # reference coordinates: the adjusted ones
+    return result
+
+
+def adjusted_truth(project, *, fix_interior: bool):
+    """The adjusted project of the adjustment step (the truth world)."""
+    return adjusted_result(project, fix_interior=fix_interior).project
 
 
 def simulation_truth(project):
