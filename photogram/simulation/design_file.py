@@ -50,12 +50,12 @@ or describes the network itself::
     sigma_vertical = 0.01      # slope ratio (1:100), eq. (3)
 
     [jumper]                   # points of the simulated jump as tie points
-    exposures = 24             # photogram.simulation.jump.jump_truth
+    exposures = 24             # photogram.simulation.jump.jump_truth; 2 .. 1000
     points = ["P1"]            # P1 helmet, P2 hip, P3 / P4 bindings
     every = 2                  # every 2nd exposure
 
     [montecarlo]               # optional: written as montecarlo.prj beside the project
-    runs = 500
+    runs = 500                 # 1 .. 100000 (workers 1 .. 256)
     perturb = ["image", "constraints"]
 
 :func:`read_design` validates the file (one InputError with file and line
