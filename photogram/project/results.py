@@ -37,7 +37,7 @@ from photogram.project.camera_schema import camera_to_toml, load_cameras_file
 from photogram.project.model import Camera, Project
 from photogram.project.tables import format_angle, format_table
 from photogram.project.text_input import decode_utf8
-from photogram.project.toml_writer import dumps
+from photogram.project.toml_writer import comment_string, dumps
 from photogram.project.validate import rays_per_point
 from photogram.project.writer import check_targets, point_columns, station_columns
 
@@ -122,8 +122,9 @@ def _cameras_toml(project: Project, camera_sigma: Mapping | None) -> str:
                        "angle_unit": project.units.angle, "image_unit": project.units.image,
                        "software_version": photogram.__version__},
            "cameras": {n: camera_to_toml(c, sigma.get(n)) for n, c in project.cameras.items()}}
+    # the project name is a user string: quoted and escaped, one comment line
     return dumps(doc, header=f"interior orientation estimated by photogram "
-                             f"{photogram.__version__} from {project.name}\n"
+                             f"{photogram.__version__} from {comment_string(project.name)}\n"
                              f"take it into another project with "
                              f"[cameras.NAME] from = \"<path of this file>\"")
 
