@@ -33,8 +33,8 @@ PROJECTS = ROOT / "projects"
 
 def _montecarlo(project, runs=200):
     """The demo's Monte Carlo: 200 runs (the project says 1000)."""
-    from photogram.montecarlo import run_montecarlo
-    folder, summary = run_montecarlo(project, runs=runs, progress=False)
+    from photogram.commands.montecarlo import montecarlo
+    folder, summary = montecarlo(project, runs=runs, progress=False)
     ratios = {g: h["ratio"]["median"] for g, h in summary["headline"].items()}
     print(f"montecarlo: {summary['runs']} runs; sigma_mc / sigma_prop median per group: "
           + ", ".join(f"{g} {r:.2f}" for g, r in ratios.items()) + f"; results in {folder}")

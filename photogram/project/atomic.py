@@ -61,8 +61,10 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         _remove(tmp)
+        if isinstance(exc, OSError) and exc.filename is None:
+            exc.filename = str(path)          # a full disk names the file it hit
         raise
     _sync_folder(folder)
     return path
