@@ -98,3 +98,91 @@ def test_trc_header_escapes_marker_and_file_names(tmp_path):
     assert list(back.markers) == [r'"head\tleft"', r'"knee\nR"', "plain"]
     np.testing.assert_array_equal(back.markers["plain"], xyz + 2)
     np.testing.assert_array_equal(back.markers[r'"knee\nR"'], xyz + 1)
+
+
+# ---------------------------------------------------------------- item 2
+
+
+def _fd_inverse_jacobian(a, h=1e-6):
+    """d invert_opk / d a by central differences (independent of the code)."""
+    from photogram.project import invert_opk
+    J = np.zeros((3, 3))
+    for k in range(3):
+        d = np.zeros(3)
+        d[k] = h
+        J[:, k] = (invert_opk(a + d)[0] - invert_opk(a - d)[0]) / (2 * h)
+    return J
+
+
+def test_inverse_angle_jacobian_matches_finite_differences():
+    from photogram.geometry import opk_inverse_jacobian
+    rng = np.random.default_rng(16)
+    angles = np.vstack([rng.uniform(-1.3, 1.3, (40, 3)),
+                        np.radians([[-84.3, -20.6, -193.1], [-107.6, 27.6, -197.0]]) * 0.9])
+    J = opk_inverse_jacobian(angles)
+    for a, Ja in zip(angles, J):
+        np.testing.assert_allclose(Ja, _fd_inverse_jacobian(a), atol=2e-8)
+    assert np.all(np.isnan(opk_inverse_jacobian([np.nan, 0.0, 0.0])))
+
+
+def test_camera_to_world_station_sigmas_are_propagated_not_copied(tmp_path):
+    """The field network (near-horizontal cameras, interior orientation from
+    the lab with its covariance) oriented once with world-to-camera and once
+    with camera-to-world angles in its stations table: the est_s* angle
+    sigmas of the camera-to-world stations.csv are sqrt(diag(J C J^T)) with C
+    the world-to-camera covariance of covariance.npz and J the
+    finite-difference Jacobian of the inversion; positions are unchanged."""
+    import shutil
+
+    import pandas as pd
+
+    from photogram.commands.bundle import calibrate, orient, read_orientation_covariance
+    from photogram.geometry import from_radians, to_radians
+    from photogram.project import invert_opk
+    from photogram.project.tables import format_angle
+
+    root = DATA.parents[1] / "projects"
+    for name in ("lab", "field"):
+        shutil.copytree(root / name, tmp_path / name, ignore=shutil.ignore_patterns(
+            "results*", ".*"))
+    calibrate(read_project(tmp_path / "lab" / "lab.prj"))
+    field = tmp_path / "field"
+    w2c_folder, _ = orient(read_project(field / "field.prj"), output=tmp_path / "w2c")
+    # the same network with camera-to-world angles in its stations table
+    st = pd.read_csv(field / "field_stations.csv", comment="#", dtype={"station": str})
+    a = to_radians(st[["omega", "phi", "kappa"]].to_numpy(float), "gon")
+    b = invert_opk(a)
+    for j, c in enumerate(("omega", "phi", "kappa")):
+        st[c] = [format_angle(v, "gon") for v in b[:, j]]
+    st.to_csv(field / "c2w_stations.csv", index=False)
+    text = (field / "field.prj").read_text()
+    text = text.replace('rotation_direction = "world_to_camera"',
+                        'rotation_direction = "camera_to_world"')
+    (field / "c2w.prj").write_text(text.replace("field_stations.csv", "c2w_stations.csv"))
+    c2w_folder, res = orient(read_project(field / "c2w.prj"), output=tmp_path / "c2w")
+
+    angles = ["est_somega", "est_sphi", "est_skappa"]
+    w2c = pd.read_csv(w2c_folder / "stations.csv", comment="#", dtype={"station": str})
+    c2w = pd.read_csv(c2w_folder / "stations.csv", comment="#", dtype={"station": str})
+    labels, cov = read_orientation_covariance(c2w_folder)
+    index = {l: i for i, l in enumerate(labels)}
+    ratios = []
+    for k, name in enumerate(c2w["station"]):
+        ix = [index[f"{name}.{p}"] for p in ("omega", "phi", "kappa")]
+        C = cov[np.ix_(ix, ix)]
+        a_est = res.project.stations.angles[k]          # world-to-camera, radians
+        np.testing.assert_allclose(
+            invert_opk(to_radians(c2w.loc[k, ["omega", "phi", "kappa"]].to_numpy(float),
+                                  "gon"))[0], a_est, atol=1e-9)
+        J = _fd_inverse_jacobian(a_est)
+        expected = from_radians(np.sqrt(np.diag(J @ C @ J.T)), "gon")
+        np.testing.assert_allclose(c2w.loc[k, angles].to_numpy(float), expected, rtol=1e-5)
+        # the world-to-camera sigmas are those of the covariance, as before
+        np.testing.assert_allclose(w2c.loc[k, angles].to_numpy(float),
+                                   from_radians(np.sqrt(np.diag(C)), "gon"), rtol=1e-9)
+        ratios.append(expected / w2c.loc[k, angles].to_numpy(float))
+    np.testing.assert_allclose(c2w[["est_sX0", "est_sY0", "est_sZ0"]],
+                               w2c[["est_sX0", "est_sY0", "est_sZ0"]], rtol=1e-9)
+    # copying would be far off for these cameras (the symptom of the issue)
+    print("ratio propagated / copied (omega, phi, kappa) per station:", np.round(ratios, 2))
+    assert np.max(np.abs(np.log(np.array(ratios)))) > np.log(1.5), ratios
