@@ -47,6 +47,21 @@ def test_result_files_get_the_umask_mode_not_0600(tmp_path, umask, mask):
     assert (folder / "log.txt").read_text() == "again\n"
 
 
+def test_mocap_videos_and_rotation_differences_get_the_umask_mode(tmp_path, umask):
+    """The two writers of mocap that call mkstemp themselves."""
+    from photogram.mocap.homography import RotationDifferences
+    from photogram.mocap.render import write_video
+    from photogram.mocap.rotation_series import write_rotation_differences
+    umask(0o027)
+    write_video(tmp_path / "c1.avi", [np.zeros((32, 48, 3), np.uint8)] * 3, 25)
+    rd = RotationDifferences(dR=np.tile(np.eye(3), (2, 1, 1)), inliers=np.array([9, 9]),
+                             matches=np.array([10, 10]), ok=np.array([True, True]),
+                             seconds=0.0, frames=3)
+    write_rotation_differences(tmp_path / "rd.csv", {"C1": rd})
+    assert _mode(tmp_path / "c1.avi") == 0o640
+    assert _mode(tmp_path / "rd.csv") == 0o640
+
+
 # ---------------------------------------------------------------- item 20
 
 HOSTILE = 'lab\nsecond line\r\x07 "quoted" \\ \u2028end'
