@@ -13,8 +13,8 @@ from ``--output``, and ``args`` the parsed :class:`argparse.Namespace`.
 Registering a new engine is one line in :data:`COMMANDS`.
 
 Exit codes: 0 success, 1 internal error (a bug), 2 user error
-(:class:`photogram.errors.PhotogramError`, one line on stderr),
-130 interrupted.
+(:class:`photogram.errors.PhotogramError`, or an operating-system error such
+as a full disk; one line on stderr), 130 interrupted.
 """
 
 from __future__ import annotations
@@ -191,16 +191,21 @@ def run_command(args: argparse.Namespace) -> int:
     project = read_project(args.project)
     if args.output is not None and args.command != "check":
         project.output.folder = str(Path(args.output).absolute())
-    if args.command in WRITERS:
-        from photogram.project.output_policy import claim_output, project_inputs
-        folder = project.output_folder()
+    if args.command not in WRITERS:
+        return int(load_command(args.command)(project, args) or 0)
+    from photogram.project.output_policy import claim_output, project_inputs
+    from photogram.project.results_folder import output_lock
+    folder = project.output_folder()
+    # one run per results folder, from the check to the last file (a second
+    # run into the same folder stops with one line)
+    with output_lock(folder, command=args.command):
         mode = claim_output(folder, command=args.command, inputs=project_inputs(project),
                             force=args.force, resumable=WRITERS[args.command])
         if mode != "new":
             logging.getLogger("photogram").info(
                 "%s the earlier run in %s", "resuming" if mode == "resume" else "replacing",
                 folder)
-    return int(load_command(args.command)(project, args) or 0)
+        return int(load_command(args.command)(project, args) or 0)
 
 
 def _setup_logging(args: argparse.Namespace) -> None:
@@ -239,6 +244,15 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"photogram {args.command}: interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:   # a full disk, a lost permission: not a bug, one line
+        if verbose:
+            traceback.print_exc()
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(_one_line(f"{where}cannot write or read: {exc.strerror or exc} (free disk "
+                        f"space or check the permissions, then run the command again; "
+                        f"results are only moved into place when complete)"),
+              file=sys.stderr)
+        return 2
     except Exception as exc:  # anything else is a bug
         if verbose:
             traceback.print_exc()

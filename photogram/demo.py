@@ -34,8 +34,8 @@ PROJECTS = ROOT / "projects"
 def _montecarlo(project, runs=200, force=False):
     """The demo's Monte Carlo: 200 runs (the project says 1000); ``force``
     computes every run again (when the demo replaces earlier results)."""
-    from photogram.montecarlo import run_montecarlo
-    folder, summary = run_montecarlo(project, runs=runs, progress=False, force=force)
+    from photogram.commands.montecarlo import montecarlo
+    folder, summary = montecarlo(project, runs=runs, progress=False, force=force)
     ratios = {g: h["ratio"]["median"] for g, h in summary["headline"].items()}
     print(f"montecarlo: {summary['runs']} runs; sigma_mc / sigma_prop median per group: "
           + ", ".join(f"{g} {r:.2f}" for g, r in ratios.items()) + f"; results in {folder}")

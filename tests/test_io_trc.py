@@ -69,7 +69,7 @@ def test_write_errors(tmp_path):
     with pytest.raises(InputError):
         write_trc(tmp_path / "x.trc", t, {"A": np.zeros((2, 3))})
     with pytest.raises(InputError):
-        write_trc(tmp_path / "x.trc", t, {"A\tB": np.zeros((3, 3))})
+        write_trc(tmp_path / "x.trc", t, {"": np.zeros((3, 3))})   # a tab is escaped instead
     with pytest.raises(InputError):
         write_trc(tmp_path / "x.trc", t[::-1], good)
     with pytest.raises(InputError):

@@ -188,6 +188,8 @@ def _with_calibration_covariance(result, built, s0sq, summary):
     S_full = s0sq * T @ Q_st @ T.T + D @ Sio @ D.T
     cov = np.block([[Sio, Sio @ D.T], [D @ Sio, S_full]])
     result.station_sigma = np.sqrt(np.clip(np.diag(S_full), 0, None)).reshape(n_s, 6)
+    idx = np.arange(n_s)[:, None] * 6 + np.arange(6)
+    result.covariances["stations"] = S_full[idx[:, :, None], idx[:, None, :]]  # (n_s, 6, 6)
     result.covariances.update({"orientation_labels": labels + lab_st, "orientation": cov})
     summary["interior_covariance"] = {
         "from": str(folder), "parameters": labels,
@@ -283,19 +285,25 @@ def run(project, *, command, output=None, fix_interior=False):
 
     Returns ``(folder, BundleResult)``.
     """
+    from photogram.project.output_policy import project_inputs
     from photogram.project.results import write_results
+    from photogram.project.results_folder import staged_results
+    from photogram.report import write_report
     folder = Path(output) if output else project.output_folder()
     log.debug("%s: %s -> %s", command, project.path, folder)
     result = adjust(project, fix_interior=fix_interior)
     result.summary["command"] = command
     _check_finite(result)
-    write_results(folder, result.project, result.summary, camera_sigma=result.camera_sigma,
-                  station_sigma=result.station_sigma, point_sigma=result.point_sigma,
-                  residuals=result.residuals, point_extra=result.point_extra,
-                  log_text=_log_text(command, project.path, result.summary))
-    _write_covariance(folder / "covariance.npz", result)
-    from photogram.report import write_report
-    write_report(folder)
+    # written into a staging folder, moved into place when complete
+    with staged_results(folder, command=command, inputs=project_inputs(project)) as stage:
+        write_results(stage.path, result.project, result.summary,
+                      camera_sigma=result.camera_sigma, station_sigma=result.station_sigma,
+                      station_covariance=result.covariances.get("stations"),
+                      point_sigma=result.point_sigma, residuals=result.residuals,
+                      point_extra=result.point_extra,
+                      log_text=_log_text(command, project.path, result.summary))
+        _write_covariance(stage.path / "covariance.npz", result)
+        write_report(stage.path)
     if result.summary["status"] != "converged":
         raise GeometryError(f"{result.summary['message']}; the unconverged results are in {folder}",
                             hint="raise [adjustment] max_iterations or improve the approximate values")

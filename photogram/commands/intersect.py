@@ -108,7 +108,10 @@ def write_jump(folder, result, project):
 def intersect_and_write(project, output=None):
     """Intersect the project and write its results folder; returns
     ``(folder, result)`` with ``result.summary`` as in summary.json."""
+    from photogram.project.output_policy import project_inputs
     from photogram.project.results import write_results
+    from photogram.project.results_folder import staged_results
+    from photogram.report import write_report
     result = intersect_jump(project, _orientation(project))
     folder = Path(output) if output else project.output_folder()
     s = result.summary
@@ -117,11 +120,12 @@ def intersect_and_write(project, output=None):
                "exposures": s["exposures"], "ski_checks": s["ski_checks"],
                "swapped_skis": s["swapped_skis"], "warnings": s["warnings"],
                "orientation_covariance": project.intersect.orientation}
-    write_results(folder, result.project, summary, point_sigma=result.point_sigma,
-                  log_text=json.dumps(summary, indent=1, default=str) + "\n")
-    write_jump(folder, result, project)
-    from photogram.report import write_report
-    write_report(folder)
+    # written into a staging folder, moved into place when complete
+    with staged_results(folder, command="intersect", inputs=project_inputs(project)) as stage:
+        write_results(stage.path, result.project, summary, point_sigma=result.point_sigma,
+                      log_text=json.dumps(summary, indent=1, default=str) + "\n")
+        write_jump(stage.path, result, project)
+        write_report(stage.path)
     result.summary = summary
     return folder, result
 

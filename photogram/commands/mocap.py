@@ -41,16 +41,31 @@ def mocap(project, output: str | Path | None = None):
     -------
     (Path, MocapResult)
     """
-    from photogram.mocap.outputs import write_outputs
-    from photogram.mocap.pipeline import run_mocap
-
     if getattr(project, "mocap", None) is None:
         raise InputError("this project has no [mocap] section", file=project.path,
                          hint="a motion-capture project needs [mocap] and [mocap.source]; "
                               "see docs/mocap.md")
     if output is not None:                # the resumable state goes there too
         project.output.folder = str(Path(output).absolute())
-    folder = project.output_folder()
+    from photogram.project.output_policy import project_inputs
+    from photogram.project.results_folder import staged_results
+    final = project.output_folder()
+    # the run (and its resumable .partial/) lives in the staging folder until
+    # its results are complete (photogram.project.results_folder)
+    with staged_results(final, command="mocap", resumable=True,
+                        inputs=project_inputs(project)) as stage:
+        project.output.folder = str(stage.path)
+        try:
+            result = _run_into(project, stage.path)
+        finally:
+            project.output.folder = str(final)
+    return final, result
+
+
+def _run_into(project, folder):
+    """The pipeline, its results files and report in ``folder``."""
+    from photogram.mocap.outputs import write_outputs
+    from photogram.mocap.pipeline import run_mocap
     stream = io.StringIO()
     logger = logging.getLogger("photogram.mocap")
     tee = _Tee(stream, logger.getEffectiveLevel())
@@ -74,7 +89,7 @@ def mocap(project, output: str | Path | None = None):
 
     from photogram.project.output_policy import PARTIAL
     shutil.rmtree(folder / PARTIAL, ignore_errors=True)   # the run is complete
-    return folder, result
+    return result
 
 
 def run(project, args=None) -> int:

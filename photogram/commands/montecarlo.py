@@ -6,8 +6,21 @@ from __future__ import annotations
 from photogram.montecarlo import run_montecarlo
 
 
+def montecarlo(project, **options):
+    """Run (or resume) :func:`run_montecarlo` into the project's results
+    folder through its staging folder, where the finished trials
+    (``samples/``) of an interrupted run wait for the rerun
+    (:mod:`photogram.project.results_folder`). Returns ``(folder, summary)``."""
+    from photogram.project.output_policy import project_inputs
+    from photogram.project.results_folder import staged_results
+    with staged_results(project.output_folder(), command="montecarlo", resumable=True,
+                        inputs=project_inputs(project)) as stage:
+        _, summary = run_montecarlo(project, output=stage.path, **options)
+    return stage.final, summary
+
+
 def run(project, args=None):
-    folder, summary = run_montecarlo(
+    folder, summary = montecarlo(
         project, runs=getattr(args, "runs", None), seed=getattr(args, "seed", None),
         workers=getattr(args, "workers", None), scheduler=getattr(args, "scheduler", None),
         force=bool(getattr(args, "force", False)))

@@ -5,7 +5,7 @@ See docs/camera-models.md for the equations and conventions.
 
 from photogram.geometry.rotations import (
     ANGLE_FACTORS, angle_increment_map, from_radians, matrix_to_opk, matrix_to_quaternion,
-    matrix_to_rodrigues, opk_derivatives, opk_to_matrix, quaternion_to_matrix,
+    matrix_to_rodrigues, opk_derivatives, opk_inverse_jacobian, opk_to_matrix, quaternion_to_matrix,
     rodrigues_derivatives, rodrigues_to_matrix, skew, small_rotation, to_radians)
 from photogram.geometry.camera import (
     CAMERA_MODELS, CameraModel, camera_frame, camera_model, ideal_projection,
@@ -18,7 +18,7 @@ from photogram.geometry.conversions import (
 
 __all__ = [
     "ANGLE_FACTORS", "angle_increment_map", "from_radians", "matrix_to_opk", "matrix_to_quaternion",
-    "matrix_to_rodrigues", "opk_derivatives", "opk_to_matrix",
+    "matrix_to_rodrigues", "opk_derivatives", "opk_inverse_jacobian", "opk_to_matrix",
     "quaternion_to_matrix", "rodrigues_derivatives", "rodrigues_to_matrix",
     "skew", "small_rotation", "to_radians",
     "CAMERA_MODELS", "CameraModel", "camera_frame", "camera_model",

@@ -328,3 +328,33 @@ def angle_increment_map(R):
     M = np.einsum("nikj,nlk->njil", dR, R)             # (n, j, 3, 3) dR_j R^T
     Einv = np.stack([M[:, :, 2, 1], M[:, :, 0, 2], M[:, :, 1, 0]], axis=1)  # (n, 3, j)
     return angles, np.linalg.inv(Einv)
+
+
+def opk_inverse_jacobian(angles) -> np.ndarray:
+    """Jacobian of the angles of the inverse rotation with respect to the
+    angles: ``d b / d a`` for ``R(b) = R(a)^T`` (world-to-camera <->
+    camera-to-world), (..., 3) -> (..., 3, 3); NaN rows stay NaN.
+
+    With ``R = expm([delta]x) R0`` the inverse is
+    ``R^T = expm([-R0^T delta]x) R0^T``, so with the increment maps
+    ``d(opk) = E delta`` of :func:`angle_increment_map`::
+
+        d b = -E(R0^T) R0^T E(R0)^-1 d a
+
+    Analytic (tested against finite differences); singular at phi = +-90 deg
+    of either direction (gimbal lock), where the result is not finite.
+    A covariance ``C`` of the angles ``a`` becomes ``J C J^T`` for ``b``.
+    """
+    a = np.asarray(angles, dtype=float)
+    shape = a.shape
+    a = a.reshape(-1, 3)
+    out = np.full((len(a), 3, 3), np.nan)
+    ok = np.all(np.isfinite(a), axis=1)
+    if np.any(ok):
+        R = opk_to_matrix(a[ok])
+        Rt = np.swapaxes(R, -1, -2)
+        _, E = angle_increment_map(R)
+        _, Et = angle_increment_map(Rt)
+        with np.errstate(all="ignore"):
+            out[ok] = -Et @ Rt @ np.linalg.inv(E)
+    return out.reshape(shape[:-1] + (3, 3))

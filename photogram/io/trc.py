@@ -33,6 +33,7 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.project.atomic import atomic_write_text
 from photogram.project.model import LENGTH_UNITS
+from photogram.project.toml_writer import comment_string
 
 __all__ = ["TrcData", "write_trc", "read_trc", "zup_to_yup", "yup_to_zup"]
 
@@ -69,6 +70,15 @@ class TrcData:
     @property
     def data_rate(self) -> float:
         return float(self.header.get("DataRate", "nan"))
+
+
+def _header_text(text) -> str:
+    """A user string for the tab-separated header: as it is, or quoted with
+    its tabs, line breaks and other control characters escaped."""
+    text = str(text)
+    if any(ord(c) < 0x20 or ord(c) == 0x7F or c in "\x85\u2028\u2029" for c in text):
+        return comment_string(text)
+    return text
 
 
 def _fmt(x: float) -> str:
@@ -113,9 +123,12 @@ def write_trc(path: str | Path, times, markers: dict, units: str = "m",
         raise InputError("write_trc needs at least one marker")
     names, data = [], []
     for name, xyz in markers.items():
-        name = str(name)
-        if not name or any(c in name for c in "\t\r\n"):
-            raise InputError(f"marker name {name!r} is empty or contains a tab or line break")
+        # a user string (a point id, a joint): a tab or line break would
+        # shift every column of the header, so it is quoted and escaped
+        name = _header_text(name)
+        if not name:
+            raise InputError("a marker name is empty", file=path,
+                             hint="give every marker (point, joint) a name")
         a = np.asarray(xyz, dtype=float)
         if a.shape != (n, 3):
             raise InputError(f"marker {name!r} has shape {a.shape}, expected ({n}, 3)")
@@ -135,7 +148,8 @@ def write_trc(path: str | Path, times, markers: dict, units: str = "m",
     rate = f"{data_rate:.10g}"
     m = len(names)
     lines = [
-        "\t".join(["PathFileType", "4", "(X/Y/Z)", Path(path).name]),
+        "\t".join(["PathFileType", "4", "(X/Y/Z)",
+                   _header_text(Path(path).name)]),
         "\t".join(HEADER_KEYS),
         "\t".join([rate, rate, str(n), str(m), units, rate, str(int(frames[0])), str(n)]),
         "\t".join(["Frame#", "Time"] + [c for nm in names for c in (nm, "", "")]),

@@ -53,6 +53,7 @@ from photogram.mocap.lens import distort, pixel_rays, scaled_parameters, undisto
 from photogram.mocap.scene import SlopeScene, build_scene
 from photogram.mocap.simulate import SkiSimulation
 from photogram.mocap.skeleton import SKI24
+from photogram.project.atomic import give_file_mode
 
 __all__ = ["build_scene", "undistort_radius", "scaled_parameters", "pixel_rays", "ideal_offsets",
            "render_frame", "render_camera", "write_video", "RENDER_SIZE"]
@@ -308,6 +309,7 @@ def write_video(path, images, fps: float) -> int:
         raise InputError("the folder does not exist", file=path.parent)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=ext, dir=path.parent)
     os.close(fd)
+    give_file_mode(tmp, path)           # mkstemp's 0600 -> the umask's mode
     writer, n, shape = None, 0, None
     try:
         for img in images:

@@ -23,6 +23,7 @@ from scipy.ndimage import gaussian_filter1d, median_filter
 from photogram.errors import GeometryError, InputError
 from photogram.geometry import matrix_to_rodrigues, rodrigues_to_matrix
 from photogram.mocap.homography import HomographySettings, RotationDifferences
+from photogram.project.atomic import give_file_mode
 
 __all__ = ["filter_rotation_differences", "rotation_difference_errors",
            "check_rotation_differences", "write_rotation_differences",
@@ -163,6 +164,7 @@ def write_rotation_differences(path, per_camera: dict, first_frame: int = 0,
     if not path.parent.is_dir():
         raise InputError("the folder does not exist", file=path.parent)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    give_file_mode(tmp, path, fd=fd)    # mkstemp's 0600 -> the umask's mode
     try:
         with os.fdopen(fd, "w", newline="") as handle:
             handle.write(buf.getvalue())

@@ -10,11 +10,15 @@ Rules (docs/reliability.md, "Nothing lost"):
 * an output folder never contains an input file of the run, not even with
   ``--force`` (outputs would overwrite inputs);
 * an unfinished run of a resumable command (``photogram montecarlo``: its
-  ``samples/``; ``photogram mocap``: its ``.partial/``) is resumed, not
-  refused.
+  ``samples/``; ``photogram mocap``: its ``.partial/``, both in the staging
+  folder) is resumed, not refused;
+* a folder whose replacement was interrupted (marked incomplete) is
+  replaced without ``--force``.
 
-Every file is written atomically (:mod:`photogram.project.atomic`), so an
-interrupted run leaves either the old or the new version of a file.
+Results are written into a staging folder and moved into place at the end,
+under a lock that keeps a second run out
+(:mod:`photogram.project.results_folder`); every file is written atomically
+(:mod:`photogram.project.atomic`).
 """
 
 from __future__ import annotations
@@ -24,12 +28,14 @@ import time
 from pathlib import Path
 
 from photogram.errors import InputError
+from photogram.project.results_folder import (
+    INCOMPLETE, RESUMABLE_STATE, check_not_inputs, staging_path)
 
 __all__ = ["claim_output", "project_inputs", "PARTIAL"]
 
 #: the hidden folder of a resumable run's intermediate results
-PARTIAL = ".partial"
-_RESUMABLE_STATE = (PARTIAL, "samples")
+PARTIAL = RESUMABLE_STATE[0]
+_RESUMABLE_STATE = RESUMABLE_STATE
 
 
 def project_inputs(project) -> list[Path]:
@@ -48,14 +54,6 @@ def project_inputs(project) -> list[Path]:
         out += [Path(p) for p in (ms.source.cameras or {}).values()]
         out += [Path(p) for p in (ms.images or {}).values()]
     return out
-
-
-def _inside(path: Path, folder: Path) -> bool:
-    try:
-        path.resolve().relative_to(folder.resolve())
-        return True
-    except ValueError:
-        return False
 
 
 def _earlier(summary: Path) -> str:
@@ -77,7 +75,8 @@ def claim_output(folder, *, command: str, inputs=(), force: bool = False,
     -------
     str
         ``"new"`` (absent or empty), ``"replace"`` (earlier results, with
-        ``force``), ``"resume"`` (an unfinished resumable run).
+        ``force``; an interrupted replacement), ``"resume"`` (an unfinished
+        resumable run).
 
     Raises
     ------
@@ -85,29 +84,28 @@ def claim_output(folder, *, command: str, inputs=(), force: bool = False,
         One line naming the folder and what to do.
     """
     folder = Path(folder).absolute()
-    for p in inputs:
-        p = Path(p)
-        if p.exists() and _inside(p, folder):
-            raise InputError(f"the output folder holds the input {p.name} of this run; "
-                             f"photogram never writes over its inputs", file=folder,
-                             hint="choose another folder with --output")
+    check_not_inputs(folder, inputs)
+    staged = resumable and any((staging_path(folder) / name).is_dir()
+                               for name in _RESUMABLE_STATE)
     if not folder.exists():
-        return "new"
+        return "resume" if staged else "new"
     if not folder.is_dir():
         raise InputError("the output folder is a file", file=folder,
                          hint="choose a folder with --output")
+    if (folder / INCOMPLETE).is_file():
+        return "replace"                  # our own replacement, interrupted
     summary = folder / "summary.json"
     if summary.is_file():
         if force:
-            return "replace"
+            return "resume" if staged else "replace"
         raise InputError(f"holds the results of an earlier run ({_earlier(summary)}); "
                          f"photogram {command} does not replace them silently", file=folder,
                          hint="add --force to replace them, or write a new folder with "
                               "--output NEW_FOLDER")
     if resumable and any((folder / name).is_dir() for name in _RESUMABLE_STATE):
-        return "resume"
+        return "resume"                   # left by a version without staging folders
     if any(folder.iterdir()) and not force:
         raise InputError("the output folder is not empty and holds no photogram results",
                          file=folder, hint="add --force to write into it anyway, or choose "
                                            "another folder with --output")
-    return "new"
+    return "resume" if staged else "new"

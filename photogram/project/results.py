@@ -13,7 +13,8 @@ Files (all written atomically; see docs/project-files.md):
 ``stations.csv``, ``points.csv``
     Estimated values in the project's units and rotation direction, valid as
     input tables; the a-posteriori sigmas are in ``est_s*`` columns (ignored
-    by the readers), the a-priori sigmas in the usual ``s*`` columns.
+    by the readers; for camera-to-world angles propagated through the angle
+    conversion), the a-priori sigmas in the usual ``s*`` columns.
 ``residuals.csv``
     One row per observation, columns as given by the engine.
 ``log.txt``
@@ -37,12 +38,12 @@ from photogram.project.camera_schema import camera_to_toml, load_cameras_file
 from photogram.project.model import Camera, Project
 from photogram.project.tables import format_angle, format_table
 from photogram.project.text_input import decode_utf8
-from photogram.project.toml_writer import dumps
+from photogram.project.toml_writer import comment_string, dumps
 from photogram.project.validate import rays_per_point
 from photogram.project.writer import check_targets, point_columns, station_columns
 
 __all__ = ["write_results", "read_results", "Results", "project_counts", "to_json_safe",
-           "RESULT_FILES"]
+           "RESULT_FILES", "file_angle_sigmas"]
 
 RESULT_FILES = ("summary.json", "cameras.toml", "stations.csv", "points.csv",
                 "residuals.csv", "log.txt")
@@ -122,13 +123,54 @@ def _cameras_toml(project: Project, camera_sigma: Mapping | None) -> str:
                        "angle_unit": project.units.angle, "image_unit": project.units.image,
                        "software_version": photogram.__version__},
            "cameras": {n: camera_to_toml(c, sigma.get(n)) for n, c in project.cameras.items()}}
+    # the project name is a user string: quoted and escaped, one comment line
     return dumps(doc, header=f"interior orientation estimated by photogram "
-                             f"{photogram.__version__} from {project.name}\n"
+                             f"{photogram.__version__} from {comment_string(project.name)}\n"
                              f"take it into another project with "
                              f"[cameras.NAME] from = \"<path of this file>\"")
 
 
-def _station_table(project: Project, station_sigma) -> str:
+def file_angle_sigmas(project: Project, sigma, covariance=None) -> np.ndarray:
+    """Sigmas of the station angles in the file's rotation direction.
+
+    For ``rotation_direction = "camera_to_world"`` the angles in the file
+    are those of the inverse rotation, ``b = inv(a)``, so their covariance
+    is ``J C J^T`` with ``J = db/da`` (:func:`photogram.geometry.
+    opk_inverse_jacobian`, analytic) and ``C`` the covariance of the
+    world-to-camera angles; copying the sigmas of ``a`` is wrong by a factor
+    that reaches 7 and more for near-horizontal cameras.
+
+    Parameters
+    ----------
+    project : Project
+        Its ``stations.angles`` (world-to-camera, radians) are where ``J``
+        is taken.
+    sigma : (n, 3) array
+        Sigmas of the world-to-camera angles (radians).
+    covariance : (n, 3, 3) array, optional
+        Their covariance (the correlations matter); default: ``diag(sigma^2)``.
+
+    Returns
+    -------
+    (n, 3) array
+        Sigmas in the file's direction (radians); NaN where not estimated
+        or at gimbal lock.
+    """
+    sigma = np.asarray(sigma, float).reshape(-1, 3)
+    if project.rotation_direction != "camera_to_world":
+        return sigma
+    from photogram.geometry import opk_inverse_jacobian
+    C = (np.asarray(covariance, float).reshape(-1, 3, 3) if covariance is not None
+         else sigma[:, :, None] * np.eye(3) * sigma[:, None, :])
+    J = opk_inverse_jacobian(project.stations.angles)
+    with np.errstate(invalid="ignore"):
+        var = np.einsum("nij,njk,nik->ni", J, C, J)
+        out = np.sqrt(np.clip(var, 0, None))
+    return np.where(np.all(np.isfinite(sigma), axis=1, keepdims=True) & np.isfinite(out),
+                    out, np.nan)
+
+
+def _station_table(project: Project, station_sigma, station_covariance=None) -> str:
     cols = station_columns(project)
     if station_sigma is not None:
         if isinstance(station_sigma, Mapping):
@@ -136,6 +178,10 @@ def _station_table(project: Project, station_sigma) -> str:
                              np.asarray(station_sigma["angles"], float)])
         else:
             sig = np.asarray(station_sigma, float).reshape(len(project.stations), 6)
+        cov = None if station_covariance is None else \
+            np.asarray(station_covariance, float).reshape(-1, 6, 6)[:, 3:, 3:]
+        sig = sig.copy()
+        sig[:, 3:] = file_angle_sigmas(project, sig[:, 3:], cov)
         for j, name in enumerate(_STATION_SIGMAS):
             cols[name] = sig[:, j] if j < 3 else \
                 [format_angle(a, project.units.angle) for a in sig[:, j]]
@@ -167,7 +213,8 @@ def _residual_table(project: Project, residuals) -> str:
 
 def write_results(folder: str | Path, project: Project, summary: Mapping, *,
                   camera_sigma: Mapping | None = None, station_sigma=None, point_sigma=None,
-                  residuals=None, log_text: str = "", point_extra: Mapping | None = None) -> Path:
+                  residuals=None, log_text: str = "", point_extra: Mapping | None = None,
+                  station_covariance=None) -> Path:
     """Write a results folder.
 
     Parameters
@@ -181,8 +228,11 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
     camera_sigma : mapping, optional
         Camera name -> {parameter: sigma} or sigmas in model order.
     station_sigma : array (n_stations, 6) or mapping, optional
-        Sigmas of X0, Y0, Z0, omega, phi, kappa (angles in radians), or
-        ``{"position": (n, 3), "angles": (n, 3)}``. NaN where not estimated.
+        Sigmas of X0, Y0, Z0, omega, phi, kappa (world-to-camera angles in
+        radians), or ``{"position": (n, 3), "angles": (n, 3)}``. NaN where
+        not estimated. With ``rotation_direction = "camera_to_world"`` the
+        angle sigmas written are propagated to the file's angles
+        (:func:`file_angle_sigmas`).
     point_sigma : array (n_points, 3), optional
         Sigmas of X, Y, Z.
     residuals : pandas.DataFrame or mapping of columns, optional
@@ -194,6 +244,10 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
         Further points.csv columns, name -> (n_points,) values (the
         engine's ``est_angle``, the largest intersection angle in degrees,
         and ``est_weak_angle`` 0/1; ``est_`` columns are ignored by the readers).
+    station_covariance : array (n_stations, 6, 6), optional
+        Covariance of X0, Y0, Z0, omega, phi, kappa per station (angles
+        world-to-camera, radians), for the propagation to camera-to-world
+        angles with their correlations (default: from the sigmas alone).
 
     Returns
     -------
@@ -216,7 +270,7 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
     text = json.dumps(_summary(project, summary), indent=2, allow_nan=False)
     files = {"summary.json": text + "\n",
              "cameras.toml": _cameras_toml(project, camera_sigma),
-             "stations.csv": _station_table(project, station_sigma),
+             "stations.csv": _station_table(project, station_sigma, station_covariance),
              "points.csv": _point_table(project, point_sigma, point_extra),
              "residuals.csv": _residual_table(project, residuals),
              "log.txt": log_text}

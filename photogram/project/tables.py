@@ -29,6 +29,7 @@ import numpy as np
 
 from photogram.errors import InputError
 from photogram.project.text_input import read_text, suggest
+from photogram.project.toml_writer import comment_line
 
 __all__ = ["Table", "read_table", "format_table", "format_float",
            "angle_to_rad", "format_angle", "IGNORED_COLUMNS"]
@@ -290,16 +291,18 @@ def format_table(columns: Mapping[str, Iterable], *, comment: str | None = None)
 
     Values already formatted as strings are written unchanged. If a value of
     the first column starts with ``#`` every cell is quoted, so that the row is
-    not read back as a comment.
+    not read back as a comment. ``comment`` lines (split at ``\\n`` only) have
+    their control characters escaped, so a user string in a comment cannot
+    start a line of its own.
     """
     names = list(columns)
     data = [[_cell(v) for v in columns[n]] for n in names]
     n_rows = len(data[0]) if data else 0
     quote_all = any(v.startswith("#") for v in data[0]) if data else False
     buf = io.StringIO()
-    if comment:
-        for line in comment.splitlines():
-            buf.write(f"# {line}\n")
+    if comment:                  # one "# " line per "\n"; control characters escaped
+        for line in str(comment).split("\n"):
+            buf.write(f"# {comment_line(line)}\n")
     writer = csv.writer(buf, lineterminator="\n",
                         quoting=csv.QUOTE_ALL if quote_all else csv.QUOTE_MINIMAL)
     writer.writerow(names)

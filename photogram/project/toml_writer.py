@@ -4,6 +4,13 @@ Supports strings, booleans, integers, floats (written with ``repr`` so that
 they read back exactly), arrays, inline tables (:class:`Inline`), tables and
 arrays of tables, and comments above tables. ``None`` values are skipped
 (TOML has no null).
+
+User strings (a project name, a file name) in comments are written with
+:func:`comment_string`, as a quoted TOML string with its control characters
+escaped, so that a name with a line break or a bell character stays on its
+comment line and the file reads back; :func:`dumps` itself escapes every
+control character but tab that a comment line still holds (TOML forbids them
+in comments).
 """
 
 from __future__ import annotations
@@ -12,11 +19,15 @@ import math
 import re
 from typing import Any, Mapping
 
-__all__ = ["Inline", "dumps", "format_value", "format_key"]
+__all__ = ["Inline", "dumps", "format_value", "format_key", "comment_string",
+           "comment_line"]
 
 _BARE = re.compile(r"[A-Za-z0-9_-]+")
 _ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n",
             "\f": "\\f", "\r": "\\r"}
+# characters that end a line for str.splitlines (and some editors) beyond the
+# C0 controls: escaped in comments too
+_LINE_BREAKS = {"\x85", "\u2028", "\u2029"}
 
 
 class Inline(dict):
@@ -30,15 +41,45 @@ def format_key(key: str) -> str:
 
 
 def _string(text: str) -> str:
+    return _quoted(str(text))
+
+
+def _control(ch: str) -> bool:
+    return ord(ch) < 0x20 or ord(ch) == 0x7F or ch in _LINE_BREAKS
+
+
+def comment_string(text) -> str:
+    """A user string for a comment line: as it is when it holds no control
+    character, quote or backslash, else quoted with these escaped as in a
+    TOML string (so a line break cannot end the comment)."""
+    text = str(text)
+    if not any(_control(ch) or ch in '"\\' for ch in text):
+        return text
+    return _quoted(text)
+
+
+def _quoted(text: str) -> str:
     out = []
     for ch in text:
         if ch in _ESCAPES:
             out.append(_ESCAPES[ch])
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+        elif _control(ch):
             out.append(f"\\u{ord(ch):04X}")
         else:
             out.append(ch)
     return '"' + "".join(out) + '"'
+
+
+def comment_line(text: str) -> str:
+    """One comment line's text with every control character but tab escaped
+    (``\\uXXXX``), so that it cannot end the comment or break the file."""
+    return "".join(ch if ch == "\t" or not _control(ch) else f"\\u{ord(ch):04X}"
+                   for ch in str(text))
+
+
+def _comment_lines(text) -> list[str]:
+    """``# ...`` lines of a comment; only ``\\n`` separates lines."""
+    return [f"# {comment_line(t)}" if t else "#" for t in str(text or "").split("\n")]
 
 
 def _float(value: float) -> str:
@@ -86,8 +127,8 @@ def _emit(lines: list[str], path: tuple[str, ...], table: Mapping, comments: Map
     if path and (scalars or array or not children):
         if lines:
             lines.append("")
-        for text in str(comments.get(path, "")).splitlines():
-            lines.append(f"# {text}" if text else "#")
+        if comments.get(path):
+            lines += _comment_lines(comments[path])
         name = ".".join(format_key(p) for p in path)
         lines.append(f"[[{name}]]" if array else f"[{name}]")
     for key, value in scalars:
@@ -115,8 +156,6 @@ def dumps(doc: Mapping, *, header: str | None = None,
         Comment lines written above the table at a key path, e.g.
         ``{("cameras", "K1"): "taken from lab/results/cameras.toml"}``.
     """
-    lines: list[str] = []
-    for text in (header or "").splitlines():
-        lines.append(f"# {text}" if text else "#")
+    lines: list[str] = _comment_lines(header) if header else []
     _emit(lines, (), doc, comments or {})
     return "\n".join(lines) + "\n"

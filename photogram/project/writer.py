@@ -21,7 +21,7 @@ from photogram.project.atomic import atomic_write_text, same_file
 from photogram.project.camera_schema import camera_to_toml, invert_opk
 from photogram.project.model import Project
 from photogram.project.tables import format_angle, format_table
-from photogram.project.toml_writer import dumps
+from photogram.project.toml_writer import comment_string, dumps
 
 __all__ = ["write_project", "project_to_toml", "station_columns", "point_columns",
            "input_files", "check_targets"]
@@ -229,7 +229,7 @@ def project_to_toml(project: Project, tables: dict[str, str]) -> str:
         doc["constraints"] = constraints
     doc["adjustment"] = _settings(project)
     doc["output"] = {"folder": project.output.folder}
-    comments = {("cameras", n): f"taken from {c.source}"
+    comments = {("cameras", n): f"taken from {comment_string(c.source)}"
                 for n, c in project.cameras.items() if c.source}
     return dumps(doc, header=f"written by photogram {photogram.__version__}",
                  comments=comments)

@@ -23,6 +23,7 @@ import numpy as np
 from photogram.errors import InputError, PhotogramError
 from photogram.geometry import opk_to_matrix, to_radians
 from photogram.project.results import Results, read_results
+from photogram.project.results_folder import final_folder
 
 __all__ = ["ReportData", "load", "REQUIRED"]
 
@@ -61,7 +62,7 @@ class ReportData:
 
     @property
     def name(self) -> str:
-        return str(self.info.get("name") or self.folder.name)
+        return str(self.info.get("name") or final_folder(self.folder).name)
 
     @property
     def length_unit(self) -> str:

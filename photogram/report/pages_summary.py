@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 import photogram
+from photogram.project.results_folder import final_folder
 from photogram.report.layout import decorate
 from photogram.report.numbers import finite, num
 from photogram.report.registry import section
@@ -87,7 +88,7 @@ def build(doc, data):
         doc.text(_HOW_TO_READ, size=8, color="0.25")
     info = data.info
     rows = [("project", data.name), ("project file", str(info.get("path", "-"))),
-            ("results folder", str(Path(data.folder).resolve())),
+            ("results folder", str(final_folder(Path(data.folder).resolve()))),
             ("computed by", f"photogram {s.get('software_version', '?')}, report by photogram "
                             f"{photogram.__version__}")]
     if info:
