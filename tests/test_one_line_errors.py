@@ -399,8 +399,9 @@ def test_image_headers_are_read_without_decoding(tmp_path):
         "a.jpg": b"\xff\xd8\xff\xe0\x00\x10JFIF\x00\x01\x01\x00\x00\x01\x00\x01\x00\x00"
                  b"\xff\xc0\x00\x11\x08" + struct.pack(">HH", 30000, 40000) + b"\x03" + b"\0" * 9,
         "a.bmp": b"BM" + b"\0" * 16 + struct.pack("<ii", 40000, -30000) + b"\0" * 30,
-        "a.tif": b"II*\x00" + struct.pack("<I", 8) + struct.pack("<H", 2) +
-                 struct.pack("<HHII", 256, 4, 1, 40000) + struct.pack("<HHIHH", 257, 3, 1, 30000, 0),
+        "a.tif": b"II*\x00" + struct.pack("<I", 8) + struct.pack("<H", 2)
+                 + struct.pack("<HHII", 256, 4, 1, 40000)
+                 + struct.pack("<HHIHH", 257, 3, 1, 30000, 0),
         "a.pgm": b"P5\n# comment\n40000 30000\n255\n",
     }
     for name, data in files.items():
@@ -422,7 +423,7 @@ def _bomb(path: Path, mib: int) -> Path:
 
 
 def test_bal_bz2_that_inflates_to_gigabytes(tmp_path, capsys):
-    """4 GiB of text in 10 KB: refused at the real limit (256 MiB) while
+    """4 GiB of text in 11.5 KB: refused at the real limit (256 MiB) while
     streaming, without holding it."""
     bomb = _bomb(tmp_path / "problem.txt.bz2", 4096)
     assert bomb.stat().st_size < 20_000
@@ -488,3 +489,45 @@ def test_memory_and_recursion_errors_are_one_line_naming_the_input(tmp_path, cap
     assert main(["calibrate", str(prj)]) == 2
     line = _one_line(capsys)
     assert line.startswith(f"{prj}: photogram calibrate") and words in line, line
+
+
+class _HugeVideo:
+    """A stand-in for cv2.VideoCapture of a video whose frames are 40000 x
+    40000: decoding a frame fails as it would for lack of memory."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def isOpened(self):
+        return True
+
+    def get(self, prop):
+        import cv2
+        return {cv2.CAP_PROP_FRAME_WIDTH: 40000.0, cv2.CAP_PROP_FRAME_HEIGHT: 40000.0,
+                cv2.CAP_PROP_FRAME_COUNT: 279.0, cv2.CAP_PROP_FPS: 50.0}.get(prop, 0.0)
+
+    def read(self):
+        raise MemoryError("cannot allocate a 40000 x 40000 frame")
+
+    grab = read
+
+    def release(self):
+        pass
+
+
+def test_mocap_video_with_40000_square_frames(tmp_path, capsys, monkeypatch):
+    import cv2
+    folder = tmp_path / "ski"
+    shutil.copytree(PROJECTS / "ski-ptz", folder, ignore=shutil.ignore_patterns("results*"))
+    video = folder / "C1.avi"
+    video.write_bytes(b"RIFF")
+    prj = folder / "ski-ptz-estimate.prj"
+    text = "".join(line for line in prj.read_text().splitlines(keepends=True)
+                   if not line.startswith("rotation_differences ="))
+    text += "\n[mocap.images]\n" + "".join(f'C{i} = "C1.avi"\n' for i in range(1, 7))
+    prj.write_text(text)
+    monkeypatch.setattr(cv2, "VideoCapture", _HugeVideo)
+    assert main(["mocap", "-q", str(prj), "--output", str(tmp_path / "out")]) == 2
+    assert _one_line(capsys) == (
+        f"{video}: the video frame is 40000 x 40000 pixels, more than photogram reads "
+        f"(250 megapixels) (scale it down, or check that the file is not damaged)")

@@ -43,10 +43,13 @@ MAX_JSON_BYTES = 64 * MIB
 MAX_IMAGE_PIXELS = 250_000_000
 MAX_DECOMPRESSED_BYTES = 256 * MIB
 
-# strings and comments, whose brackets do not nest, or a bracket
-_TOML_TOKENS = re.compile(r'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"(?:[^"\\\n]|\\.)*"'
-                          r'|\'[^\'\n]*\'|#[^\n]*|[\[\]{}]')
-_JSON_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+# strings and comments, whose brackets do not nest, or a bracket; an
+# unterminated string runs to the end of its line (TOML) or of the text (JSON),
+# so that every string pattern always matches and the scan stays linear
+_TOML_TOKENS = re.compile(r'"""[\s\S]*?(?:"""|\Z)|\'\'\'[\s\S]*?(?:\'\'\'|\Z)'
+                          r'|"(?:[^"\\\n]|\\[^\n])*+(?:"|[^\n]*)|\'[^\'\n]*\'?'
+                          r'|#[^\n]*|[\[\]{}]')
+_JSON_TOKENS = re.compile(r'"(?:[^"\\]|\\[\s\S])*+(?:"|[\s\S]*)|[\[\]{}]')
 
 
 def check_nesting(text: str, path, kind: str = "TOML") -> None:
