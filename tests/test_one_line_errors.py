@@ -127,6 +127,23 @@ def test_csv_unclosed_quote_names_the_line_where_it_opens(tmp_path, capsys):
                                         f"131072 characters")
 
 
+def test_csv_cell_over_128_kib_in_the_rotation_differences(tmp_path, capsys):
+    """The mocap rotation-differences table has its own CSV reader."""
+    folder = tmp_path / "ski"
+    shutil.copytree(PROJECTS / "ski-ptz", folder, ignore=shutil.ignore_patterns("results*"))
+    table = folder / "rotation_differences.csv"
+    lines = table.read_text().splitlines()
+    k = [i for i, line in enumerate(lines) if not line.startswith("#")][3]
+    row = lines[k].split(",")
+    row[2] = "1" * (128 * 1024 + 1)
+    lines[k] = ",".join(row)
+    table.write_text("\n".join(lines) + "\n")
+    assert main(["mocap", "-q", str(folder / "ski-ptz-estimate.prj"),
+                 "--output", str(tmp_path / "out")]) == 2
+    assert _one_line(capsys).startswith(f"{table}:{k + 1}: a cell of this record is longer "
+                                        f"than 131072 characters (128 KiB)")
+
+
 # --------------------------------------------------------------------------
 # a project folder without execute permission
 # --------------------------------------------------------------------------
