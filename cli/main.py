@@ -184,6 +184,9 @@ def load_command(name: str):
 def run_command(args: argparse.Namespace) -> int:
     """Read the project (if any), then call the command's function."""
     cmd = COMMANDS[args.command]
+    if getattr(args, "output", None) is not None:
+        from photogram.project.limits import check_output_path
+        check_output_path(args.output)
     if not cmd.needs_project:
         return int(load_command(args.command)(args) or 0)
     from photogram.project import read_project
@@ -193,9 +196,11 @@ def run_command(args: argparse.Namespace) -> int:
         project.output.folder = str(Path(args.output).absolute())
     if args.command not in WRITERS:
         return int(load_command(args.command)(project, args) or 0)
+    from photogram.project.limits import check_output_path
     from photogram.project.output_policy import claim_output, project_inputs
     from photogram.project.results_folder import output_lock
     folder = project.output_folder()
+    check_output_path(folder, "--output" if args.output is not None else "[output] folder")
     # one run per results folder, from the check to the last file (a second
     # run into the same folder stops with one line)
     with output_lock(folder, command=args.command):
@@ -216,6 +221,31 @@ def _setup_logging(args: argparse.Namespace) -> None:
 
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())
+
+
+def _input_of(args: argparse.Namespace) -> str:
+    """The input a command was given (for the last-resort messages)."""
+    for name in ("project", "folder", "source", "design"):
+        value = getattr(args, name, None)
+        if value is not None:
+            return str(value)
+    return f"photogram {args.command}"
+
+
+def _last_resort(exc: BaseException, args: argparse.Namespace) -> str | None:
+    """One line for a failure that bad input causes but that no reader
+    caught at its source (docs/reliability.md, issue 16 item 21), or None
+    for a bug."""
+    if isinstance(exc, MemoryError):
+        return (f"{_input_of(args)}: photogram {args.command} ran out of memory reading or "
+                f"processing this input (is a file far larger than it should be?)")
+    if isinstance(exc, RecursionError):
+        return (f"{_input_of(args)}: photogram {args.command}: an input file is nested too "
+                f"deeply (damaged or not a photogram file)")
+    if isinstance(exc, PermissionError) and exc.filename:
+        return (f"{exc.filename}: permission denied (photogram {args.command} needs to read "
+                f"the file, or to search and write the folder: check its permissions)")
+    return None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -244,14 +274,17 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"photogram {args.command}: interrupted", file=sys.stderr)
         return 130
-    except OSError as exc:   # a full disk, a lost permission: not a bug, one line
+    except (MemoryError, RecursionError, OSError) as exc:
+        message = _last_resort(exc, args)
         if verbose:
             traceback.print_exc()
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(_one_line(f"{where}cannot write or read: {exc.strerror or exc} (free disk "
-                        f"space or check the permissions, then run the command again; "
-                        f"results are only moved into place when complete)"),
-              file=sys.stderr)
+        if message is None and isinstance(exc, OSError):
+            # a full disk, a lost permission: not a bug, one line
+            where = f"{exc.filename}: " if exc.filename else ""
+            message = (f"{where}cannot write or read: {exc.strerror or exc} (free disk "
+                       f"space or check the permissions, then run the command again; "
+                       f"results are only moved into place when complete)")
+        print(_one_line(message), file=sys.stderr)
         return 2
     except Exception as exc:  # anything else is a bug
         if verbose:

@@ -326,9 +326,10 @@ def _write_covariance(path, result):
 
 
 def read_orientation_covariance(folder):
-    """(labels, matrix) written by :func:`run` (see covariance.npz)."""
-    with np.load(Path(folder) / "covariance.npz") as data:
-        return [str(x) for x in data["labels"]], data["matrix"]
+    """(labels, matrix) written by :func:`run` (see covariance.npz); a
+    damaged or pickled file is an InputError naming it (never unpickled)."""
+    from photogram.project.results_read import read_orientation_covariance as read
+    return read(folder)
 
 
 def _check_finite(result):

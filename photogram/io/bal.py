@@ -33,7 +33,6 @@ cost by the formula above, as Ceres' own BAL example does.
 from __future__ import annotations
 
 import bz2
-import gzip
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,6 +40,7 @@ import numpy as np
 
 from photogram.errors import InputError
 from photogram.geometry import matrix_to_rodrigues, rodrigues_to_matrix
+from photogram.project.limits import read_maybe_compressed
 
 __all__ = ["BALProblem", "read_bal", "write_bal", "bal_residuals", "bal_cost",
            "behind_camera", "build_bal_problem", "BALBuilt", "bal_from_state",
@@ -83,11 +83,10 @@ class BALProblem:
 
 
 def _open_text(path: Path) -> str:
-    raw = path.read_bytes()
-    if raw[:3] == b"BZh":
-        raw = bz2.decompress(raw)
-    elif raw[:2] == b"\x1f\x8b":
-        raw = gzip.decompress(raw)
+    """The text of a plain, .bz2 or .gz BAL file; a file that is (or
+    inflates to) more than MAX_DECOMPRESSED_BYTES is refused while streaming,
+    before it is held in memory."""
+    raw = read_maybe_compressed(path, what="BAL file")
     return raw.decode("ascii")
 
 

@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
+from photogram.project.limits import check_image
 
 __all__ = ["Target", "parse_target", "detect", "detect_folder", "images_project",
            "IMAGE_SUFFIXES"]
@@ -176,7 +177,11 @@ def detect_folder(folder, target: Target):
     folder = Path(folder)
     names, found, missed, size = [], [], [], None
     for path in _images(folder):
-        image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        check_image(path)          # before decoding: a header may claim gigapixels
+        try:
+            image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        except cv2.error:
+            image = None
         if image is None:
             raise InputError("cannot read this image", file=path,
                              hint="a damaged or unsupported image file")

@@ -217,7 +217,11 @@ def read_joints(path: Path, skeleton: Skeleton):
     text = read_text(path, "joints table")
     header = next((ln for ln in text.splitlines()
                    if ln.strip() and not ln.strip().startswith("#")), "")
-    columns = [c.strip() for c in next(csv.reader([header], delimiter=_delimiter(header)), [])]
+    try:
+        columns = [c.strip() for c in next(csv.reader([header], delimiter=_delimiter(header)),
+                                           [])]
+    except csv.Error:           # e.g. a cell over 128 KiB: read_table names the line
+        columns = []
     table = read_table(path, required=("frame",),
                        optional=[c for c in dict.fromkeys(columns) if c and c != "frame"],
                        what="joints table")

@@ -220,12 +220,17 @@ def read_rotation_differences(path, camera_names, n_frames: int,
     while skip < len(lines) and lines[skip].lstrip().startswith("#"):
         skip += 1
     rows = csv.reader(lines[skip:])
-    header = next(rows, None)
+    try:
+        header = next(rows, None)
+    except csv.Error:       # a cell over 128 KiB (csv.field_size_limit) in the header
+        header = None
     if header is None or [h.strip() for h in header] != _COLUMNS:
         raise InputError("expected the columns " + ",".join(_COLUMNS), file=path,
                          line=skip + 1, hint="the header names exactly these columns")
     first_line = {}
-    for line, row in enumerate(rows, start=skip + 2):
+    from photogram.project.tables import csv_records
+    numbers = list(range(skip + 1, len(lines) + 1))
+    for line, row in enumerate(csv_records(rows, numbers, path), start=skip + 2):
         if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
             continue
         if len(row) != len(_COLUMNS):

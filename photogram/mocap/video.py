@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 
 from photogram.errors import InputError
+from photogram.project.limits import check_frame_size, check_image
 
 __all__ = ["IMAGE_EXTENSIONS", "image_files", "read_frames", "count_frames"]
 
@@ -63,6 +64,12 @@ def _open(path: Path):
         raise InputError("OpenCV cannot read this video", file=path,
                          hint="check the file (codec, truncation) or convert it, e.g. to "
                               "H.264 .mp4 or MJPG .avi")
+    try:
+        check_frame_size(cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT),
+                         path, what="video frame")
+    except InputError:
+        cap.release()
+        raise
     return cap
 
 
@@ -131,7 +138,11 @@ def read_frames(path, frames=None):
 
 
 def _read_image(file: Path) -> np.ndarray:
-    img = cv2.imread(str(file), cv2.IMREAD_COLOR)
+    check_image(file)              # before decoding: a header may claim gigapixels
+    try:
+        img = cv2.imread(str(file), cv2.IMREAD_COLOR)
+    except cv2.error:
+        img = None
     if img is None:
         raise InputError("OpenCV cannot read this image", file=file,
                          hint="check that it is a valid image file")

@@ -61,6 +61,17 @@ ADJUSTMENT_KEYS = ("datum", "max_iterations", "tolerance", "sigma_image", "sigma
 
 def _resolve(path: str | Path) -> Path:
     path = Path(path)
+    try:
+        return _find_prj(path)
+    except PermissionError as exc:      # e.g. a folder without execute (search) permission
+        where = Path(exc.filename) if exc.filename else path
+        folder = where.parent
+        raise InputError("permission denied: the project cannot be read", file=where,
+                         hint=f"photogram needs read and execute (search) permission on the "
+                              f"folder {folder}: e.g. chmod u+rx {folder}") from None
+
+
+def _find_prj(path: Path) -> Path:
     if path.is_dir():
         found = sorted(path.glob("*.prj"))
         if len(found) == 1:

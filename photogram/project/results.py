@@ -37,7 +37,7 @@ from photogram.project.atomic import atomic_write_text
 from photogram.project.camera_schema import camera_to_toml, load_cameras_file
 from photogram.project.model import Camera, Project
 from photogram.project.tables import format_angle, format_table
-from photogram.project.text_input import decode_utf8
+from photogram.project.limits import read_json
 from photogram.project.toml_writer import comment_string, dumps
 from photogram.project.validate import rays_per_point
 from photogram.project.writer import check_targets, point_columns, station_columns
@@ -280,13 +280,12 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
 
 
 def _read_csv(path: Path, ids: tuple[str, ...]):
-    import pandas as pd
+    from photogram.project.results_read import read_results_table
 
     if not path.is_file():
         raise InputError("results table not found", file=path,
                          hint="the results folder is incomplete: run the command again")
-    return pd.read_csv(path, comment="#", keep_default_na=False, na_values=[""],
-                       dtype={k: str for k in ids})
+    return read_results_table(path, ids)
 
 
 def read_results(folder: str | Path) -> Results:
@@ -302,11 +301,7 @@ def read_results(folder: str | Path) -> Results:
     if not path.is_file():
         raise InputError("no results here (summary.json not found)", file=folder,
                          hint="run calibrate/orient/intersect first, or give the results folder")
-    try:
-        summary = json.loads(decode_utf8(path.read_bytes(), path))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON: {exc.msg}", file=path, line=exc.lineno,
-                         hint="the file is damaged: run the command again") from None
+    summary = read_json(path, "summary.json")     # size, nesting, an object
     unit, cameras = load_cameras_file(folder / "cameras.toml")
     log = folder / "log.txt"
     return Results(folder=folder, summary=summary, image_unit=unit, cameras=cameras,

@@ -31,7 +31,7 @@ from photogram.errors import InputError
 from photogram.project.text_input import read_text, suggest
 from photogram.project.toml_writer import comment_line
 
-__all__ = ["Table", "read_table", "format_table", "format_float",
+__all__ = ["Table", "read_table", "csv_records", "format_table", "format_float",
            "angle_to_rad", "format_angle", "IGNORED_COLUMNS"]
 
 IGNORED_COLUMNS = ("note", "comment")
@@ -191,11 +191,11 @@ def read_table(path: Path, *, required: Iterable[str], optional: Iterable[str] =
         raise InputError(f"the {what} is empty (no header row)", file=path, line=1,
                          hint=f"the first line must name the columns: {', '.join(required)}")
     reader = csv.reader(lines, delimiter=_delimiter(lines[0]))
-    header = [h.strip() for h in next(reader)]
+    header = [h.strip() for h in next(csv_records(reader, numbers, path), [])]
     table = Table(path, header, [], np.zeros(0, int), numbers[0])
     _check_header(table, required, optional, what)
     rows, records = [], []
-    for row in reader:
+    for row in csv_records(reader, numbers, path):
         line = numbers[reader.line_num - 1]
         if len(row) != len(header):
             raise InputError(f"this record has {len(row)} fields but the header has "
@@ -208,6 +208,29 @@ def read_table(path: Path, *, required: Iterable[str], optional: Iterable[str] =
                          line=numbers[0], hint="add at least one row below the header")
     table.rows, table.records = rows, np.array(records, dtype=int)
     return table
+
+
+def csv_records(reader, numbers: list[int], path: Path):
+    """Iterate ``reader``, turning the csv module's errors (a cell longer than
+    ``csv.field_size_limit()``, often an unclosed quote) into an InputError
+    at the line where the record starts."""
+    while True:
+        start = numbers[min(reader.line_num, len(numbers) - 1)]
+        try:
+            row = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            limit = csv.field_size_limit()
+            if "field limit" in str(exc):
+                what = (f"a cell of this record is longer than {limit} characters "
+                        f"({limit // 1024} KiB), more than a CSV cell may hold")
+                hint = "is a quote \" not closed? Otherwise shorten the cell"
+            else:
+                what, hint = f"this record cannot be read as CSV: {exc}", \
+                    "check the quotes of this line"
+            raise InputError(what, file=path, line=start, hint=hint) from None
+        yield row
 
 
 def _check_header(table: Table, required: list[str], optional: list[str], what: str) -> None:

@@ -37,6 +37,10 @@ def read_text(path: Path, what: str = "file") -> str:
     except IsADirectoryError:
         raise InputError(f"{what} is a folder, not a file", file=path,
                          hint="give the path of the file itself") from None
+    except PermissionError:
+        raise InputError(f"cannot read {what}: permission denied", file=path,
+                         hint=f"photogram needs read permission on the file and execute "
+                              f"(search) permission on its folder {path.parent}") from None
     except OSError as exc:
         raise InputError(f"cannot read {what}: {exc.strerror}", file=path,
                          hint="check the file permissions") from None

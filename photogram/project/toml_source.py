@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from photogram.errors import InputError
+from photogram.project.limits import MAX_NESTING, check_nesting
 from photogram.project.text_input import DOCS, read_text, suggest
 
 __all__ = ["TomlSource", "Section", "type_name", "MISSING"]
@@ -114,10 +115,15 @@ class TomlSource:
     def load(cls, path: Path, what: str = "project file") -> "TomlSource":
         """Read and parse ``path``; syntax errors carry tomllib's line."""
         text = read_text(path, what)
+        check_nesting(text, Path(path), "TOML")     # before tomllib recurses
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise _syntax_error(exc, Path(path)) from None
+        except RecursionError:
+            raise InputError("arrays or tables nested too deeply", file=path,
+                             hint=f"photogram reads TOML nested at most {MAX_NESTING} levels; "
+                                  "the file is damaged or not a photogram file") from None
         return cls(Path(path), text, data)
 
     def line_of(self, keypath: Iterable) -> int | None:

@@ -22,10 +22,12 @@ import numpy as np
 
 from photogram.errors import InputError, PhotogramError
 from photogram.geometry import opk_to_matrix, to_radians
+from photogram.project.limits import check_image, read_json
 from photogram.project.results import Results, read_results
+from photogram.project.results_read import read_covariance, read_results_table
 from photogram.project.results_folder import final_folder
 
-__all__ = ["ReportData", "load", "REQUIRED"]
+__all__ = ["ReportData", "load", "REQUIRED", "read_image"]
 
 #: the files of an adjustment's results folder (calibrate, orient, intersect);
 #: other commands (montecarlo, mocap) need only summary.json
@@ -176,23 +178,30 @@ class ReportData:
         return list(p.index[ok]), s[ok]
 
 
-def _read_covariance(path: Path) -> dict | None:
-    if not path.is_file():
-        return None
+def read_image(path: Path) -> np.ndarray:
+    """A picture of the results folder (stick.png, ...) for a report page;
+    its size is checked from the header before it is decoded."""
+    import matplotlib.image as mpimg
+
+    check_image(path)
     try:
-        with np.load(path) as z:
-            return {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read the covariance file: {exc}", file=path,
+        return np.asarray(mpimg.imread(path))
+    except Exception as exc:      # PIL: OSError, SyntaxError, DecompressionBombError, ...
+        raise InputError(f"cannot read this image ({type(exc).__name__}: "
+                         f"{' '.join(str(exc).split())[:100]})", file=path,
                          hint="the file is damaged: run the command again") from None
 
 
-def _read_table(path: Path, ids=("exposure", "point", "line")):
-    import pandas as pd
-
+def _read_covariance(path: Path) -> dict | None:
     if not path.is_file():
         return None
-    return pd.read_csv(path, comment="#", dtype={k: str for k in ids})
+    return read_covariance(path)       # allow_pickle=False; damage is an InputError
+
+
+def _read_table(path: Path, ids=("exposure", "point", "line")):
+    if not path.is_file():
+        return None
+    return read_results_table(path, ids, text=("stations",), keep_default_na=True)
 
 
 def _project_path(folder: Path, text) -> Path | None:
@@ -227,18 +236,7 @@ def _read_project(folder: Path, summary: dict):
 
 
 def _read_summary(folder: Path) -> dict:
-    import json
-
-    path = folder / "summary.json"
-    try:
-        summary = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"cannot read summary.json: {exc}", file=path,
-                         hint="the file is damaged: run the command again") from None
-    if not isinstance(summary, dict):
-        raise InputError("summary.json does not hold a JSON object", file=path,
-                         hint="the file is damaged: run the command again")
-    return summary
+    return read_json(folder / "summary.json", "summary.json")
 
 
 def _summary_only(folder: Path, summary: dict) -> Results:

@@ -76,15 +76,15 @@ def generic(doc, data, title: str, prefix: str, intro: str, extra=()) -> None:
         elif path.suffix == ".json":
             try:
                 content = json.loads(path.read_text(encoding="utf-8"))
-            except (OSError, ValueError):
+            except (OSError, ValueError, RecursionError):
                 continue
             doc.pairs([(k, num(v, 5) if isinstance(v, float) else str(v))
                        for k, v in list(_flat(content))[:40]], title=path.name)
         else:
-            import matplotlib.image as mpimg
+            from photogram.report.data import read_image
 
             doc.subheading(path.name)
-            doc.image(np.asarray(mpimg.imread(path)), min(6.0, doc.remaining - 0.1))
+            doc.image(read_image(path), min(6.0, doc.remaining - 0.1))
 
 
 @section("montecarlo", "Monte Carlo", 90,

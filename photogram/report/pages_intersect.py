@@ -35,8 +35,8 @@ def _params(data):
 def build_stick(doc, data):
     image = None
     if data.has("stick.png"):
-        import matplotlib.image as mpimg
-        image = mpimg.imread(data.folder / "stick.png")
+        from photogram.report.data import read_image
+        image = read_image(data.folder / "stick.png")
     wide = image is None or image.shape[1] > 1.3 * image.shape[0]
     doc.start_section("Stick model (Fig. 8)", landscape=wide, intro=(
         "The jumper's stick model (head P1, hip P2, bindings P3 P4, the two skis; right ski "

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
+from photogram.project.limits import check_frame_size, check_image
 
 __all__ = ["ImageSequence", "IMAGE_SUFFIXES"]
 
@@ -44,13 +45,19 @@ class ImageSequence:
         import cv2
         if self.files is not None:
             for f in self.files:
-                img = cv2.imread(str(f), cv2.IMREAD_COLOR)
+                check_image(f)     # before decoding: a header may claim gigapixels
+                try:
+                    img = cv2.imread(str(f), cv2.IMREAD_COLOR)
+                except cv2.error:
+                    img = None
                 if img is None:
                     raise InputError("cannot read the image", file=f)
                 yield cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
             return
         cap = cv2.VideoCapture(str(self.path))
         try:
+            check_frame_size(cap.get(cv2.CAP_PROP_FRAME_WIDTH),
+                             cap.get(cv2.CAP_PROP_FRAME_HEIGHT), self.path, "video frame")
             while True:
                 ok, img = cap.read()
                 if not ok:
