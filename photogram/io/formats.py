@@ -145,9 +145,27 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
         return write_opencv(to, views, force=force)
     from photogram.io.colmap import write_colmap
     obs, error = _observations(src)
+    _check_tracks(src, obs)
     folder = write_colmap(to, views, project.points.ids, project.points.xyz, obs, error,
                           force=force)
     return [folder / f for f in ("cameras.txt", "images.txt", "points3D.txt")]
+
+
+def _check_tracks(src, obs) -> None:
+    """COLMAP keeps only 3D points with a track: refuse a model whose points
+    all lack image observations, and say how many are left out."""
+    xyz = src.project.points.xyz
+    known = np.all(np.isfinite(xyz), axis=1)
+    seen = np.zeros(len(known), bool)
+    seen[[p for _, p, _, _ in obs]] = True
+    lost = int(np.sum(known & ~seen))
+    if lost and not np.any(known & seen):
+        raise InputError(f"none of the {lost} points has an image observation, and COLMAP "
+                         f"keeps only points with a track", file=src.folder,
+                         hint="rerun the command that wrote the results (its residuals.csv "
+                              "lists the observations), or export ply for the points alone")
+    if lost:
+        log.warning("COLMAP export: %d point(s) without image observations are left out", lost)
 
 
 def _observations(src):
@@ -171,6 +189,8 @@ def _observations(src):
                     obs.append((sidx[str(s)], i, float(x), float(y)))
                     err_sum[i] += np.hypot(a, b)
                     err_n[i] += 1
+        if not obs:
+            obs = _project_observations(src)
         if src.project.units.image != "px":
             raise InputError("COLMAP export needs image coordinates in px",
                              file=src.folder, hint="use image_unit = \"px\"")
@@ -182,3 +202,25 @@ def _observations(src):
                zip(ip.station, ip.point, ip.xy)]
     error = np.where(err_n > 0, err_sum / np.maximum(err_n, 1), 0.0)
     return obs, error
+
+
+def _project_observations(src) -> list:
+    """The image points of the project a results folder came from (its
+    ``summary.json`` names it), for results folders whose residuals.csv
+    lists no observations (photogram intersect before issue 16)."""
+    path = src.project.path
+    if not path or not Path(path).is_file():
+        return []
+    from photogram.project import read_project
+    try:
+        source = read_project(path)
+    except InputError as exc:
+        log.warning("COLMAP export: cannot read the observations of %s (%s)", path, exc)
+        return []
+    sidx = src.project.stations.index()
+    pidx = src.project.points.index()
+    names, ids = source.stations.names, source.points.ids
+    ip = source.image_points
+    return [(sidx[names[s]], pidx[ids[p]], float(x), float(y))
+            for s, p, (x, y) in zip(ip.station, ip.point, ip.xy)
+            if names[s] in sidx and ids[p] in pidx]
