@@ -121,7 +121,8 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
         traj = tr.load_trajectories(source)
         writer = {"trc": tr.write_trc_export, "c3d": tr.write_c3d, "mot": tr.write_mot,
                   "csv": tr.write_trajectory_csv}[key]
-        return [writer(to, traj, force=force)]
+        written = [writer(to, traj, force=force)]
+        return written + ([tr.csv_sidecar(to)] if key == "csv" else [])
     from photogram.io.exchange import load_source, views_of
     src = load_source(source)
     project = src.project
