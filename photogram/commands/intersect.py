@@ -32,10 +32,13 @@ def _orientation(project):
     orientation``, or None. The orient results of a project whose cameras
     come from a calibration already hold the joint covariance of interior and
     exterior orientation; blocks of several folders are combined without
-    cross terms, a later folder replacing what an earlier one gives."""
+    cross terms, a later folder replacing what an earlier one gives. An
+    empty list is no orientation (image noise only); folders that do not
+    cover the exterior orientation of every measuring station are refused
+    (:func:`_check_stations_covered`)."""
     from photogram.commands.bundle import read_orientation_covariance
     where = project.intersect.orientation
-    if where is None:
+    if not where:
         return None
     folders = list(where)
     labels, blocks = [], []
