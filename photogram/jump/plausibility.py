@@ -49,10 +49,10 @@ def _median_distance(a, b) -> float:
 
 def _vertical_acceleration(times, z) -> tuple[float, float]:
     """(a, sigma_a) of a parabola fitted to ``z(t)``; NaN with fewer than 6
-    exposures or a span below 0.15 s."""
+    exposures (4 distinct times) or a span below 0.15 s."""
     ok = np.isfinite(times) & np.isfinite(z)
     t, z = np.asarray(times, float)[ok], np.asarray(z, float)[ok]
-    if t.size < 6 or np.ptp(t) < 0.15:
+    if t.size < 6 or np.ptp(t) < 0.15 or np.unique(t).size < 4:
         return float("nan"), float("nan")
     t0 = t - t.mean()
     A = np.column_stack([t0 ** 2, t0, np.ones_like(t0)])
