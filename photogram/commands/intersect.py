@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from photogram.errors import InputError
+from photogram.errors import InputError, PhotogramError
 from photogram.io.trc import write_trc
 from photogram.jump.figure import plot_stick_figure, time_series_figure
 from photogram.jump.pipeline import intersect_jump
@@ -84,7 +84,7 @@ def _check_stations_covered(project, folders, labels):
     try:
         from photogram.project.toml_source import TomlSource
         line = TomlSource.load(Path(project.path)).line_of(("intersect", "orientation"))
-    except Exception:                          # the line is a courtesy; the message stands
+    except (PhotogramError, OSError):          # the line is a courtesy; the message stands
         line = None
     shown = ", ".join(str(Path(f).name if Path(f).name != "results" else
                           Path(f).parent.name + "/results") for f in folders)

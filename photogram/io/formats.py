@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from photogram.errors import InputError
+from photogram.errors import InputError, PhotogramError
 
 __all__ = ["IMPORT_FORMATS", "EXPORT_FORMATS", "import_project", "export_results"]
 
@@ -192,7 +192,7 @@ def export_inputs(source) -> list[Path]:
         out.append(Path(prj))
         try:
             out += project_inputs(read_project(prj))
-        except InputError:
+        except PhotogramError:
             pass                              # the export itself names the problem
     return out
 
@@ -301,7 +301,7 @@ def _project_observations(src) -> list:
     from photogram.project import read_project
     try:
         source = read_project(path)
-    except InputError as exc:
+    except PhotogramError as exc:
         log.warning("COLMAP export: cannot read the observations of %s (%s)", path, exc)
         return []
     sidx = src.project.stations.index()
