@@ -117,7 +117,7 @@ def test_mot_degrees_and_csv(results, tmp_path):
     assert np.allclose(m["alpha"], [16.5 * 0.9, 15.25 * 0.9, 14.0 * 0.9])
     assert np.allclose(m["sigma_gamma"], 0.9) and np.allclose(m["Z0"], [-22.6, -22.95, -23.2])
     csv = export_results("csv", results, tmp_path / "jump.csv")[0].read_text().splitlines()
-    assert csv[1].startswith("exposure,time,P1_X,P1_Y,P1_Z,P1_sX")
+    assert csv[0].startswith("exposure,time,P1_X,P1_Y,P1_Z,P1_sX")     # no comment line
     assert csv[-1].split(",")[2:8] == [""] * 6                       # the gap
     with pytest.raises(InputError, match="file exists"):
         export_results("csv", results, tmp_path / "jump.csv")

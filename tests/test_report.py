@@ -29,7 +29,8 @@ SECTIONS = {
     "calibrate": ADJUSTMENT,
     "orient": ADJUSTMENT,
     "intersect": ["Summary", "Cameras (interior orientation)",
-                  "Stations (exterior orientation)", "Point precision", "Error ellipses",
+                  "Stations (exterior orientation)", "Residuals", "Residual vectors per image",
+                  "Point precision", "Error ellipses", "Rays, intersection angles, coverage",
                   "Network", "Stick model (Fig. 8)", "Stick model over time",
                   "Stick model per exposure", "Jumper points and ski lines"],
 }

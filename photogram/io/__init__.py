@@ -15,6 +15,7 @@ Each format lives in its own module and builds or reads the dataclasses of
 ``ply``                object points with sigmas (PLY)
 ``trc``                OpenSim marker files
 ``trajectories``       TRC, C3D, OpenSim .mot and CSV from intersect results
+``mocap_results``      the results folder of ``photogram mocap`` as trajectories
 ``targets``            chessboard / ChArUco / circle-grid images -> calibration project
 ``exchange``           what they share: OpenCV views, project folders, results
 ``formats``            the registry behind ``photogram import`` / ``photogram export``

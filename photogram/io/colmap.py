@@ -301,18 +301,21 @@ def format_colmap(views: list[View], point_ids=(), xyz=None, obs=(), error=None,
         lines.append(" ".join(f"{_r(x)} {_r(y)} {p}" for x, y, p in per_view[k]))
     images_txt = "\n".join(lines) + "\n"
 
-    lines = ["# 3D point list with one line of data per point:",
-             "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)",
-             f"# Number of points: {len(point_ids)}"]
     xyz = np.zeros((0, 3)) if xyz is None else np.asarray(xyz, float)
     err = np.zeros(len(point_ids)) if error is None else np.asarray(error, float)
+    rows, n_track = [], 0
     for i in range(len(point_ids)):
         if not np.all(np.isfinite(xyz[i])) or not track[i]:
-            continue
+            continue                      # COLMAP has no 3D point without a track
+        n_track += len(track[i])
         e = err[i] if np.isfinite(err[i]) else 0.0
-        lines.append(" ".join([str(pids[i])] + [_r(c) for c in xyz[i]] + ["128", "128", "128",
-                                                                           _r(e)] +
-                              [f"{a} {b}" for a, b in track[i]]))
+        rows.append(" ".join([str(pids[i])] + [_r(c) for c in xyz[i]] + ["128", "128", "128",
+                                                                          _r(e)] +
+                             [f"{a} {b}" for a, b in track[i]]))
+    mean_track = n_track / max(len(rows), 1)
+    lines = ["# 3D point list with one line of data per point:",
+             "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)",
+             f"# Number of points: {len(rows)}, mean track length: {mean_track:g}"] + rows
     return {"cameras.txt": cameras_txt, "images.txt": images_txt,
             "points3D.txt": "\n".join(lines) + "\n"}
 

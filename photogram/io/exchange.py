@@ -390,5 +390,14 @@ def write_new_bytes(path, data: bytes, force: bool = False) -> Path:
     return atomic_write_bytes(check_new_file(path, force), data)
 
 
-# export sources live in their own module; their names stay importable here
-from photogram.io.export_source import ExportSource, load_source, views_of  # noqa: E402,F401
+# export sources live in their own module, which imports this one; their names
+# stay importable here, resolved on first use (PEP 562) so that either module
+# can be imported first
+_EXPORT_SOURCE_NAMES = ("ExportSource", "load_source", "views_of")
+
+
+def __getattr__(name: str):
+    if name in _EXPORT_SOURCE_NAMES:
+        from photogram.io import export_source
+        return getattr(export_source, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -43,6 +43,7 @@ def load_source(path) -> ExportSource:
     """
     path = Path(path)
     if path.is_dir() and (path / "summary.json").is_file():
+        _refuse_mocap_results(path)
         return _from_results(path)
     from photogram.project import read_project
     if not path.exists():
@@ -58,6 +59,20 @@ def load_source(path) -> ExportSource:
     n, m = len(project.stations), len(project.points)
     return ExportSource(project=project, point_sigma=np.full((m, 3), np.nan),
                         station_sigma=np.full((n, 6), np.nan), folder=project.folder)
+
+
+def _refuse_mocap_results(folder: Path) -> None:
+    """A mocap results folder holds 3D joints, not a network to export."""
+    import json
+    try:
+        summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return                                  # read_results names the problem
+    if isinstance(summary, dict) and summary.get("command") == "mocap":
+        raise InputError("a results folder of photogram mocap holds 3D joints, not cameras, "
+                         "stations and points", file=folder,
+                         hint="export its joints with trc, c3d, csv or mot; export the cameras "
+                              "from the project (.prj) if they do not move")
 
 
 def _from_calibration(folder: Path) -> ExportSource:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from photogram.errors import InputError
+from photogram.errors import InputError, PhotogramError
 
 __all__ = ["IMPORT_FORMATS", "EXPORT_FORMATS", "import_project", "export_results"]
 
@@ -116,12 +116,14 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
     """
     key = _format(fmt, EXPORT_FORMATS)
     to = Path(to)
+    _refuse_inputs(key, source, to)
     if key in ("trc", "c3d", "mot", "csv"):
         from photogram.io import trajectories as tr
         traj = tr.load_trajectories(source)
         writer = {"trc": tr.write_trc_export, "c3d": tr.write_c3d, "mot": tr.write_mot,
                   "csv": tr.write_trajectory_csv}[key]
-        return [writer(to, traj, force=force)]
+        written = [writer(to, traj, force=force)]
+        return written + ([tr.csv_sidecar(to)] if key == "csv" else [])
     from photogram.io.exchange import load_source, views_of
     src = load_source(source)
     project = src.project
@@ -130,14 +132,20 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
         return [write_ply(to, project.points.ids, project.points.xyz, src.point_sigma,
                           project.points.kind, unit=project.units.length, force=force,
                           comment=f"from {src.folder}")]
+    _refuse_moving_cameras(src, key, source)
     views = views_of(project)
     if not views:
         raise InputError("no stations to export", file=source)
     if key == "pose2sim":
+        import dataclasses
+
         from photogram.io.pose2sim import write_pose2sim
+        # Pose2Sim's (and anipose's) world is in metres: convert the translations
+        views = [dataclasses.replace(v, t_cv=np.asarray(v.t_cv, float) * src.metres)
+                 for v in views]
         if project.units.length != "m":
-            log.warning("Pose2Sim expects metres; the translations are in %s",
-                        project.units.length)
+            log.info("Pose2Sim export: translations converted from %s to m",
+                     project.units.length)
         return [write_pose2sim(to, views, force=force,
                                error=float(src.summary.get("sigma0_image") or 0.0))]
     if key == "opencv":
@@ -145,9 +153,106 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
         return write_opencv(to, views, force=force)
     from photogram.io.colmap import write_colmap
     obs, error = _observations(src)
+    _check_tracks(src, obs)
     folder = write_colmap(to, views, project.points.ids, project.points.xyz, obs, error,
                           force=force)
     return [folder / f for f in ("cameras.txt", "images.txt", "points3D.txt")]
+
+
+#: files of a results folder (or calibration folder) that the exporters read
+READ_FILES = ("summary.json", "cameras.toml", "stations.csv", "points.csv", "residuals.csv",
+              "covariance.npz", "points3d.csv", "exposures.csv", "joints3d.csv", "metrics.csv",
+              "joints3d.trc")
+
+
+def export_inputs(source) -> list[Path]:
+    """Every file an export of ``source`` may read: the source itself, the
+    files of a results folder, and the project (.prj and its tables) that
+    the folder's summary.json names or the folder holds."""
+    import json
+    source = Path(source)
+    out = [source] if source.is_file() else []
+    folder = source if source.is_dir() else source.parent
+    prjs = [source] if source.suffix == ".prj" else []
+    if source.is_dir():
+        out += [folder / f for f in READ_FILES if (folder / f).is_file()]
+        prjs += sorted(folder.glob("*.prj"))
+        try:
+            info = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+            info = info.get("project") if isinstance(info, dict) else None
+            if isinstance(info, dict) and info.get("path"):
+                prjs.append(Path(info["path"]))
+        except (OSError, ValueError):
+            pass
+    from photogram.project import read_project
+    from photogram.project.output_policy import project_inputs
+    for prj in prjs:
+        if not Path(prj).is_file():
+            continue
+        out.append(Path(prj))
+        try:
+            out += project_inputs(read_project(prj))
+        except PhotogramError:
+            pass                              # the export itself names the problem
+    return out
+
+
+def _targets(key: str, to: Path) -> list[Path]:
+    if key == "colmap":
+        return [to / f for f in ("cameras.txt", "images.txt", "points3D.txt")]
+    if key == "csv":
+        from photogram.io.trajectories import csv_sidecar
+        return [to, csv_sidecar(to)]
+    return [to]
+
+
+def _refuse_inputs(key: str, source, to: Path) -> None:
+    """Never write over a file the export reads (not even with --force)."""
+    import os
+    inputs = [p for p in export_inputs(source) if p.exists()]
+    for target in _targets(key, to):
+        for p in inputs:
+            same = target.exists() and os.path.samefile(target, p)
+            if same or target.resolve() == p.resolve():
+                raise InputError(f"is an input of this export ({p}); photogram export "
+                                 f"never writes over the files it reads, not even with --force",
+                                 file=target, hint="choose another --to path")
+
+
+def _refuse_moving_cameras(src, key: str, source) -> None:
+    """Pose2Sim, OpenCV and COLMAP hold one fixed orientation per camera: a
+    project whose cameras pan, tilt or zoom (``[mocap]`` with
+    ``camera_frames``, estimated rotations or images) has one per frame,
+    and its stations table gives frame 0 only."""
+    ms = getattr(src.project, "mocap", None)
+    if ms is None:
+        return
+    moving = (ms.camera_frames is not None or ms.rotation == "estimate"
+              or ms.rotation_differences is not None or bool(ms.images))
+    if moving:
+        raise InputError(
+            f"the cameras of this project pan, tilt or zoom (one orientation per frame); "
+            f"{key} holds one fixed orientation per camera, and exporting the stations table "
+            f"(frame 0) would be wrong for every other frame", file=src.project.path,
+            hint="export the 3D joints of its mocap results instead (photogram export "
+                 "trc|c3d|csv|mot RESULTS)")
+
+
+def _check_tracks(src, obs) -> None:
+    """COLMAP keeps only 3D points with a track: refuse a model whose points
+    all lack image observations, and say how many are left out."""
+    xyz = src.project.points.xyz
+    known = np.all(np.isfinite(xyz), axis=1)
+    seen = np.zeros(len(known), bool)
+    seen[[p for _, p, _, _ in obs]] = True
+    lost = int(np.sum(known & ~seen))
+    if lost and not np.any(known & seen):
+        raise InputError(f"none of the {lost} points has an image observation, and COLMAP "
+                         f"keeps only points with a track", file=src.folder,
+                         hint="rerun the command that wrote the results (its residuals.csv "
+                              "lists the observations), or export ply for the points alone")
+    if lost:
+        log.warning("COLMAP export: %d point(s) without image observations are left out", lost)
 
 
 def _observations(src):
@@ -171,6 +276,8 @@ def _observations(src):
                     obs.append((sidx[str(s)], i, float(x), float(y)))
                     err_sum[i] += np.hypot(a, b)
                     err_n[i] += 1
+        if not obs:
+            obs = _project_observations(src)
         if src.project.units.image != "px":
             raise InputError("COLMAP export needs image coordinates in px",
                              file=src.folder, hint="use image_unit = \"px\"")
@@ -182,3 +289,25 @@ def _observations(src):
                zip(ip.station, ip.point, ip.xy)]
     error = np.where(err_n > 0, err_sum / np.maximum(err_n, 1), 0.0)
     return obs, error
+
+
+def _project_observations(src) -> list:
+    """The image points of the project a results folder came from (its
+    ``summary.json`` names it), for results folders whose residuals.csv
+    lists no observations (photogram intersect before issue 16)."""
+    path = src.project.path
+    if not path or not Path(path).is_file():
+        return []
+    from photogram.project import read_project
+    try:
+        source = read_project(path)
+    except PhotogramError as exc:
+        log.warning("COLMAP export: cannot read the observations of %s (%s)", path, exc)
+        return []
+    sidx = src.project.stations.index()
+    pidx = src.project.points.index()
+    names, ids = source.stations.names, source.points.ids
+    ip = source.image_points
+    return [(sidx[names[s]], pidx[ids[p]], float(x), float(y))
+            for s, p, (x, y) in zip(ip.station, ip.point, ip.xy)
+            if names[s] in sidx and ids[p] in pidx]

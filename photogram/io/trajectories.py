@@ -39,7 +39,7 @@ from photogram.errors import InputError
 from photogram.project.model import LENGTH_UNITS
 
 __all__ = ["Trajectories", "load_trajectories", "write_trc_export", "write_c3d", "read_c3d",
-           "write_mot", "read_mot", "write_trajectory_csv"]
+           "write_mot", "read_mot", "write_trajectory_csv", "csv_sidecar"]
 
 log = logging.getLogger("photogram")
 
@@ -58,6 +58,7 @@ class Trajectories:
     angle_unit: str = "deg"
     length_unit: str = "m"                             # of the source (all here is metres)
     name: str = "photogram"
+    mot: dict | None = None                            # .mot columns (deg, m, m/s) if given
 
     @property
     def rate(self) -> float:
@@ -78,9 +79,6 @@ def load_trajectories(folder) -> Trajectories:
     import json
     folder = Path(folder)
     path = folder / "points3d.csv"
-    if not path.is_file():
-        raise InputError("no points3d.csv in this folder", file=folder,
-                         hint="give the results folder of photogram intersect")
     summary = {}
     if (folder / "summary.json").is_file():
         try:
@@ -88,11 +86,18 @@ def load_trajectories(folder) -> Trajectories:
         except json.JSONDecodeError as exc:
             raise InputError(f"not valid JSON: {exc.msg}", file=folder / "summary.json",
                              line=exc.lineno) from None
+    from photogram.io.mocap_results import is_mocap_results, load_mocap_trajectories
+    if is_mocap_results(folder, summary):
+        return load_mocap_trajectories(folder, summary, _read_csv)
     info = summary.get("project") or {}
     unit = info.get("length_unit", "m")
     if unit not in LENGTH_UNITS:
         raise InputError(f"unknown length unit {unit!r}", file=folder / "summary.json")
     to_m = LENGTH_UNITS[unit]
+    if not path.is_file():
+        raise InputError("no points3d.csv (intersect) or joints3d.csv (mocap) in this folder",
+                         file=folder,
+                         hint="give the results folder of photogram intersect or mocap")
     table = _read_csv(path, ("exposure", "time", "point", "X", "Y", "Z"), ("exposure", "point"))
     exposures = list(dict.fromkeys(table["exposure"]))
     times = np.array([table["time"][table["exposure"] == e].iloc[0] for e in exposures], float)
@@ -116,7 +121,7 @@ def load_trajectories(folder) -> Trajectories:
         sigma[str(name)] = s
     angles = None
     if (folder / "exposures.csv").is_file():
-        angles = _read_csv(folder / "exposures.csv", ("time",), ())
+        angles = _read_csv(folder / "exposures.csv", ("time",), ("exposure",))
         if len(angles) == n and all(c in angles.columns for c in ("O_x", "O_y", "O_z")) \
                 and "O" not in markers:
             t = angles["time"].to_numpy(float)
@@ -277,18 +282,23 @@ def write_mot(path, traj: Trajectories, *, force: bool = False) -> Path:
     from photogram.io.exchange import write_new_text
     from photogram.jump.definitions import ANGLE_PARAMETERS
     table = traj.angles
-    if table is None:
-        raise InputError("no exposures.csv (stick-model angles) in the results folder",
-                         hint="the .mot export needs photogram intersect's exposures.csv")
-    to_deg = ANGLE_FACTORS[traj.angle_unit] / ANGLE_FACTORS["deg"]     # radians per unit
-    to_m = LENGTH_UNITS[traj.length_unit]
-    cols = {"time": table["time"].to_numpy(float)}
-    for c in table.columns:
-        base = c[6:] if c.startswith("sigma_") else c
-        if base in ANGLE_PARAMETERS:
-            cols[c] = table[c].to_numpy(float) * to_deg
-        elif base in ("Z0", "v"):
-            cols[c] = table[c].to_numpy(float) * to_m
+    if traj.mot is not None:
+        cols = dict(traj.mot)
+    elif table is None:
+        raise InputError("no exposures.csv (stick-model angles) or metrics.csv (mocap) in the "
+                         "results folder",
+                         hint="the .mot export needs photogram intersect's exposures.csv or "
+                              "photogram mocap's metrics.csv")
+    else:
+        to_deg = ANGLE_FACTORS[traj.angle_unit] / ANGLE_FACTORS["deg"]     # radians per unit
+        to_m = LENGTH_UNITS[traj.length_unit]
+        cols = {"time": table["time"].to_numpy(float)}
+        for c in table.columns:
+            base = c[6:] if c.startswith("sigma_") else c
+            if base in ANGLE_PARAMETERS:
+                cols[c] = table[c].to_numpy(float) * to_deg
+            elif base in ("Z0", "v"):
+                cols[c] = table[c].to_numpy(float) * to_m
     names = list(cols)
     rows = len(cols["time"])
     lines = [Path(path).name, "version=1", f"nRows={rows}", f"nColumns={len(names)}",
@@ -332,18 +342,45 @@ def read_mot(path) -> dict:
     return out
 
 
+def csv_sidecar(path) -> Path:
+    """The metadata file beside a trajectory CSV: ``NAME.csv.json``."""
+    path = Path(path)
+    return path.with_name(path.name + ".json")
+
+
 def write_trajectory_csv(path, traj: Trajectories, *, force: bool = False) -> Path:
     """One row per exposure: ``exposure, time`` and ``<point>_X, _Y, _Z,
-    _sX, _sY, _sZ`` in metres, project axes (Z up); gaps empty."""
-    from photogram.io.exchange import write_new_text
+    _sX, _sY, _sZ`` in metres, project axes (Z up); gaps empty.
+
+    The CSV is a plain table whose first line is the header (no comment
+    lines: ``pandas.read_csv(path)`` reads it as it is); units, axes and
+    the source are in the sidecar ``NAME.csv.json`` (:func:`csv_sidecar`).
+    Returns the CSV's path.
+    """
+    import csv
+    import io
+    import json
+
+    from photogram.io.exchange import check_new_file, write_new_text
+    meta_path = csv_sidecar(path)
+    check_new_file(path, force)
+    check_new_file(meta_path, force)
     names = ["exposure", "time"]
     for m in traj.markers:
         names += [f"{m}_{c}" for c in ("X", "Y", "Z", "sX", "sY", "sZ")]
-    lines = ["# photogram trajectories: metres, project axes (Z up); empty = not measured",
-             ",".join(names)]
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(names)
     for i, e in enumerate(traj.exposures):
         row = [e, repr(float(traj.times[i]))]
         for m in traj.markers:
             row += [_fmt(v) for v in traj.markers[m][i]] + [_fmt(v) for v in traj.sigma[m][i]]
-        lines.append(",".join(row))
-    return write_new_text(path, "\n".join(lines) + "\n", force)
+        writer.writerow(row)
+    meta = {"format": "photogram trajectories CSV", "file": Path(path).name,
+            "length_unit": "m", "time_unit": "s", "axes": "project axes, Z up",
+            "empty_cell": "not measured (coordinates) or not known (sigmas)",
+            "columns": "exposure, time, then <point>_X, _Y, _Z, _sX, _sY, _sZ per point",
+            "points": list(traj.markers), "source": traj.name,
+            "source_length_unit": traj.length_unit}
+    write_new_text(meta_path, json.dumps(meta, indent=2) + "\n", force)
+    return write_new_text(path, buf.getvalue(), force)

@@ -20,6 +20,7 @@ from photogram.adjust.solver import SolverOptions, solve
 from photogram.errors import InputError
 from photogram.jump.exposures import exposure_order as _exposure_order
 from photogram.jump.exposures import split_id
+from photogram.jump.plausibility import plausibility_warnings
 from photogram.jump.stick import stick_model
 from photogram.lines import cameras_from_project, intersect_line_from_points
 from photogram.lines.skis import check_ski_labels, swap_labels
@@ -42,6 +43,7 @@ class JumpResult:
     project: object                 # the project with the estimated points
     point_sigma: np.ndarray = None  # (n_points, 3) of every point of the project
     summary: dict = field(default_factory=dict)
+    residuals: dict = None          # column -> array, one row per image point (residuals.csv)
 
 
 def intersect_points(project, orientation=None):
@@ -56,7 +58,8 @@ def intersect_points(project, orientation=None):
         of different exposures are correlated through it)
     summary : dict (status, iterations, sigma0, redundancy)
     """
-    from photogram.commands.bundle import approximate_if_needed
+    from photogram.commands.bundle import _residual_columns, approximate_if_needed
+    from photogram.stats.reliability import redundancy_numbers
     summary = {"warnings": []}
     project = approximate_if_needed(project, summary)
     built = build_problem(project, fix_interior=True, fix_stations=True)
@@ -74,6 +77,9 @@ def intersect_points(project, orientation=None):
         idx = np.arange(n)
         cov = cov + joint.reshape(n, 3, n, 3)[idx, :, idx, :]
     out = _copy_with_points(project, built.problem.state.points)
+    # one row per image observation (residuals.csv; the COLMAP export takes its tracks)
+    summary["residuals"] = _residual_columns(built.problem,
+                                             redundancy_numbers(built.problem, cof))
     weak = weak_angle_warning(project.points.ids, problem_intersection_angles(built.problem))
     if weak:
         summary["warnings"].append(weak)
@@ -184,9 +190,11 @@ def intersect_jump(project, orientation=None) -> JumpResult:
                         length_unit=project.units.length, ski_length=cfg.ski_length,
                         binding_fraction=cfg.binding_fraction, c1=c[:, 0], c2=c[:, 1],
                         forward="flight", cov_points=cov_P, cov_dirs=cov_d)
+    summary["warnings"] += plausibility_warnings(model, project.units.length)
     summary["exposures"] = n
     summary["swapped_skis"] = {e: ch.swapped for e, ch in checks.items() if ch.status == "swapped"}
     summary["ski_checks"] = {e: ch.status for e, ch in checks.items()}
     point_sigma = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0, None))
+    residuals = summary.pop("residuals", None)
     return JumpResult(exposures, times, P, cov_P, lines, checks, model, adjusted, point_sigma,
-                      summary)
+                      summary, residuals)

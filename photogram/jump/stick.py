@@ -150,12 +150,15 @@ class StickModel:
         sd = np.where(np.isnan(np.diagonal(self.cov, axis1=1, axis2=2)), np.nan, sd)
         return {name: sd[:, k] for k, name in enumerate(defs.PARAMETERS)}
 
-    def to_frame(self, angle_unit: str = "rad"):
+    def to_frame(self, angle_unit: str = "rad", exposures=None):
         """One row per exposure: exposure, frame, time, every parameter, its
         sigma (``sigma_<name>``, if known) and O.
 
         ``angle_unit`` is rad, deg or gon; lengths stay in ``length_unit``
         (``v`` in length unit per second). The units are in ``frame.attrs``.
+        ``exposures`` are the exposure ids as the measurements name them
+        (``"001"``, ..., as in points3d.csv and lines3d.csv); without them the
+        exposures are numbered 0, 1, ... in time order.
         """
         import pandas as pd
 
@@ -163,7 +166,13 @@ class StickModel:
             raise InputError(f"unknown angle unit {angle_unit!r}",
                              hint=f"use one of {', '.join(ANGLE_FACTORS)}")
         f = ANGLE_FACTORS[angle_unit]
-        cols = {"exposure": np.arange(len(self)), "frame": self.frames, "time": self.times}
+        if exposures is None:
+            ids = np.arange(len(self))
+        else:
+            ids = np.array([str(e) for e in exposures], dtype=object)
+            if len(ids) != len(self):
+                raise InputError(f"{len(ids)} exposure ids for {len(self)} exposures")
+        cols = {"exposure": ids, "frame": self.frames, "time": self.times}
         sig = self.sigma
         for name in defs.PARAMETERS:
             k = f if name in defs.ANGLE_PARAMETERS else 1.0

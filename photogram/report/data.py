@@ -287,7 +287,7 @@ def load(folder: str | Path) -> ReportData:
     project, note = _read_project(folder, results.summary)
     return ReportData(folder=folder, results=results,
                       covariance=_read_covariance(folder / "covariance.npz"),
-                      exposures=_read_table(folder / "exposures.csv", ids=()),
+                      exposures=_read_table(folder / "exposures.csv", ids=("exposure",)),
                       points3d=_read_table(folder / "points3d.csv"),
                       lines3d=_read_table(folder / "lines3d.csv"),
                       project=project, project_note=note)

@@ -109,7 +109,8 @@ def build_table(doc, data):
         + "."))
     rows = []
     for _, x in e.iterrows():
-        row = [str(int(x["exposure"])) if finite(x.get("exposure")) else "-",
+        e_id = x.get("exposure")
+        row = [str(e_id) if isinstance(e_id, str) and e_id else "-",
                num(x.get("time"), 3)]
         for n in names:
             s = x.get(f"sigma_{n}")

@@ -1,0 +1,145 @@
+"""The results folder of ``photogram mocap`` as trajectories for export
+(TRC, C3D, CSV, .mot; :mod:`photogram.io.trajectories`).
+
+Read from the files only (``joints3d.csv``, ``metrics.csv``,
+``summary.json``; docs/mocap.md, section 8), so that the exporters do not
+depend on the motion-capture pipeline:
+
+* markers: every joint of ``joints3d.csv`` (``frame, time, <joint>_X/_Y/_Z``
+  in the project's length unit, world axes, Z up), converted to metres;
+  exposures are the frame numbers; empty cells stay gaps;
+* sigmas: unknown (the reconstruction gives none): NaN, i.e. empty CSV
+  cells and the C3D residual 0 ("not computed") of valid samples;
+* .mot columns from ``metrics.csv``: the angles (degrees, as written),
+  ``speed`` (length unit per second, converted to m/s), the centre of mass
+  ``com_x/y/z`` and ``fore_aft_distance`` converted to metres.
+
+The length unit is read from ``summary.json`` (``project.length_unit`` or
+``length_unit``), else from the comment of ``joints3d.csv`` (``# 3D joints
+(m, world axes, Z up) ...``), else from the ``Units`` of ``joints3d.trc``;
+a folder that gives none is refused rather than guessed.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.project.model import LENGTH_UNITS
+
+__all__ = ["is_mocap_results", "load_mocap_trajectories", "MOT_ANGLES"]
+
+#: metrics.csv columns that are angles in degrees
+MOT_ANGLES = ("knee_flexion_r", "knee_flexion_l", "hip_flexion_r", "hip_flexion_l", "lean",
+              "fore_aft_angle")
+_LENGTHS = ("com_x", "com_y", "com_z", "fore_aft_distance")
+_COMMENT_UNIT = re.compile(r"^#.*\(\s*(m|dm|cm|mm)\s*,")
+
+
+def is_mocap_results(folder: Path, summary: dict) -> bool:
+    """A results folder of photogram mocap (its summary.json says so, or it
+    holds joints3d.csv and no points3d.csv)."""
+    folder = Path(folder)
+    if summary.get("command") == "mocap":
+        return True
+    return (folder / "joints3d.csv").is_file() and not (folder / "points3d.csv").is_file()
+
+
+def _length_unit(folder: Path, summary: dict) -> str:
+    info = summary.get("project")
+    for value in ((info or {}).get("length_unit") if isinstance(info, dict) else None,
+                  summary.get("length_unit")):
+        if value is not None:
+            if value not in LENGTH_UNITS:
+                raise InputError(f"unknown length unit {value!r}", file=folder / "summary.json",
+                                 hint=f"use one of {', '.join(LENGTH_UNITS)}")
+            return str(value)
+    joints = folder / "joints3d.csv"
+    try:
+        with joints.open(encoding="utf-8") as handle:
+            for line in handle:
+                if not line.startswith("#"):
+                    break
+                m = _COMMENT_UNIT.match(line)
+                if m:
+                    return m.group(1)
+    except (OSError, UnicodeDecodeError):
+        pass
+    trc = folder / "joints3d.trc"
+    if trc.is_file():
+        from photogram.io.trc import read_trc
+        try:
+            unit = read_trc(trc).units
+        except InputError:
+            unit = None
+        if unit in LENGTH_UNITS:
+            return unit
+    raise InputError("cannot tell the length unit of the joints", file=joints,
+                     hint="summary.json (length_unit), the comment of joints3d.csv or "
+                          "joints3d.trc must give it; rerun photogram mocap")
+
+
+def load_mocap_trajectories(folder, summary: dict, read_csv):
+    """:class:`~photogram.io.trajectories.Trajectories` of a mocap results
+    folder (module doc); ``read_csv(path, required, ids)`` is the table
+    reader of :mod:`photogram.io.trajectories`.
+
+    Raises
+    ------
+    InputError
+        No joints3d.csv, missing or malformed columns, repeated or
+        decreasing times, no length unit.
+    """
+    from photogram.io.trajectories import Trajectories
+    folder = Path(folder)
+    path = folder / "joints3d.csv"
+    if not path.is_file():
+        raise InputError("no joints3d.csv in this mocap results folder", file=folder,
+                         hint="rerun photogram mocap; its results folder holds joints3d.csv")
+    unit = _length_unit(folder, summary)
+    to_m = LENGTH_UNITS[unit]
+    table = read_csv(path, ("frame", "time"), ())
+    times = table["time"].to_numpy(float)
+    if not np.all(np.isfinite(times)):
+        row = int(np.flatnonzero(~np.isfinite(times))[0])
+        raise InputError("a frame without a time", file=path, line=row + 2)
+    if np.any(np.diff(times) <= 0):
+        row = int(np.flatnonzero(np.diff(times) <= 0)[0]) + 1
+        raise InputError("the times do not increase", file=path, line=row + 2)
+    frames = table["frame"].to_numpy(float)
+    joints = [c[:-2] for c in table.columns if c.endswith("_X")]
+    joints = [j for j in joints if f"{j}_Y" in table.columns and f"{j}_Z" in table.columns]
+    if not joints:
+        raise InputError("no joint columns (<joint>_X, _Y, _Z)", file=path, line=1)
+    n = len(times)
+    markers = {j: table[[f"{j}_X", f"{j}_Y", f"{j}_Z"]].to_numpy(float) * to_m for j in joints}
+    sigma = {j: np.full((n, 3), np.nan) for j in joints}
+    name = summary.get("project")
+    name = name.get("name") if isinstance(name, dict) else name
+    traj = Trajectories(times=times, exposures=[str(int(f)) for f in frames], markers=markers,
+                        sigma=sigma, angle_unit="deg", length_unit=unit,
+                        name=str(name or folder.parent.name))
+    traj.cameras = {j: np.zeros(n, dtype=int) for j in joints}
+    traj.mot = _mot_columns(folder / "metrics.csv", times, to_m, read_csv)
+    return traj
+
+
+def _mot_columns(path: Path, times, to_m: float, read_csv):
+    """``{column: values}`` for the .mot file (degrees, m, m/s), or None."""
+    if not path.is_file():
+        return None
+    table = read_csv(path, ("time",), ("outside",))
+    t = table["time"].to_numpy(float)
+    if len(t) != len(times) or not np.allclose(t, times, rtol=0, atol=1e-5):
+        raise InputError("metrics.csv and joints3d.csv have different frames or times",
+                         file=path, hint="both come from one photogram mocap run; rerun it")
+    cols = {"time": times}
+    for c in table.columns:
+        if c in MOT_ANGLES:
+            cols[c] = table[c].to_numpy(float)
+        elif c in _LENGTHS or c == "speed":              # length unit (per second)
+            cols[c] = table[c].to_numpy(float) * to_m
+    return cols
