@@ -206,10 +206,12 @@ def run_command(args: argparse.Namespace) -> int:
     with output_lock(folder, command=args.command):
         mode = claim_output(folder, command=args.command, inputs=project_inputs(project),
                             force=args.force, resumable=WRITERS[args.command])
-        if mode != "new":
+        if mode == "resume":     # the command itself decides whether its inputs still match
             logging.getLogger("photogram").info(
-                "%s the earlier run in %s", "resuming" if mode == "resume" else "replacing",
-                folder)
+                "an unfinished run in %s: its finished parts are reused only if its inputs "
+                "are unchanged", folder)
+        elif mode != "new":
+            logging.getLogger("photogram").info("replacing the earlier run in %s", folder)
         return int(load_command(args.command)(project, args) or 0)
 
 
