@@ -95,6 +95,11 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
     if name in WRITERS:
         sub.add_argument("--force", action="store_true",
                          help="replace the results of an earlier run in the output folder")
+    if name == "mocap":
+        sub.add_argument("--allow-plugin", action="store_true",
+                         help="allow a [mocap.source] of kind \"plugin\" to import and run its "
+                              "Python module (code named in the project file; only for "
+                              "projects you trust)")
     if name == "check":
         sub.add_argument("--force", action="store_true",
                          help="with --output: replace existing files")
@@ -196,10 +201,12 @@ def run_command(args: argparse.Namespace) -> int:
         folder = project.output_folder()
         mode = claim_output(folder, command=args.command, inputs=project_inputs(project),
                             force=args.force, resumable=WRITERS[args.command])
-        if mode != "new":
+        code = int(load_command(args.command)(project, args) or 0)
+        if mode != "new":                 # after the run: an error stays the only line
             logging.getLogger("photogram").info(
-                "%s the earlier run in %s", "resuming" if mode == "resume" else "replacing",
+                "%s the earlier run in %s", "resumed" if mode == "resume" else "replaced",
                 folder)
+        return code
     return int(load_command(args.command)(project, args) or 0)
 
 

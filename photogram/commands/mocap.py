@@ -21,21 +21,48 @@ __all__ = ["run", "mocap"]
 
 class _Tee(logging.Handler):
     """Every record of photogram.mocap into log.txt; those at or above the
-    caller's level also to the usual handlers."""
+    caller's level also to the usual handlers: at once when ``live`` (``-v``)
+    or when the record is marked ``immediate`` (the plugin-import notice),
+    otherwise held back and passed on by :meth:`pass_on` once the run has
+    succeeded, so that a failing run prints its error as the only line."""
 
-    def __init__(self, stream, threshold: int):
+    def __init__(self, stream, threshold: int, live: bool = False):
         super().__init__(logging.DEBUG)
-        self.stream, self.threshold = stream, threshold
+        self.stream, self.threshold, self.live = stream, threshold, live
+        self.held = []
         self.setFormatter(logging.Formatter("%(message)s"))
 
     def emit(self, record):
         self.stream.write(self.format(record) + "\n")
         if record.levelno >= self.threshold:
+            if self.live or getattr(record, "immediate", False):
+                logging.getLogger().handle(record)
+            else:
+                self.held.append(record)
+
+    def pass_on(self):
+        """Pass the held records on (the run succeeded)."""
+        held, self.held = self.held, []
+        for record in held:
             logging.getLogger().handle(record)
 
 
-def mocap(project, output: str | Path | None = None):
+def mocap(project, output: str | Path | None = None, *, allow_plugin: bool = False,
+          live: bool = False):
     """Run the pipeline on ``project`` and write its results folder.
+
+    Parameters
+    ----------
+    project : Project
+        A project with a ``[mocap]`` section.
+    output : str or Path, optional
+        The results folder (default: ``[output] folder``).
+    allow_plugin : bool
+        The user's opt-in (``--allow-plugin``) to import the Python module of
+        a ``plugin`` source; without it such a project is refused.
+    live : bool
+        Progress messages at once (``-v``); otherwise they are held back and
+        shown when the run has succeeded (a failing run: one error line).
 
     Returns
     -------
@@ -48,12 +75,17 @@ def mocap(project, output: str | Path | None = None):
         raise InputError("this project has no [mocap] section", file=project.path,
                          hint="a motion-capture project needs [mocap] and [mocap.source]; "
                               "see docs/mocap.md")
+    source = project.mocap.source
+    if source.kind == "plugin" and not allow_plugin:       # before anything is done
+        from photogram.mocap.sources.plugin import refuse_plugin
+        exc = refuse_plugin(source.network)
+        raise project.mocap.error(("source", "network"), exc.what, hint=exc.hint)
     if output is not None:                # the resumable state goes there too
         project.output.folder = str(Path(output).absolute())
     folder = project.output_folder()
     stream = io.StringIO()
     logger = logging.getLogger("photogram.mocap")
-    tee = _Tee(stream, logger.getEffectiveLevel())
+    tee = _Tee(stream, logger.getEffectiveLevel(), live)
     saved = logger.level, logger.propagate
     logger.addHandler(tee)
     logger.setLevel(logging.DEBUG)
@@ -61,7 +93,7 @@ def mocap(project, output: str | Path | None = None):
     t0 = time.perf_counter()
     try:
         logger.info("photogram mocap %s", project.path)
-        result = run_mocap(project)
+        result = run_mocap(project, allow_plugin=allow_plugin)
         logger.info("done in %.1f s", time.perf_counter() - t0)
     finally:
         logger.removeHandler(tee)
@@ -74,12 +106,14 @@ def mocap(project, output: str | Path | None = None):
 
     from photogram.project.output_policy import PARTIAL
     shutil.rmtree(folder / PARTIAL, ignore_errors=True)   # the run is complete
+    tee.pass_on()                         # the progress messages, now that nothing failed
     return folder, result
 
 
 def run(project, args=None) -> int:
     """Command-line entry: run, write, print one line."""
-    folder, result = mocap(project)
+    folder, result = mocap(project, allow_plugin=bool(getattr(args, "allow_plugin", False)),
+                           live=bool(getattr(args, "verbose", 0)))
     if not getattr(args, "quiet", False):
         rec = result.reconstruction
         rp = [v["median_px"] for v in result.reprojection.values() if v["median_px"] is not None]

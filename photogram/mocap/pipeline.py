@@ -90,9 +90,9 @@ def reprojection_errors(X, cameras: MocapCameras, obs, min_confidence=REFERENCE_
     return out
 
 
-def _observations(project, cameras: MocapCameras):
+def _observations(project, cameras: MocapCameras, allow_plugin: bool = False):
     ms = project.mocap
-    source = open_source(ms, cameras.names, project.folder)
+    source = open_source(ms, cameras.names, project.folder, allow_plugin=allow_plugin)
     tracking = TrackingSettings(**ms.tracking)
     tracked = []
     for name in cameras.names:
@@ -115,14 +115,16 @@ def _observations(project, cameras: MocapCameras):
     return source, tracked, obs
 
 
-def run_mocap(project) -> MocapResult:
+def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     """Run the whole pipeline on a project read by
-    :func:`photogram.project.read_project` (with a ``[mocap]`` section)."""
+    :func:`photogram.project.read_project` (with a ``[mocap]`` section);
+    ``allow_plugin``: the user's opt-in to import a ``plugin`` network
+    (``--allow-plugin``)."""
     ms = project.mocap
     timings = {}
     t0 = time.perf_counter()
     cameras = cameras_from_project(project)
-    source, tracked, obs = _observations(project, cameras)
+    source, tracked, obs = _observations(project, cameras, allow_plugin)
     timings["tracking_s"] = time.perf_counter() - t0
     first = int(getattr(source, "first_frame", 0))
     F = obs.shape[0]
