@@ -123,5 +123,7 @@ def run(project, args=None) -> int:
                 f"{min(rp):.1f}-{max(rp):.1f} px" if rp else "")
         if result.accuracy is not None:
             text += f", MPJPE {100 * result.accuracy['mpjpe']:.1f} cm vs truth"
+        if project.warnings:
+            text += f", {len(project.warnings)} warning(s) in summary.json"
         print(f"{text}; results in {folder}")
     return 0

@@ -158,6 +158,12 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
                for t in tracked]
     breaks = [r - frames[0] for r in ms.runs if frames[0] < r <= frames[-1]]
     rs = dict(ms.reconstruction)
+    from photogram.mocap.checks import check_coverage
+    for note in check_coverage(obs, cameras.names, skeleton.joints, frames,
+                               rs.get("min_confidence", 0.0),
+                               file=ms.source.path or project.path):
+        log.warning("warning: %s", note)
+        project.warnings.append(note)
     if ms.limb_lengths is not None:
         rs["limb_lengths"] = read_limb_lengths(ms.limb_lengths, skeleton)
     from photogram.project.model import LENGTH_UNITS
@@ -189,6 +195,10 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
         bones=bone_lengths(rec.joints, skeleton), breaks=breaks,
         info={"source": source.describe(), "timings": timings, "rotation": ms.rotation,
               **rotation_info})
+    from photogram.mocap.checks import check_fit
+    for note in check_fit(result.reprojection, cameras.image_size[:, 0]):
+        log.warning("warning: %s", note)
+        project.warnings.append(note)
     if estimate and ms.truth_rotations is not None:
         from photogram.mocap.unknown_rotations import rotation_errors
         truth = read_camera_frames(ms.truth_rotations, cameras, project, first,
