@@ -138,3 +138,16 @@ def test_opencv_export_station_names_stay_in_the_folder(tmp_path, name):
     assert len(set(files)) == 2 and all(f.parent == folder for f in files)
     assert _files_under(tmp_path) == sorted(files)
     assert read_opencv(files[1])[0].t_cv[0] == pytest.approx(1.0)
+
+
+def test_simulated_mocap_project_name_stays_in_its_folder(tmp_path):
+    """The simulator's project name (generate.py --name, a library argument)
+    becomes <name>.prj and <name>-estimate.prj inside the folder."""
+    from photogram.mocap.simproject import write_estimate_project, write_simulated_project
+    from photogram.mocap.simulate import simulate_session
+    sim = simulate_session(seed=5, n_runs=1, frames_per_run=10)
+    folder = tmp_path / "a" / "b" / "project"
+    written = write_simulated_project(sim, folder, name="../../ski")
+    est = write_estimate_project(sim, folder, name="../../ski")
+    assert all(p.resolve().is_relative_to(folder) for p in _files_under(tmp_path))
+    assert est.parent == folder and (folder / "ski.prj") in written
