@@ -81,6 +81,8 @@ def test_plugin_module_is_not_imported_without_allow_plugin(tmp_path, capsys, ca
     with pytest.raises(InputError, match="--allow-plugin"):
         load_function(f"{MODULE}:detect", tmp_path)
     assert not marker.exists()
+    with pytest.raises(InputError, match="not of the form"):     # not a TypeError
+        load_function(f".{MODULE}:detect", tmp_path, allow=True)
     # with the opt-in: imported, announced with its file
     caplog.set_level(logging.INFO)
     assert main(["mocap", "-q", "--allow-plugin", str(prj)]) == 0

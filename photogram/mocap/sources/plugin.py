@@ -64,8 +64,10 @@ def load_function(target: str, folder: Path | None = None, *, allow: bool = Fals
         has no such function.
     """
     module_name, _, attr = str(target).partition(":")
-    if not module_name or not attr:
-        raise InputError(f"network {target!r} is not of the form \"module:function\"")
+    if not module_name or not attr or not all(
+            part.isidentifier() for part in module_name.split(".") + [attr]):
+        raise InputError(f"network {target!r} is not of the form \"module:function\"",
+                         hint='a module name and a function name, e.g. "mynet:detect"')
     if not allow:
         raise refuse_plugin(target)
     added = False
