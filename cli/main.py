@@ -95,6 +95,11 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
     if name in WRITERS:
         sub.add_argument("--force", action="store_true",
                          help="replace the results of an earlier run in the output folder")
+    if name == "mocap":
+        sub.add_argument("--allow-plugin", action="store_true",
+                         help="allow a [mocap.source] of kind \"plugin\" to import and run its "
+                              "Python module (code named in the project file; only for "
+                              "projects you trust)")
     if name == "check":
         sub.add_argument("--force", action="store_true",
                          help="with --output: replace existing files")
@@ -206,13 +211,15 @@ def run_command(args: argparse.Namespace) -> int:
     with output_lock(folder, command=args.command):
         mode = claim_output(folder, command=args.command, inputs=project_inputs(project),
                             force=args.force, resumable=WRITERS[args.command])
-        if mode == "resume":     # the command itself decides whether its inputs still match
+        code = int(load_command(args.command)(project, args) or 0)
+        # after the run: an error stays the only line
+        if mode == "resume":     # the command itself decided what it could reuse
             logging.getLogger("photogram").info(
-                "an unfinished run in %s: its finished parts are reused only if its inputs "
-                "are unchanged", folder)
+                "continued the unfinished run in %s (its finished parts are reused only "
+                "where the inputs are unchanged)", folder)
         elif mode != "new":
-            logging.getLogger("photogram").info("replacing the earlier run in %s", folder)
-        return int(load_command(args.command)(project, args) or 0)
+            logging.getLogger("photogram").info("replaced the earlier run in %s", folder)
+        return code
 
 
 def _setup_logging(args: argparse.Namespace) -> None:

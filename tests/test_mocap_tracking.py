@@ -86,7 +86,8 @@ def detect(image):
 
 def test_plugin_network_on_crops_follows_the_athlete(tmp_path):
     (tmp_path / "mynet.py").write_text(NETWORK)
-    detector = PluginDetector(load_function("mynet:detect", tmp_path), COCO17, "mynet:detect")
+    detector = PluginDetector(load_function("mynet:detect", tmp_path, allow=True), COCO17,
+                              "mynet:detect")
     images, truth = [], []
     for f in range(12):
         img = np.zeros((240, 320, 3), np.uint8)
@@ -99,7 +100,7 @@ def test_plugin_network_on_crops_follows_the_athlete(tmp_path):
     assert t.joints.shape == (12, 17, 3)
     assert np.allclose(t.joints[:, 0, :2], truth, atol=2.5)
     with pytest.raises(InputError, match="cannot import module"):
-        load_function("nomodule_xyz:detect", tmp_path)
+        load_function("nomodule_xyz:detect", tmp_path, allow=True)
     with pytest.raises(InputError, match="shape"):
         PluginDetector(lambda img: np.zeros((3, 3)), COCO17)(images[0])
 
@@ -161,10 +162,10 @@ def test_plugin_source_end_to_end_through_the_command(tmp_path, capsys):
         '[mocap]\nfps = 25\n\n[mocap.source]\nkind = "plugin"\nnetwork = "mynet:detect"\n'
         'skeleton = "coco17"\ncameras = { A = "A", B = "B" }\n\n'
         '[mocap.tracking]\ncrop_size = 64\nsigma_centre = 2\nsigma_side = 4\n')
-    assert main(["mocap", "-q", str(tmp_path / "p.prj")]) == 0
+    assert main(["mocap", "-q", "--allow-plugin", str(tmp_path / "p.prj")]) == 0
     det = (tmp_path / "results" / "detections.csv").read_text().splitlines()
     assert len(det) == 2 + 2 * 8 * 17
     (tmp_path / "p.prj").write_text((tmp_path / "p.prj").read_text().replace(
         "mynet:detect", "mynet:nothing"))
-    assert main(["mocap", str(tmp_path / "p.prj"), "--force"]) == 2
+    assert main(["mocap", str(tmp_path / "p.prj"), "--force", "--allow-plugin"]) == 2
     assert "has no function 'nothing'" in capsys.readouterr().err

@@ -13,14 +13,18 @@ from photogram.simulation.design_file import read_design, write_simulation
 def simulate(design, output=None, *, seed=None, overwrite=False):
     """Read ``design``, simulate, write; returns ``(prj path, project, truth)``.
 
-    The default output folder is ``results/<name>`` beside the design file.
+    The default output folder is ``results/<name>`` beside the design file
+    (the name made a safe file name: :func:`photogram.project.safe_names.safe_name`).
     """
     des = read_design(design)
     if seed is not None:
         if seed < 0:
             raise InputError(f"--seed must be >= 0, not {seed}")
         des = dataclasses.replace(des, seed=int(seed))
-    folder = Path(output) if output else Path(design).parent / "results" / des.name
+    from photogram.project.safe_names import safe_name
+    # the design's name is any text: as a folder name it stays inside results/
+    folder = Path(output) if output else \
+        Path(design).parent / "results" / safe_name(des.name, "design")
     return write_simulation(des, folder, overwrite=overwrite)
 
 

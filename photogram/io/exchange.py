@@ -363,9 +363,8 @@ def save_calibration(project: Project, folder, name: str | None = None) -> Path:
 
 
 def _safe_stem(name: str) -> str:
-    import re
-    s = re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("._")
-    return s or "project"
+    from photogram.project.safe_names import safe_name
+    return safe_name(name, default="project")
 
 
 def check_new_file(path, force: bool = False) -> Path:

@@ -291,7 +291,9 @@ def write_opencv(path, views: list[View], *, force: bool = False) -> list[Path]:
     folder = path.with_suffix("") if path.suffix.lower() in EXTENSIONS else path
     folder.mkdir(parents=True, exist_ok=True)
     out = []
-    targets = [folder / f"{re.sub(r'[^A-Za-z0-9_.-]+', '_', v.name)}{ext}" for v in views]
+    from photogram.project.safe_names import safe_names
+    targets = [folder / f"{stem}{ext}"
+               for stem in safe_names([v.name for v in views], default="camera")]
     if not force:
         for t in targets:
             if t.exists():

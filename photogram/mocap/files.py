@@ -23,6 +23,7 @@ missing values.
 from __future__ import annotations
 
 import csv
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +35,8 @@ from photogram.mocap.skeleton import Skeleton
 from photogram.project.atomic import atomic_write_text
 from photogram.project.camera_schema import invert_opk
 from photogram.project.tables import _delimiter, format_table, read_table, suggest
+
+log = logging.getLogger(__name__)
 
 __all__ = ["cameras_from_project", "read_camera_frames", "read_limb_lengths", "read_joints",
            "write_joints", "cameras_from_views"]
@@ -93,6 +96,14 @@ def cameras_from_project(project) -> MocapCameras:
         raise InputError(f"camera(s) without a station: {', '.join(missing)}",
                          file=project.sources.get("stations"),
                          hint="give every camera one station (its position and angles)")
+    from photogram.geometry.rotations import from_radians
+    from photogram.mocap.checks import check_angle_unit
+    note = check_angle_unit(from_radians(np.array(angles).reshape(-1, 3), project.units.angle),
+                            project.units.angle, "the stations table",
+                            project.sources.get("stations"), st.record)
+    if note and note not in project.warnings:
+        log.warning("warning: %s", note)
+        project.warnings.append(note)
     return MocapCameras(names, models, io, np.array(X0), opk_to_matrix(np.array(angles)),
                         np.array(size, float))
 
@@ -116,6 +127,12 @@ def read_camera_frames(path: Path, cameras: MocapCameras, project, first_frame: 
     cams = table.text("camera")
     unit = project.units.angle
     if rotations:
+        from photogram.mocap.checks import check_angle_unit
+        note = check_angle_unit(np.stack([table.floats(k) for k in angle_cols], -1), unit,
+                                f"{Path(path).name} (omega, phi, kappa)", path, table.records)
+        if note and note not in project.warnings:
+            log.warning("warning: %s", note)
+            project.warnings.append(note)
         angles = np.stack([table.angles(k, unit) for k in angle_cols], -1)
     else:
         angles = np.zeros((len(frame), 3))

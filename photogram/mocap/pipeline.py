@@ -90,9 +90,9 @@ def reprojection_errors(X, cameras: MocapCameras, obs, min_confidence=REFERENCE_
     return out
 
 
-def _observations(project, cameras: MocapCameras):
+def _observations(project, cameras: MocapCameras, allow_plugin: bool = False):
     ms = project.mocap
-    source = open_source(ms, cameras.names, project.folder)
+    source = open_source(ms, cameras.names, project.folder, allow_plugin=allow_plugin)
     tracking = TrackingSettings(**ms.tracking)
     tracked = []
     for name in cameras.names:
@@ -115,14 +115,16 @@ def _observations(project, cameras: MocapCameras):
     return source, tracked, obs
 
 
-def run_mocap(project) -> MocapResult:
+def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     """Run the whole pipeline on a project read by
-    :func:`photogram.project.read_project` (with a ``[mocap]`` section)."""
+    :func:`photogram.project.read_project` (with a ``[mocap]`` section);
+    ``allow_plugin``: the user's opt-in to import a ``plugin`` network
+    (``--allow-plugin``)."""
     ms = project.mocap
     timings = {}
     t0 = time.perf_counter()
     cameras = cameras_from_project(project)
-    source, tracked, obs = _observations(project, cameras)
+    source, tracked, obs = _observations(project, cameras, allow_plugin)
     timings["tracking_s"] = time.perf_counter() - t0
     first = int(getattr(source, "first_frame", 0))
     F = obs.shape[0]
@@ -156,6 +158,12 @@ def run_mocap(project) -> MocapResult:
                for t in tracked]
     breaks = [r - frames[0] for r in ms.runs if frames[0] < r <= frames[-1]]
     rs = dict(ms.reconstruction)
+    from photogram.mocap.checks import check_coverage
+    for note in check_coverage(obs, cameras.names, skeleton.joints, frames,
+                               rs.get("min_confidence", 0.0),
+                               file=ms.source.path or project.path):
+        log.warning("warning: %s", note)
+        project.warnings.append(note)
     if ms.limb_lengths is not None:
         rs["limb_lengths"] = read_limb_lengths(ms.limb_lengths, skeleton)
     from photogram.project.model import LENGTH_UNITS
@@ -187,6 +195,10 @@ def run_mocap(project) -> MocapResult:
         bones=bone_lengths(rec.joints, skeleton), breaks=breaks,
         info={"source": source.describe(), "timings": timings, "rotation": ms.rotation,
               **rotation_info})
+    from photogram.mocap.checks import check_fit
+    for note in check_fit(result.reprojection, cameras.image_size[:, 0]):
+        log.warning("warning: %s", note)
+        project.warnings.append(note)
     if estimate and ms.truth_rotations is not None:
         from photogram.mocap.unknown_rotations import rotation_errors
         truth = read_camera_frames(ms.truth_rotations, cameras, project, first,

@@ -70,7 +70,8 @@ def write_simulated_project(sim: SkiSimulation, folder: Path, name: str = "ski-p
                    f"runs 2, 3, ...")
     prj += ["", "[mocap.source]", 'kind = "csv"', 'path = "detections.csv"',
             'skeleton = "ski24"', "", "[output]", 'folder = "results"', ""]
-    written.append(atomic_write_text(folder / f"{name}.prj", "\n".join(prj)))
+    from photogram.project.safe_names import safe_name
+    written.append(atomic_write_text(folder / f"{safe_name(name, 'ski')}.prj", "\n".join(prj)))
     rows = [[cam, cam] + [_f(v, 4) for v in cams.X0[c]] + [_f(v, 7) for v in angles[0, c]]
             for c, cam in enumerate(cams.names)]
     written.append(atomic_write_text(folder / "stations.csv", _csv(
@@ -112,7 +113,9 @@ def write_estimate_project(sim: SkiSimulation, folder: Path, name: str = "ski-pt
     ``camera_frames.csv`` (its angles are not read), the rotation
     differences from ``rotation_differences.csv`` (measured on rendered
     images), and the known rotations as ``truth_rotations``."""
-    text = (Path(folder) / f"{name}.prj").read_text(encoding="utf-8")
+    from photogram.project.safe_names import safe_name
+    stem = safe_name(name, "ski")
+    text = (Path(folder) / f"{stem}.prj").read_text(encoding="utf-8")
     text = text.replace(f"# Run: photogram mocap projects/{name}/{name}.prj",
                         f"# Rotations UNKNOWN (estimated). Run: photogram mocap "
                         f"projects/{name}/{name}-estimate.prj")
@@ -123,4 +126,4 @@ def write_estimate_project(sim: SkiSimulation, folder: Path, name: str = "ski-pt
         'rotation_differences = "rotation_differences.csv"   # measured on rendered images\n'
         'truth_rotations = "camera_frames.csv" # the true rotations, for the comparison')
     text = text.replace('folder = "results"', 'folder = "results-estimate"')
-    return atomic_write_text(Path(folder) / f"{name}-estimate.prj", text)
+    return atomic_write_text(Path(folder) / f"{stem}-estimate.prj", text)

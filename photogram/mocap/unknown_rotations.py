@@ -77,8 +77,13 @@ def _from_images(ms, cameras, tracked, frame_range, settings, cache=None):
 
     from photogram.mocap.homography import rotation_differences
     from photogram.mocap.video import read_frames
+    from photogram.project.safe_names import safe_names
     lo, hi = frame_range
     out = {}
+    # one file per camera, its name made safe (a camera may be called "../../x")
+    files = {} if cache is None else {
+        name: Path(cache) / f"{stem}.npz"
+        for name, stem in zip(cameras.names, safe_names(cameras.names, default="camera"))}
     for c, name in enumerate(cameras.names):
         path = ms.images.get(name) if ms.images else None
         if path is None:
@@ -88,7 +93,7 @@ def _from_images(ms, cameras, tracked, frame_range, settings, cache=None):
         if tracked[c] is not None:
             boxes = np.asarray(tracked[c].boxes, float)
         key = _cache_key(path, c, cameras, frame_range, boxes, settings)
-        cached = None if cache is None else _load_cached(Path(cache) / f"{name}.npz", key)
+        cached = None if cache is None else _load_cached(files[name], key)
         if cached is not None:
             out[name] = cached
             log.info("camera %s: rotation differences of an interrupted run reused (%s)",
@@ -105,7 +110,7 @@ def _from_images(ms, cameras, tracked, frame_range, settings, cache=None):
                                   image_scale=scale, boxes=boxes, settings=settings)
         out[name] = rd
         if cache is not None:
-            _save_cached(Path(cache) / f"{name}.npz", key, rd)
+            _save_cached(files[name], key, rd)
         log.info("camera %s: %d frame pairs, %d failed, median %d inliers, %.1f s", name,
                  len(rd.ok), int(np.sum(~rd.ok)), int(np.median(rd.inliers)) if len(rd.ok)
                  else 0, time.perf_counter() - t0)

@@ -66,6 +66,7 @@ and (if asked) ``montecarlo.prj``.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -406,7 +407,10 @@ def write_simulation(des: Design, folder, *, overwrite=False):
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     project, truth = simulate_design(des)
-    prj = write_project(project, folder / f"{project.name}.prj", overwrite=overwrite)
+    from photogram.project.safe_names import safe_name
+    # the design's name (any text) as a file name that stays in the folder
+    prj = write_project(project, folder / f"{safe_name(project.name, 'project')}.prj",
+                        overwrite=overwrite)
     (folder / "truth").mkdir(exist_ok=True)
     for name, text in _truth_tables(project, truth).items():
         atomic_write_text(folder / "truth" / name, text)
@@ -415,15 +419,18 @@ def write_simulation(des: Design, folder, *, overwrite=False):
         step = "orient" if all(not c.free_mask().any() for c in project.cameras.values()) \
             else "calibrate"
         pts = sorted({i.split("@")[0] + "@*" for i in project.points.ids if "@" in i})
+
+        def q(text):                      # a TOML string (any name, quotes escaped)
+            return json.dumps(str(text), ensure_ascii=False)
         lines = ["# Monte-Carlo simulation of the simulated network (photogram simulate)",
-                 "[project]", f'name = "{project.name}-montecarlo"',
+                 "[project]", f"name = {q(project.name + '-montecarlo')}",
                  f'length_unit = "{project.units.length}"',
                  f'angle_unit = "{project.units.angle}"', "", "[montecarlo]",
-                 f'{step} = "{prj.name}"',
+                 f"{step} = {q(prj.name)}",
                  "perturb = [" + ", ".join(f'"{p}"' for p in m["perturb"]) + "]",
                  'truth = "simulation"']
         if pts:
-            lines += ["points = [" + ", ".join(f'"{p}"' for p in pts) + "]", 'align = "plan"']
+            lines += ["points = [" + ", ".join(q(p) for p in pts) + "]", 'align = "plan"']
         lines += [f"runs = {m['runs']}", f"seed = {m['seed']}", f"chunk = {m['chunk']}",
                   f"workers = {m['workers']}", "", "[output]", 'folder = "results/montecarlo"',
                   ""]

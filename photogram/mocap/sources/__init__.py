@@ -58,10 +58,20 @@ def _camera_paths(src, camera_names, error) -> dict[str, Path]:
     return dict(zip(camera_names, entries))
 
 
-def open_source(settings, camera_names: list[str], folder: Path) -> ObservationSource:
-    """The source of ``[mocap.source]`` (``settings``: MocapSettings)."""
+def open_source(settings, camera_names: list[str], folder: Path, *,
+                allow_plugin: bool = False) -> ObservationSource:
+    """The source of ``[mocap.source]`` (``settings``: MocapSettings).
+
+    A source of kind ``plugin`` imports the project's module only with
+    ``allow_plugin`` (the ``--allow-plugin`` opt-in); without it an
+    InputError at the line of ``network``.
+    """
     src = settings.source
     err = settings.error
+    if src.kind == "plugin" and not allow_plugin:
+        from photogram.mocap.sources.plugin import refuse_plugin
+        exc = refuse_plugin(src.network)
+        raise err(("source", "network"), exc.what, hint=exc.hint)
 
     def skeleton(default):
         name = src.skeleton or default
@@ -86,7 +96,7 @@ def open_source(settings, camera_names: list[str], folder: Path) -> ObservationS
         return ImageSource("mediapipe", MediapipeDetector(), images)
     from photogram.mocap.sources.plugin import PluginDetector, load_function
     try:
-        function = load_function(src.network, folder)
+        function = load_function(src.network, folder, allow=True)
     except InputError as exc:
         raise err(("source", "network"), exc.what, hint=exc.hint) from None
     return ImageSource("plugin", PluginDetector(function, skeleton(None), src.network), images)
