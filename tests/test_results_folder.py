@@ -31,7 +31,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _lab(tmp_path) -> Path:
     prj = tmp_path / "lab"
-    shutil.copytree(ROOT / "projects" / "lab", prj, ignore=shutil.ignore_patterns("results"))
+    shutil.copytree(ROOT / "projects" / "lab", prj,
+                    ignore=shutil.ignore_patterns("results", ".*"))
     return prj / "lab.prj"
 
 
