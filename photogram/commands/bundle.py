@@ -90,7 +90,11 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
     s = solve(problem, opts)
     iterations = s.iterations
     if adj.robust:
-        summary["robust"] = robust_reweighting(problem, adj.robust, opts)
+        # a redescending loss starts from the Huber solution, not from the
+        # least-squares one that the blunders have pulled
+        summary["robust"] = robust_reweighting(
+            problem, adj.robust, opts,
+            warm_start="huber" if adj.robust in ("tukey", "cauchy") else None)
         s = solve(problem, opts)
         iterations += s.iterations
     snoop = None
