@@ -85,6 +85,9 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
     t_approx = time.perf_counter()
     built = build_problem(project, fix_interior=fix_interior)
     problem = built.problem
+    for text in built.warnings or []:
+        log.warning("warning: %s", text)
+        summary["warnings"].append(text)
     check_datum(problem, built.present)
     opts = _options(adj)
     s = solve(problem, opts)
