@@ -109,6 +109,12 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
             summary["warnings"].append(
                 f"data snooping rejected {len(snoop.rejected)} observation(s) "
                 f"(|w| > {snoop.critical_value:.2f}, alpha {snoop.alpha:g})")
+        reference = [r for r in snoop.rejected if "coordinate" in r]
+        if reference:
+            summary["warnings"].append(
+                "data snooping rejected the reference coordinate(s) "
+                + ", ".join(f"{r['label']} (w = {r['w']:.1f})" for r in reference)
+                + ": the surveyed value disagrees with the images; check it")
         s = solve(problem, opts)
         iterations += s.iterations
     if adj.variance_components:
