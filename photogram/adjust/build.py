@@ -260,6 +260,9 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
         G = inner_constraints(layout, state, chosen, scale=not dist)
     present = {"control": adj.datum in ("control", "weighted") and len(control) > 0,
                "distance": bool(dist), "inner": G is not None}
+    if G is not None:
+        idx = chosen if chosen is not None else np.flatnonzero(free_pt.any(axis=1))
+        present["inner_points"] = (idx, [pts.ids[i] for i in idx])
     problem = Problem(state, layout, blocks, G=G,
                       point_labels=[pts.ids[i] for i in np.flatnonzero(~coupled)])
     return Built(problem, cam_names, present, control, check,

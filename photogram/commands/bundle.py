@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from photogram.adjust.build import build_problem
-from photogram.adjust.datum import check_datum
+from photogram.adjust.datum import check_datum, check_datum_condition
 from photogram.adjust.solver import SolverOptions, solve
 from photogram.errors import GeometryError
 from photogram.geometry import matrix_to_opk
@@ -88,9 +88,17 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
     for text in built.warnings or []:
         log.warning("warning: %s", text)
         summary["warnings"].append(text)
-    check_datum(problem, built.present)
+    for text in check_datum(problem, built.present):
+        log.warning("warning: %s", text)
+        summary["warnings"].append(text)
     opts = _options(adj)
     s = solve(problem, opts)
+    # the datum points' geometry again at the adjusted coordinates (the
+    # approximate ones can hide a near-collinearity)
+    for text in check_datum_condition(problem, built.present):
+        if text not in summary["warnings"]:
+            log.warning("warning: %s", text)
+            summary["warnings"].append(text)
     iterations = s.iterations
     if adj.robust:
         # a redescending loss starts from the Huber solution, not from the
