@@ -77,7 +77,26 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
     project : Project
     fix_interior : bool
         Hold all interior orientation fixed (``photogram orient``).
+
+    Raises
+    ------
+    GeometryError
+        Also for a numerical failure of linear algebra (a singular or
+        non-finite system from absurd approximate values, e.g. angles in
+        the wrong unit): one line, not an internal error.
     """
+    try:
+        return _adjust(project, fix_interior)
+    except np.linalg.LinAlgError as exc:
+        raise GeometryError(f"the adjustment of {project.name} met a singular or non-finite "
+                            f"system (numpy: {exc}); the approximate values or the units "
+                            f"are probably wrong",
+                            file=project.path,
+                            hint="check angle_unit, length_unit and image_unit in [project] "
+                                 "and the approximate values of the stations and points") from exc
+
+
+def _adjust(project, fix_interior):
     t0 = time.perf_counter()
     adj = project.adjustment
     summary = {"datum": adj.datum, "warnings": list(project.warnings)}
@@ -86,10 +105,10 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
     built = build_problem(project, fix_interior=fix_interior)
     problem = built.problem
     for text in built.warnings or []:
-        log.warning("warning: %s", text)
+        log.info("warning: %s", text)
         summary["warnings"].append(text)
     for text in check_datum(problem, built.present):
-        log.warning("warning: %s", text)
+        log.info("warning: %s", text)
         summary["warnings"].append(text)
     opts = _options(adj)
     s = solve(problem, opts)
@@ -97,7 +116,7 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
     # approximate ones can hide a near-collinearity)
     for text in check_datum_condition(problem, built.present):
         if text not in summary["warnings"]:
-            log.warning("warning: %s", text)
+            log.info("warning: %s", text)
             summary["warnings"].append(text)
     iterations = s.iterations
     if adj.robust:

@@ -57,12 +57,45 @@ def validate_project(project, source: TomlSource | None = None) -> list[str]:
         unknown point in ``inner_constraints``.
     """
     warnings: list[str] = []
+    _check_magnitudes(project)
     _check_duplicate_observations(project)
     _check_rays(project, warnings)
     _check_settings(project, source, warnings)
     _check_usage(project, warnings)
     _check_image_format(project, warnings)
     return warnings
+
+
+#: largest plausible coordinate (any length unit: the Earth's radius in mm is
+#: 6.4e9) and angle (radians); beyond them sums of squares overflow and the
+#: engine would fail with a numerical error instead of naming the value
+MAX_COORDINATE = 1e12
+MAX_ANGLE = 1e4
+
+
+def _check_magnitudes(project) -> None:
+    """Refuse absurd approximate or reference values (e.g. 1e308) with their
+    file and line, before any arithmetic overflows."""
+    st, pts = project.stations, project.points
+    checks = (("stations", "station", st.names, np.asarray(st.position, float), MAX_COORDINATE,
+               "X0 Y0 Z0", st.record),
+              ("stations", "station", st.names, np.asarray(st.angles, float), MAX_ANGLE,
+               "omega phi kappa", st.record),
+              ("points", "point", pts.ids, np.asarray(pts.xyz, float), MAX_COORDINATE,
+               "X Y Z", pts.record))
+    for source, what, names, values, limit, columns, records in checks:
+        if not values.size:
+            continue
+        bad = np.flatnonzero(np.any(np.abs(values.reshape(len(names), -1)) > limit, axis=1))
+        if len(bad):
+            i = int(bad[0])
+            rec = records[i] if len(records) == len(names) else 0
+            value = values.reshape(len(names), -1)[i]
+            big = value[np.argmax(np.abs(np.nan_to_num(value)))]
+            raise InputError(f"{what} {names[i]}: {columns} hold {big:.6g}, beyond "
+                             f"{limit:g} ({'radians' if limit == MAX_ANGLE else 'length units'})",
+                             file=project.sources.get(source), line=_line(rec),
+                             hint="check the value and the units in [project]")
 
 
 def repeated_observation(station, point, n_points: int) -> tuple[int, int] | None:
