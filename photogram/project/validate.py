@@ -206,8 +206,24 @@ def _check_usage(project, warnings: list[str]) -> None:
         warnings.append(f"camera(s) without stations: {', '.join(idle_cams)}")
 
 
-def _format_size(camera, image_unit: str):
+#: a camera whose image points all lie within this fraction of its format
+#: from the top-left corner (at least MIN_FORMAT_POINTS of them) has them in
+#: the wrong unit (mm read as px: ~1/100 of the format): refused
+CORNER_FRACTION = 0.05
+MIN_FORMAT_POINTS = 4
+
+
+def _format_size(camera, image_unit: str, principal_point: bool = False):
+    """The image format (width, height) in ``image_unit``; with
+    ``principal_point`` twice the principal point when the size is not
+    given (brown x0 y0, opencv cx cy)."""
     if camera.image_size is None:
+        if not principal_point:
+            return None
+        for a, b in (("x0", "y0"), ("cx", "cy")):
+            p = camera.parameters
+            if a in p and b in p and p[a].value > 0 and p[b].value > 0:
+                return 2.0 * p[a].value, 2.0 * p[b].value
         return None
     w, h = camera.image_size
     if image_unit == "px":
@@ -218,17 +234,50 @@ def _format_size(camera, image_unit: str):
 
 
 def _check_image_format(project, warnings: list[str]) -> None:
+    """Image points against the image format, per camera: all of them in a
+    tiny corner (mm read as px) or most of them outside (px read as mm) is
+    refused; a few outside is a warning."""
     obs = project.image_points
     if not len(obs):
         return
-    size = np.full((len(project.stations), 2), np.inf)
-    for i, cam in enumerate(project.stations.camera):
-        fmt = _format_size(project.cameras[cam], project.units.image) \
-            if cam in project.cameras else None
-        if fmt is not None:
-            size[i] = fmt
-    lim = size[obs.station]
-    outside = np.flatnonzero(np.any((obs.xy < 0) | (obs.xy > lim), axis=1))
+    unit = project.units.image
+    station_cam = np.asarray(project.stations.camera, dtype=object)
+    obs_cam = station_cam[obs.station]
+    file = project.sources.get("image_points")
+    outside_all = []
+    for name, cam in project.cameras.items():
+        rows = np.flatnonzero(obs_cam == name)
+        if not len(rows):
+            continue
+        xy = obs.xy[rows]
+        fmt = _format_size(cam, unit, principal_point=True)
+        if fmt is None:
+            continue
+        w, h = fmt
+        if len(rows) >= MIN_FORMAT_POINTS and np.all(np.abs(xy) <= [CORNER_FRACTION * w,
+                                                                     CORNER_FRACTION * h]):
+            rec = _line(_records(obs, rows[:1])[0])
+            other = "mm" if unit == "px" else "px"
+            raise InputError(
+                f"all {len(rows)} image points of camera {name} lie within "
+                f"{np.abs(xy[:, 0]).max():.3g} x {np.abs(xy[:, 1]).max():.3g} {unit} of the "
+                f"top-left corner of its {w:.4g} x {h:.4g} {unit} format: they look like "
+                f"{other}, not {unit}", file=file, line=rec,
+                hint=f"give them in {unit}, or say [observations] unit = \"{other}\" "
+                     f"(with pixel_size in the camera)")
+        if cam.image_size is None:
+            continue                        # the principal point does not bound the format
+        out = rows[np.any((xy < 0) | (xy > [w, h]), axis=1)]
+        if len(rows) >= MIN_FORMAT_POINTS and 2 * len(out) > len(rows):
+            rec = _line(_records(obs, out[:1])[0])
+            raise InputError(
+                f"{len(out)} of the {len(rows)} image points of camera {name} lie outside its "
+                f"{w:.4g} x {h:.4g} {unit} format (largest x {xy[:, 0].max():.4g}, y "
+                f"{xy[:, 1].max():.4g}): wrong unit or image_size?", file=file, line=rec,
+                hint=f"check image_unit = \"{unit}\" in [project], [observations] unit and "
+                     f"image_size / pixel_size of camera {name}")
+        outside_all.append(out)
+    outside = np.sort(np.concatenate(outside_all)) if outside_all else np.zeros(0, int)
     if len(outside):
         rec = _line(_records(obs, outside[:1])[0])
         first = f" (first: line {rec})" if rec else ""
