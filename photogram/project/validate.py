@@ -66,10 +66,11 @@ def validate_project(project, source: TomlSource | None = None) -> list[str]:
     return warnings
 
 
-#: largest plausible coordinate (any length unit: the Earth's radius in mm is
-#: 6.4e9) and angle (radians); beyond them sums of squares overflow and the
-#: engine would fail with a numerical error instead of naming the value
-MAX_COORDINATE = 1e12
+#: largest accepted coordinate (any length unit) and angle (radians): far
+#: beyond any real value (the Earth's radius in mm is 6.4e9), and small
+#: enough that squares and products of coordinates stay finite (1e308 would
+#: overflow and fail with a numerical error instead of naming the value)
+MAX_COORDINATE = 1e100
 MAX_ANGLE = 1e4
 
 
