@@ -74,3 +74,20 @@ def test_control_w_is_residual_over_sigma_sqrt_redundancy(tmp_path):
 def test_clean_field_rejects_nothing(tmp_path):
     res = adjust(_project(tmp_path, bad=False), fix_interior=True)
     assert res.summary["snooping"]["rejected"] == []
+
+
+def test_a_blunder_in_a_ray_of_a_control_point_is_still_the_ray(tmp_path):
+    """A 29.9-sigma blunder in ray S2/P1 of control point P1 pulls P1, so
+    P1's reference Y shows the largest single |w| (7.7 against 7.6); the
+    ray's 2D statistic (chi-square, 2 degrees of freedom: 8.6 as a one-
+    coordinate |w|) explains it better, and the ray is rejected, not P1 Y
+    (benchmarks/blunders.py, field, 1 %, seed 11)."""
+    from photogram.commands.bundle import approximate_if_needed
+    bad = lambda t: t.replace("S2,P1,315.48,174.33", "S2,P1,323.49,168.56")  # noqa: E731
+    project = approximate_if_needed(read_project(field_copy(
+        tmp_path, **{"field_image_points.csv": bad})), {})
+    p = build_problem(project, fix_interior=True).problem
+    solve(p)
+    r = data_snooping(p, 0.001, scale="aposteriori", per_round="point", readmit=True,
+                      swap_rays=4)
+    assert [x["label"] for x in r.rejected] == ["S2/P1"]

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import norm
+from scipy.stats import chi2, norm
 
 from photogram.adjust.solver import solve
 from photogram.stats.covariance import cofactors
@@ -179,7 +179,41 @@ def _candidates(problem, w, s, k_crit, blocks, kept, result):
                                            "label": label, "w": wi})
                 continue
             cands.append((wi, k, i, c))
-    return cands
+    return _rays_before_control(problem, w, s, cands)
+
+
+def _equivalent_w(T, dof):
+    """The |w| of one coordinate with the same significance as the
+    chi-square statistic ``T`` with ``dof`` degrees of freedom."""
+    return float(norm.isf(chi2.sf(T, dof) / 2.0))
+
+
+def _rays_before_control(problem, w, s, cands):
+    """A control coordinate candidate yields to a ray of its own point that
+    explains the misfit at least as well: the ray's 2D statistic
+    ``wx^2 + wy^2`` (chi-square, 2 degrees of freedom) as an equivalent
+    one-coordinate |w| at least the coordinate's |w| (a blunder in a ray of
+    a control point pulls the point, so a reference coordinate can show the
+    largest single |w|). The candidate is then that ray."""
+    out = []
+    rays = {}
+    for kk, b in enumerate(problem.blocks):
+        if b.name == "image points":
+            for i in np.flatnonzero(problem.active[kk]):
+                rays.setdefault(int(b.point[i]), []).append((kk, int(i)))
+    for wi, k, i, c in cands:
+        if c >= 0:
+            p = int(problem.blocks[k].point[i])
+            best = None
+            for kk, j in rays.get(p, []):
+                weq = _equivalent_w(float(np.sum((w[kk][j] / s) ** 2)), 2)
+                if weq >= wi and (best is None or weq > best[0]) and removable(problem, kk, j):
+                    best = (weq, kk, j)
+            if best is not None:
+                k, i, c = best[1], best[2], -1
+        if all((k, i, c) != (x[1], x[2], x[3]) for x in out):
+            out.append((wi, k, i, c))
+    return out
 
 
 def _reject(problem, k, i, c, wi):
