@@ -37,6 +37,7 @@ class Built:
     present: dict            # flags for datum messages
     control: np.ndarray      # indices of control points
     check: np.ndarray        # indices of check points
+    warnings: list = None    # what the configuration silently ignores
 
 
 def _missing_approximations(project):
@@ -90,6 +91,44 @@ def _reasons(project, names):
     return "; ".join(out[:3])
 
 
+def _control_sigmas(project, control):
+    """(n_control, 3) a-priori sigmas of the control coordinates for the
+    weighted datum: the points table's sX sY sZ, empty cells
+    ``sigma_control``; 0 means fixed. Raises when one has none."""
+    pts, adj = project.points, project.adjustment
+    sig = pts.sigma[control].astype(float).reshape(-1, 3)
+    if adj.sigma_control is not None:
+        sig = np.where(np.isfinite(sig), sig, adj.sigma_control)
+    bad = [pts.ids[i] for i, s in zip(control, sig) if not np.all(np.isfinite(s) & (s >= 0))]
+    if bad:
+        raise InputError(f"weighted datum: control point(s) {', '.join(bad[:5])} have no sigma",
+                         file=project.sources.get("points", project.path),
+                         hint="give sX sY sZ in the points table (0: fixed) or "
+                              "[adjustment] sigma_control")
+    return sig
+
+
+def _station_sigmas(project):
+    """(n_s, 6) a-priori sigmas of the stations (X0 Y0 Z0, angles; NaN: no
+    prior, 0: fixed). A rotation is fixed as a whole: 0 for one or two of
+    the three angles is refused (the engine's rotation increment is not
+    per omega-phi-kappa angle)."""
+    st = project.stations
+    sig = np.hstack([np.asarray(st.position_sigma, float).reshape(-1, 3),
+                     np.asarray(st.angle_sigma, float).reshape(-1, 3)])
+    zero = sig[:, 3:] == 0
+    partial = np.flatnonzero(zero.any(1) & ~zero.all(1))
+    if len(partial):
+        i = int(partial[0])
+        rec = st.record[i] if len(st.record) == len(st) else 0
+        raise InputError(f"station {st.names[i]}: a sigma of 0 (fixed) for only some of "
+                         f"somega sphi skappa", file=project.sources.get("stations", project.path),
+                         line=int(rec) if rec else None,
+                         hint="0 fixes the rotation as a whole: give 0 for all three angles, "
+                              "or small sigmas (e.g. 1e-6) for the angles to hold")
+    return sig
+
+
 def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
     """Build the engine problem of ``project``.
 
@@ -138,14 +177,21 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
     free_pt = np.ones((n_p, 3), dtype=bool)
     if adj.datum == "control":
         free_pt[control] = False
+    control_sigma = _control_sigmas(project, control) if adj.datum == "weighted" else None
+    if control_sigma is not None:
+        # a sigma of 0 fixes that coordinate (docs/project-files.md)
+        free_pt[control] &= control_sigma != 0
     # points that nothing observes stay at their values (no singular blocks)
     seen = np.bincount(obs.point, minlength=n_p) > 0
     if adj.datum == "weighted":
         seen[control] = True
     free_pt[~(seen | coupled)] = False
+    station_sigma = _station_sigmas(project)
+    free_st = np.full((n_s, 6), not fix_stations)
+    free_st &= station_sigma != 0               # a sigma of 0 fixes the parameter
     free = {"camera": [np.zeros(len(c.parameters), bool) if fix_interior else c.free_mask()
                        for c in cams],
-            "station": np.full((n_s, 6), not fix_stations),
+            "station": free_st,
             "point": free_pt}
     layout = Layout([len(c.parameters) for c in cams], n_s, n_p, coupled, free)
     state = State(pts.xyz.astype(float).copy(), opk_to_matrix(st.angles), st.position.astype(float).copy(),
@@ -169,23 +215,17 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
             blocks.append(blk)
 
     if adj.datum == "weighted" and len(control):
-        sig = pts.sigma[control].astype(float)
-        if adj.sigma_control is not None:
-            sig = np.where(np.isfinite(sig), sig, adj.sigma_control)
-        if not np.all(np.isfinite(sig)) or np.any(sig <= 0):
-            bad = [pts.ids[i] for i, s in zip(control, sig) if not np.all(np.isfinite(s) & (s > 0))]
-            raise InputError(f"weighted datum: control point(s) {', '.join(bad[:5])} have no sigma",
-                             file=project.sources.get("points", project.path),
-                             hint="give sX sY sZ in the points table or [adjustment] sigma_control")
+        # fixed coordinates (sigma 0) are held at their values, not observed
+        sig = np.where(control_sigma == 0, np.inf, control_sigma)
         blk = PointPriorBlock(control, pts.xyz[control], sig, layout)
         blk.labels = [pts.ids[i] for i in control]
         blocks.append(blk)
 
-    has_prior = np.isfinite(st.position_sigma).any(1) | np.isfinite(st.angle_sigma).any(1)
+    has_prior = np.any(np.isfinite(station_sigma) & (station_sigma > 0), axis=1)
     if has_prior.any() and not fix_stations:
         i = np.flatnonzero(has_prior)
-        sig = np.hstack([st.position_sigma[i], st.angle_sigma[i]])
-        sig = np.where(np.isfinite(sig), sig, np.inf)
+        sig = station_sigma[i]
+        sig = np.where(np.isfinite(sig) & (sig > 0), sig, np.inf)
         blk = StationPriorBlock(i, st.position[i], st.angles[i], sig, layout)
         blk.labels = [st.names[j] for j in i]
         blocks.append(blk)
@@ -220,6 +260,30 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
         G = inner_constraints(layout, state, chosen, scale=not dist)
     present = {"control": adj.datum in ("control", "weighted") and len(control) > 0,
                "distance": bool(dist), "inner": G is not None}
+    if G is not None:
+        idx = chosen if chosen is not None else np.flatnonzero(free_pt.any(axis=1))
+        present["inner_points"] = (idx, [pts.ids[i] for i in idx])
     problem = Problem(state, layout, blocks, G=G,
                       point_labels=[pts.ids[i] for i in np.flatnonzero(~coupled)])
-    return Built(problem, cam_names, present, control, check)
+    return Built(problem, cam_names, present, control, check,
+                 warnings=_ignored_control_sigmas(project, control))
+
+
+def _ignored_control_sigmas(project, control):
+    """With ``datum = "control"`` the control points are fixed: their
+    sigmas (sX sY sZ, ``sigma_control``) are not used. Say so (a list of
+    0 or 1 warning)."""
+    adj = project.adjustment
+    if adj.datum != "control" or not len(control):
+        return []
+    sig = np.asarray(project.points.sigma, float).reshape(-1, 3)[control]
+    given = np.any(np.isfinite(sig) & (sig > 0), axis=1)
+    if not given.any() and not adj.sigma_control:
+        return []
+    ids = [project.points.ids[i] for i in control[given]]
+    what = (f"the sigmas sX sY sZ of {len(ids)} control point(s) "
+            f"({', '.join(ids[:5])}{' ...' if len(ids) > 5 else ''})" if ids else "")
+    if adj.sigma_control:
+        what += (" and " if what else "") + f"sigma_control = {adj.sigma_control:g}"
+    return [f'datum = "control" holds the {len(control)} control points fixed: {what} '
+            f'are not used (datum = "weighted" uses them as weighted observations)']

@@ -100,6 +100,9 @@ class Problem:
         self.structure = Structure(layout, [b.slot_cols for b in self.blocks])
         self.variance = {b.group: 1.0 for b in self.blocks}
         self.active = [np.ones(len(b), dtype=bool) for b in self.blocks]
+        # per coordinate (N, dim): data snooping takes out one coordinate of
+        # a record (the Z of a control point), not the whole record
+        self.coordinate_active = [np.ones((len(b), b.dim), dtype=bool) for b in self.blocks]
         self.robust_weight = [np.ones((len(b), b.dim)) for b in self.blocks]
         self._free_masks = [[layout.free[c][:, None, :] for c in b.slot_cols] for b in self.blocks]
         self._all_free = [[bool(np.all(m)) for m in ms] for ms in self._free_masks]
@@ -111,7 +114,8 @@ class Problem:
         with np.errstate(divide="ignore"):
             w = 1.0 / (b.sigma * np.sqrt(self.variance[b.group]))
         w = np.where(np.isfinite(w), w, 0.0)
-        return w * self.active[k][:, None] * np.sqrt(self.robust_weight[k])
+        return (w * self.active[k][:, None] * self.coordinate_active[k]
+                * np.sqrt(self.robust_weight[k]))
 
     def evaluate(self, state, jacobians=True):
         """Whitened residuals (and Jacobians) of all blocks at ``state``."""

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from photogram.adjust.build import build_problem
-from photogram.adjust.datum import check_datum
+from photogram.adjust.datum import check_datum, check_datum_condition
 from photogram.adjust.solver import SolverOptions, solve
 from photogram.errors import GeometryError
 from photogram.geometry import matrix_to_opk
@@ -77,7 +77,26 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
     project : Project
     fix_interior : bool
         Hold all interior orientation fixed (``photogram orient``).
+
+    Raises
+    ------
+    GeometryError
+        Also for a numerical failure of linear algebra (a singular or
+        non-finite system from absurd approximate values, e.g. angles in
+        the wrong unit): one line, not an internal error.
     """
+    try:
+        return _adjust(project, fix_interior)
+    except np.linalg.LinAlgError as exc:
+        raise GeometryError(f"the adjustment of {project.name} met a singular or non-finite "
+                            f"system (numpy: {exc}); the approximate values or the units "
+                            f"are probably wrong",
+                            file=project.path,
+                            hint="check angle_unit, length_unit and image_unit in [project] "
+                                 "and the approximate values of the stations and points") from exc
+
+
+def _adjust(project, fix_interior):
     t0 = time.perf_counter()
     adj = project.adjustment
     summary = {"datum": adj.datum, "warnings": list(project.warnings)}
@@ -85,12 +104,27 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
     t_approx = time.perf_counter()
     built = build_problem(project, fix_interior=fix_interior)
     problem = built.problem
-    check_datum(problem, built.present)
+    for text in built.warnings or []:
+        log.info("warning: %s", text)
+        summary["warnings"].append(text)
+    for text in check_datum(problem, built.present):
+        log.info("warning: %s", text)
+        summary["warnings"].append(text)
     opts = _options(adj)
     s = solve(problem, opts)
+    # the datum points' geometry again at the adjusted coordinates (the
+    # approximate ones can hide a near-collinearity)
+    for text in check_datum_condition(problem, built.present):
+        if text not in summary["warnings"]:
+            log.info("warning: %s", text)
+            summary["warnings"].append(text)
     iterations = s.iterations
     if adj.robust:
-        summary["robust"] = robust_reweighting(problem, adj.robust, opts)
+        # a redescending loss starts from the Huber solution, not from the
+        # least-squares one that the blunders have pulled
+        summary["robust"] = robust_reweighting(
+            problem, adj.robust, opts,
+            warm_start="huber" if adj.robust in ("tukey", "cauchy") else None)
         s = solve(problem, opts)
         iterations += s.iterations
     snoop = None
@@ -102,6 +136,12 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
             summary["warnings"].append(
                 f"data snooping rejected {len(snoop.rejected)} observation(s) "
                 f"(|w| > {snoop.critical_value:.2f}, alpha {snoop.alpha:g})")
+        reference = [r for r in snoop.rejected if "coordinate" in r]
+        if reference:
+            summary["warnings"].append(
+                "data snooping rejected the reference coordinate(s) "
+                + ", ".join(f"{r['label']} (w = {r['w']:.1f})" for r in reference)
+                + ": the surveyed value disagrees with the images; check it")
         s = solve(problem, opts)
         iterations += s.iterations
     if adj.variance_components:

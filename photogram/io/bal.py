@@ -369,6 +369,7 @@ def bal_cofactors(problem, datum="inner", points=None):
     twin = Problem(state, fixed_lay, problem.blocks, point_labels=problem.point_labels)
     twin.variance, twin.active, twin.robust_weight = (problem.variance, problem.active,
                                                       problem.robust_weight)
+    twin.coordinate_active = problem.coordinate_active
     cof = cofactors(twin)
     if datum == "fixed":
         return cof

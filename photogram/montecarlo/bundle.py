@@ -35,6 +35,10 @@ from photogram.geometry import (angle_increment_map, camera_model, opk_to_matrix
 from photogram.montecarlo.lean_state import (BundleInputs, BundleState, correct_brown,
                                               image_residuals)
 
+#: the sigma (length unit or radian) a prior of sigma 0 ("fixed") gets in
+#: the lean bundle, whose columns are per point and station: held to 1e-9
+FIXED_SIGMA = 1e-9
+
 __all__ = ["LeanBundle", "BundleInputs", "BundleState", "correct_brown", "image_residuals"]
 
 
@@ -143,16 +147,17 @@ class LeanBundle:
             s = pts.sigma[self.control].astype(float)
             if adj.sigma_control is not None:
                 s = np.where(np.isfinite(s), s, adj.sigma_control)
-            if not np.all(np.isfinite(s) & (s > 0)):
+            if not np.all(np.isfinite(s) & (s >= 0)):
                 raise InputError("weighted datum: a control point has no sigma",
                                  file=project.path, hint="give sX sY sZ or sigma_control")
-            self.ref_sigma = s
+            self.ref_sigma = np.where(s == 0, FIXED_SIGMA, s)      # 0: fixed
             self.ref_rows = rows + np.arange(3 * self.n_ref).reshape(-1, 3)
             self.ref_cols = cols(self.point_cols[self.control])
             rows += 3 * self.n_ref
             sources += ["reference"] * (3 * self.n_ref)
 
         sp = np.hstack([st.position_sigma, st.angle_sigma]).astype(float)
+        sp = np.where(sp == 0, FIXED_SIGMA, sp)                      # 0: fixed
         sp = np.where(np.isfinite(sp) & (sp > 0), sp, np.inf)
         self.prior_stations = np.flatnonzero(np.isfinite(sp).any(1))
         self.prior_sigma = sp[self.prior_stations]

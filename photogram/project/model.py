@@ -30,7 +30,9 @@ DATUMS = ("control", "weighted", "free")
 ROTATIONS = ("omega-phi-kappa",)           # as written in [project] rotation
 ROTATION_DIRECTIONS = ("world_to_camera", "camera_to_world")
 DAMPINGS = ("none", "lm", "armijo")
-ROBUST_FUNCTIONS = ("huber", "cauchy", "tukey")  # [adjustment] robust ("none": off)
+#: [adjustment] robust ("none": off): the one list of losses the reader accepts,
+#: photogram.stats.robust implements and docs/project-files.md names
+ROBUST_FUNCTIONS = ("huber", "cauchy", "soft_l1", "tukey")
 
 
 @dataclass

@@ -57,12 +57,46 @@ def validate_project(project, source: TomlSource | None = None) -> list[str]:
         unknown point in ``inner_constraints``.
     """
     warnings: list[str] = []
+    _check_magnitudes(project)
     _check_duplicate_observations(project)
     _check_rays(project, warnings)
     _check_settings(project, source, warnings)
     _check_usage(project, warnings)
     _check_image_format(project, warnings)
     return warnings
+
+
+#: largest accepted coordinate (any length unit) and angle (radians): far
+#: beyond any real value (the Earth's radius in mm is 6.4e9), and small
+#: enough that squares and products of coordinates stay finite (1e308 would
+#: overflow and fail with a numerical error instead of naming the value)
+MAX_COORDINATE = 1e100
+MAX_ANGLE = 1e4
+
+
+def _check_magnitudes(project) -> None:
+    """Refuse absurd approximate or reference values (e.g. 1e308) with their
+    file and line, before any arithmetic overflows."""
+    st, pts = project.stations, project.points
+    checks = (("stations", "station", st.names, np.asarray(st.position, float), MAX_COORDINATE,
+               "X0 Y0 Z0", st.record),
+              ("stations", "station", st.names, np.asarray(st.angles, float), MAX_ANGLE,
+               "omega phi kappa", st.record),
+              ("points", "point", pts.ids, np.asarray(pts.xyz, float), MAX_COORDINATE,
+               "X Y Z", pts.record))
+    for source, what, names, values, limit, columns, records in checks:
+        if not values.size:
+            continue
+        bad = np.flatnonzero(np.any(np.abs(values.reshape(len(names), -1)) > limit, axis=1))
+        if len(bad):
+            i = int(bad[0])
+            rec = records[i] if len(records) == len(names) else 0
+            value = values.reshape(len(names), -1)[i]
+            big = value[np.argmax(np.abs(np.nan_to_num(value)))]
+            raise InputError(f"{what} {names[i]}: {columns} hold {big:.6g}, beyond "
+                             f"{limit:g} ({'radians' if limit == MAX_ANGLE else 'length units'})",
+                             file=project.sources.get(source), line=_line(rec),
+                             hint="check the value and the units in [project]")
 
 
 def repeated_observation(station, point, n_points: int) -> tuple[int, int] | None:
@@ -173,8 +207,24 @@ def _check_usage(project, warnings: list[str]) -> None:
         warnings.append(f"camera(s) without stations: {', '.join(idle_cams)}")
 
 
-def _format_size(camera, image_unit: str):
+#: a camera whose image points all lie within this fraction of its format
+#: from the top-left corner (at least MIN_FORMAT_POINTS of them) has them in
+#: the wrong unit (mm read as px: ~1/100 of the format): refused
+CORNER_FRACTION = 0.05
+MIN_FORMAT_POINTS = 4
+
+
+def _format_size(camera, image_unit: str, principal_point: bool = False):
+    """The image format (width, height) in ``image_unit``; with
+    ``principal_point`` twice the principal point when the size is not
+    given (brown x0 y0, opencv cx cy)."""
     if camera.image_size is None:
+        if not principal_point:
+            return None
+        for a, b in (("x0", "y0"), ("cx", "cy")):
+            p = camera.parameters
+            if a in p and b in p and p[a].value > 0 and p[b].value > 0:
+                return 2.0 * p[a].value, 2.0 * p[b].value
         return None
     w, h = camera.image_size
     if image_unit == "px":
@@ -185,17 +235,50 @@ def _format_size(camera, image_unit: str):
 
 
 def _check_image_format(project, warnings: list[str]) -> None:
+    """Image points against the image format, per camera: all of them in a
+    tiny corner (mm read as px) or most of them outside (px read as mm) is
+    refused; a few outside is a warning."""
     obs = project.image_points
     if not len(obs):
         return
-    size = np.full((len(project.stations), 2), np.inf)
-    for i, cam in enumerate(project.stations.camera):
-        fmt = _format_size(project.cameras[cam], project.units.image) \
-            if cam in project.cameras else None
-        if fmt is not None:
-            size[i] = fmt
-    lim = size[obs.station]
-    outside = np.flatnonzero(np.any((obs.xy < 0) | (obs.xy > lim), axis=1))
+    unit = project.units.image
+    station_cam = np.asarray(project.stations.camera, dtype=object)
+    obs_cam = station_cam[obs.station]
+    file = project.sources.get("image_points")
+    outside_all = []
+    for name, cam in project.cameras.items():
+        rows = np.flatnonzero(obs_cam == name)
+        if not len(rows):
+            continue
+        xy = obs.xy[rows]
+        fmt = _format_size(cam, unit, principal_point=True)
+        if fmt is None:
+            continue
+        w, h = fmt
+        if len(rows) >= MIN_FORMAT_POINTS and np.all(np.abs(xy) <= [CORNER_FRACTION * w,
+                                                                     CORNER_FRACTION * h]):
+            rec = _line(_records(obs, rows[:1])[0])
+            other = "mm" if unit == "px" else "px"
+            raise InputError(
+                f"all {len(rows)} image points of camera {name} lie within "
+                f"{np.abs(xy[:, 0]).max():.3g} x {np.abs(xy[:, 1]).max():.3g} {unit} of the "
+                f"top-left corner of its {w:.4g} x {h:.4g} {unit} format: they look like "
+                f"{other}, not {unit}", file=file, line=rec,
+                hint=f"give them in {unit}, or say [observations] unit = \"{other}\" "
+                     f"(with pixel_size in the camera)")
+        if cam.image_size is None:
+            continue                        # the principal point does not bound the format
+        out = rows[np.any((xy < 0) | (xy > [w, h]), axis=1)]
+        if len(rows) >= MIN_FORMAT_POINTS and 2 * len(out) > len(rows):
+            rec = _line(_records(obs, out[:1])[0])
+            raise InputError(
+                f"{len(out)} of the {len(rows)} image points of camera {name} lie outside its "
+                f"{w:.4g} x {h:.4g} {unit} format (largest x {xy[:, 0].max():.4g}, y "
+                f"{xy[:, 1].max():.4g}): wrong unit or image_size?", file=file, line=rec,
+                hint=f"check image_unit = \"{unit}\" in [project], [observations] unit and "
+                     f"image_size / pixel_size of camera {name}")
+        outside_all.append(out)
+    outside = np.sort(np.concatenate(outside_all)) if outside_all else np.zeros(0, int)
     if len(outside):
         rec = _line(_records(obs, outside[:1])[0])
         first = f" (first: line {rec})" if rec else ""

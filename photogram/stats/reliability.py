@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import norm
+from scipy.stats import chi2, norm
 
 from photogram.adjust.solver import solve
 from photogram.stats.covariance import cofactors
@@ -139,11 +139,115 @@ def _label(blk, i):
     return blk.labels[i] if getattr(blk, "labels", None) is not None else i
 
 
-def data_snooping(problem, alpha=0.001, max_rejections=None, options=None, blocks=("image points",),
-                  scale="apriori", per_round="one", readmit=False, swap_rays=0):
+#: the block of reference (control) coordinates, tested coordinate by coordinate
+CONTROL = "control coordinates"
+AXES = "XYZ"
+
+
+def _control_removable(problem, k, i, min_rays=2):
+    """A reference coordinate of control point ``blk.point[i]`` can be left
+    out when the point keeps at least ``min_rays`` active rays (the images
+    then determine it)."""
+    p = int(problem.blocks[k].point[i])
+    rays = sum(int(np.count_nonzero(problem.active[kk] & (b.point == p)))
+               for kk, b in enumerate(problem.blocks) if b.name == "image points")
+    return rays >= min_rays
+
+
+def _candidates(problem, w, s, k_crit, blocks, kept, result):
+    """(|w|, block, row, coordinate) above the critical value: image points
+    as records (coordinate -1, the larger |w| of x and y), control
+    coordinates one by one (coordinate 0, 1, 2 = X, Y, Z)."""
+    cands = []
+    for k, blk in enumerate(problem.blocks):
+        if blk.name not in blocks or not problem.active[k].any():
+            continue
+        if blk.name == CONTROL:
+            aw = np.abs(w[k]) * (problem.active[k][:, None] & problem.coordinate_active[k]) / s
+            rows = [(int(i), int(c), float(aw[i, c])) for i, c in zip(*np.nonzero(aw > k_crit))]
+        else:
+            aw = np.abs(w[k]).max(axis=1) * problem.active[k] / s
+            rows = [(int(i), -1, float(aw[i])) for i in np.flatnonzero(aw > k_crit)]
+        for i, c, wi in rows:
+            if (k, i, c) in kept:
+                continue
+            ok = _control_removable(problem, k, i) if c >= 0 else removable(problem, k, i)
+            if not ok:
+                kept.add((k, i, c))
+                label = f"{_label(blk, i)} {AXES[c]}" if c >= 0 else _label(blk, i)
+                result.unremovable.append({"block": blk.name, "k": k, "row": i,
+                                           "label": label, "w": wi})
+                continue
+            cands.append((wi, k, i, c))
+    return _rays_before_control(problem, w, s, cands)
+
+
+def _equivalent_w(T, dof):
+    """The |w| of one coordinate with the same significance as the
+    chi-square statistic ``T`` with ``dof`` degrees of freedom."""
+    return float(norm.isf(chi2.sf(T, dof) / 2.0))
+
+
+def _rays_before_control(problem, w, s, cands):
+    """A control coordinate candidate yields to a ray of its own point that
+    explains the misfit at least as well: the ray's 2D statistic
+    ``wx^2 + wy^2`` (chi-square, 2 degrees of freedom) as an equivalent
+    one-coordinate |w| at least the coordinate's |w| (a blunder in a ray of
+    a control point pulls the point, so a reference coordinate can show the
+    largest single |w|). The candidate is then that ray."""
+    out = []
+    rays = {}
+    for kk, b in enumerate(problem.blocks):
+        if b.name == "image points":
+            for i in np.flatnonzero(problem.active[kk]):
+                rays.setdefault(int(b.point[i]), []).append((kk, int(i)))
+    for wi, k, i, c in cands:
+        if c >= 0:
+            p = int(problem.blocks[k].point[i])
+            best = None
+            for kk, j in rays.get(p, []):
+                weq = _equivalent_w(float(np.sum((w[kk][j] / s) ** 2)), 2)
+                if weq >= wi and (best is None or weq > best[0]) and removable(problem, kk, j):
+                    best = (weq, kk, j)
+            if best is not None:
+                k, i, c = best[1], best[2], -1
+        if all((k, i, c) != (x[1], x[2], x[3]) for x in out):
+            out.append((wi, k, i, c))
+    return out
+
+
+def _reject(problem, k, i, c, wi):
+    """Take record ``i`` of block ``k`` (or only its coordinate ``c``) out;
+    the rejection record."""
+    blk = problem.blocks[k]
+    if c < 0:
+        problem.active[k][i] = False
+        return {"block": blk.name, "k": k, "row": i, "label": _label(blk, i), "w": wi}
+    problem.coordinate_active[k][i, c] = False
+    return {"block": blk.name, "k": k, "row": i, "coordinate": AXES[c],
+            "label": f"{_label(blk, i)} {AXES[c]}", "w": wi}
+
+
+def _put_back(problem, rec):
+    if "coordinate" in rec:
+        problem.coordinate_active[rec["k"]][rec["row"], AXES.index(rec["coordinate"])] = True
+    else:
+        problem.active[rec["k"]][rec["row"]] = True
+
+
+def data_snooping(problem, alpha=0.001, max_rejections=None, options=None,
+                  blocks=("image points", CONTROL), scale="apriori", per_round="one",
+                  readmit=False, swap_rays=0):
     """Iterative data snooping: while the largest |w| among the tested blocks
     exceeds the critical value, deactivate that observation (the whole
-    record, e.g. both coordinates of an image point) and readjust.
+    record, e.g. both coordinates of an image point; a reference coordinate
+    of a control point on its own, "M3 Z") and readjust.
+
+    Image points and the reference (control) coordinates of the weighted
+    datum are tested in the same w-test, each with its own redundancy
+    number: a wrong control coordinate is named and taken out instead of
+    the good rays of its point. A control coordinate is only taken out
+    while its point keeps 2 rays.
 
     Parameters
     ----------
@@ -187,20 +291,7 @@ def data_snooping(problem, alpha=0.001, max_rejections=None, options=None, block
         w = normalized_residuals(problem, red)
         s = variance_scale(problem, w, scale, blocks)
         result.scale = s
-        cands = []
-        for k, blk in enumerate(problem.blocks):
-            if blk.name not in blocks or not problem.active[k].any():
-                continue
-            aw = np.abs(w[k]).max(axis=1) * problem.active[k] / s
-            for i in np.flatnonzero(aw > k_crit):
-                if (k, int(i)) in kept:
-                    continue
-                if not removable(problem, k, int(i)):
-                    kept.add((k, int(i)))
-                    result.unremovable.append({"block": blk.name, "k": k, "row": int(i),
-                                               "label": _label(blk, int(i)), "w": float(aw[i])})
-                    continue
-                cands.append((float(aw[i]), k, int(i)))
+        cands = _candidates(problem, w, s, k_crit, blocks, kept, result)
         if not cands:
             break
         cands.sort(reverse=True)
@@ -209,23 +300,21 @@ def data_snooping(problem, alpha=0.001, max_rejections=None, options=None, block
         elif per_round == "point":
             chosen, seen_pt, seen_st = [], set(), set()
             top = cands[0][0]
-            for wi, k, i in cands:
+            for wi, k, i, c in cands:
                 blk = problem.blocks[k]
                 pt = ("p", int(blk.point[i])) if hasattr(blk, "point") else ("r", k, i)
                 st = ("s", int(blk.station[i])) if hasattr(blk, "station") else ("r", k, i)
                 if wi < 0.5 * top or pt in seen_pt or st in seen_st:
                     continue
                 seen_pt.add(pt), seen_st.add(st)
-                chosen.append((wi, k, i))
+                chosen.append((wi, k, i, c))
         else:
             raise ValueError(f"per_round must be 'one' or 'point', not {per_round!r}")
         chosen = chosen[:limit - len(result.rejected)]
-        for wi, k, i in chosen:
-            if not removable(problem, k, i):       # two of the chosen share a point
+        for wi, k, i, c in chosen:
+            if c < 0 and not removable(problem, k, i):       # two of the chosen share a point
                 continue
-            problem.active[k][i] = False
-            result.rejected.append({"block": problem.blocks[k].name, "k": k, "row": i,
-                                    "label": _label(problem.blocks[k], i), "w": wi})
+            result.rejected.append(_reject(problem, k, i, c, wi))
         result.rounds += 1
         solve(problem, options)
     if readmit and result.rejected:
@@ -245,7 +334,7 @@ def swap_within_points(problem, rejected, options, max_rays=4):
     for rec in rejected:
         k, i = rec["k"], rec["row"]
         blk = problem.blocks[k]
-        if not hasattr(blk, "point"):
+        if not hasattr(blk, "point") or "coordinate" in rec:
             continue
         p = int(blk.point[i])
         others = [(kk, int(j)) for kk, b in enumerate(problem.blocks) if b.name == "image points"
@@ -300,7 +389,9 @@ def _readmit(problem, result, options, scale, blocks, max_rounds=20):
                 wgt = 1.0 / (blk.sigma[rows] * np.sqrt(problem.variance[blk.group]))
             h = leverages(problem, cof, k, rows)
             t = np.abs(e[rows] * wgt) / np.sqrt(1.0 + h) / s
-            for j, tj in zip(js, t.max(axis=1)):
+            for j, tj in zip(js, t):
+                rec = result.rejected[j]
+                tj = tj[AXES.index(rec["coordinate"])] if "coordinate" in rec else tj.max()
                 if tj < result.critical_value:
                     back.append((j, k, float(tj)))
         if not back:
@@ -318,7 +409,7 @@ def _readmit(problem, result, options, scale, blocks, max_rounds=20):
             keep.append((j, k, tj))
         back = keep
         for j, k, tj in back:
-            problem.active[k][result.rejected[j]["row"]] = True
+            _put_back(problem, result.rejected[j])
             result.readmitted.append(dict(result.rejected[j], w=tj))
         drop = {j for j, _, _ in back}
         result.rejected = [r for j, r in enumerate(result.rejected) if j not in drop]

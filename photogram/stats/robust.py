@@ -17,8 +17,10 @@ import numpy as np
 from scipy.stats import norm
 
 from photogram.adjust.solver import solve
+from photogram.project.model import ROBUST_FUNCTIONS
 
-LOSSES = ("huber", "cauchy", "soft_l1", "tukey")
+#: the losses (the same list as the project reader accepts)
+LOSSES = ROBUST_FUNCTIONS
 
 # tuning constants for 95 % efficiency under normal errors (in sigma)
 TUNING = {"huber": 1.345, "cauchy": 2.385, "soft_l1": 1.5, "tukey": 4.685}
@@ -103,6 +105,7 @@ def robust_reweighting(problem, loss="huber", options=None, scale=None, blocks=(
                 new.append(np.repeat(w[:, None], blk.dim, axis=1))
             else:
                 new.append(np.ones((len(blk), blk.dim)))
+        _keep_determined(problem, new, norms, blocks, scale * sigma)
         changed = (max(float(np.max(np.abs(o - w), initial=0.0)) for o, w in zip(old, new))
                    if old is not None else np.inf)
         problem.robust_weight = new
@@ -114,6 +117,45 @@ def robust_reweighting(problem, loss="huber", options=None, scale=None, blocks=(
     down = int(sum(np.count_nonzero(w[:, 0] < 1.0) for w, b in zip(problem.robust_weight, problem.blocks)
                    if b.name in blocks))
     return {"loss": loss, "scale": scale, "rounds": rounds, "downweighted": down, "sigma": sigma}
+
+
+def _keep_determined(problem, weights, norms, blocks, k, min_rays=2, min_station_points=4):
+    """Give back a weight to the rays a redescending loss (Tukey) zeroed
+    where that would leave a free object point with fewer than ``min_rays``
+    weighted rays, or a station with fewer than ``min_station_points``
+    weighted image points: such rays get the Huber weight ``k / u`` (a
+    point with one blunder among its 3 rays cannot say which ray is bad;
+    with weight 0 on all of them it would be undetermined). ``weights``
+    (per block, (N, d)) is changed in place."""
+    lay = problem.layout
+    img = [kk for kk, b in enumerate(problem.blocks)
+           if b.name in blocks and hasattr(b, "point") and hasattr(b, "station")]
+    if not img:
+        return
+    n_p, n_s = len(lay.point_cols), len(lay.station_cols)
+    rays = np.zeros(n_p, int)
+    good_rays = np.zeros(n_p, int)
+    pts = np.zeros(n_s, int)
+    good_pts = np.zeros(n_s, int)
+    for kk in img:
+        b, act = problem.blocks[kk], problem.active[kk]
+        good = act & (weights[kk][:, 0] > 0)
+        rays += np.bincount(b.point[act], minlength=n_p)
+        good_rays += np.bincount(b.point[good], minlength=n_p)
+        pts += np.bincount(b.station[act], minlength=n_s)
+        good_pts += np.bincount(b.station[good], minlength=n_s)
+    free_p = lay.free[lay.point_cols].any(axis=1)
+    free_s = lay.free[lay.station_cols].any(axis=1)
+    weak_p = free_p & (good_rays < np.minimum(rays, min_rays))
+    weak_s = free_s & (good_pts < np.minimum(pts, min_station_points))
+    if not (weak_p.any() or weak_s.any()):
+        return
+    for kk in img:
+        b, act = problem.blocks[kk], problem.active[kk]
+        back = act & (weights[kk][:, 0] == 0) & (weak_p[b.point] | weak_s[b.station])
+        if back.any():
+            w = loss_weights(norms[kk][back], "huber", k)
+            weights[kk][back] = w[:, None]
 
 
 @dataclass
