@@ -1,0 +1,202 @@
+"""The target-field description: what `photogram measure` looks for.
+
+A small TOML file (example: ``projects/camcal/sheet.toml``)::
+
+    [field]
+    name = "PhotoModeler calibration sheet"
+    images = "../../../shared/data/dbat/camcal/images"   # folder, relative to this file
+    polarity = "dark"          # dark dots on light | bright targets on dark
+    channel = "green"          # colour images: green | red | blue | gray
+    diameter = 0.0445          # target diameter (object units), for the eccentricity
+    min_diameter = 6           # px, smallest target image (major axis)
+    max_diameter = 90          # px, largest
+    min_contrast = 20          # grey levels above the local background
+    sigma_floor = 0.02         # px, added in quadrature to each centre sigma
+
+    [codes]
+    kind = "ring"              # ring-coded marks (photogram.measure.codes)
+    radii = [2.9, 3.3, 3.7]    # ring sample radii, in dot radii
+
+    [[codes.target]]
+    id = "1001"
+    bits = "11111000"          # inked sectors, clockwise in the image
+    xyz = [0.0, 1.0, 0.0]      # approximate object coordinates
+
+    [grid]                     # the uncoded layout: a regular grid in the plane Z = 0
+    cols = 10
+    rows = 10
+    spacing = 0.142857142857   # object units
+    origin = [-0.142857142857, -0.142857142857]   # (X, Y) of column 0, row 0
+    id = "D{row}{col}"         # Python format of a dot's id; row 0 at the smallest Y
+
+Grid nodes within a quarter spacing of a coded target are the coded
+target's own dot and get no grid id. Every mistake is an
+:class:`~photogram.errors.InputError` naming the file, the line (found by
+searching for the key) and how to fix it.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.measure.codes import RingCode
+
+__all__ = ["TargetField", "read_field", "CHANNELS"]
+
+CHANNELS = ("green", "red", "blue", "gray")
+_FIELD_KEYS = {"name", "images", "polarity", "channel", "diameter", "min_diameter",
+               "max_diameter", "min_contrast", "sigma_floor"}
+
+
+@dataclass
+class TargetField:
+    """A parsed target-field description (module doc)."""
+
+    path: Path
+    name: str = "field"
+    images: Path | None = None
+    polarity: str = "dark"
+    channel: str = "green"
+    diameter: float = 0.0
+    min_diameter: float = 5.0
+    max_diameter: float = 80.0
+    min_contrast: float = 20.0
+    sigma_floor: float = 0.02
+    codes: list[RingCode] = field(default_factory=list)
+    code_xyz: dict[str, np.ndarray] = field(default_factory=dict)
+    code_radii: tuple = (2.9, 3.3, 3.7)
+    grid_ids: list[str] = field(default_factory=list)
+    grid_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    spacing: float = 0.0
+
+    def layout(self) -> tuple[list[str], np.ndarray]:
+        """Ids and (X, Y) of every target of the plane: codes first, then the grid."""
+        ids = [c.id for c in self.codes] + list(self.grid_ids)
+        xy = np.vstack([np.array([self.code_xyz[c.id][:2] for c in self.codes]).reshape(-1, 2),
+                        self.grid_xy])
+        return ids, xy
+
+
+def _line(text: str, key: str) -> int | None:
+    for i, raw in enumerate(text.splitlines(), 1):
+        if raw.strip().startswith(key):
+            return i
+    return None
+
+
+def read_field(path) -> TargetField:
+    """Read and validate a target-field description (module doc).
+
+    Raises
+    ------
+    InputError
+        Unreadable file, TOML syntax, unknown keys, values out of range,
+        duplicate ids, a code without bits or coordinates.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except OSError as exc:
+        raise InputError(f"cannot read the target-field description: {exc.strerror}",
+                         file=path, hint="give the path of the field's .toml file") from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"TOML syntax error: {exc}", file=path,
+                         hint="see docs/measure.md for an example") from None
+
+    def err(what, key, hint):
+        return InputError(what, file=path, line=_line(text, key), hint=hint)
+
+    unknown = set(doc) - {"field", "codes", "grid"}
+    if unknown:
+        k = sorted(unknown)[0]
+        raise err(f"unknown section [{k}]", f"[{k}", "allowed: [field], [codes], [grid]")
+    f = doc.get("field", {})
+    bad = set(f) - _FIELD_KEYS
+    if bad:
+        k = sorted(bad)[0]
+        raise err(f"unknown key {k!r} in [field]", k, f"allowed: {', '.join(sorted(_FIELD_KEYS))}")
+    out = TargetField(path=path, name=str(f.get("name", path.stem)))
+    if "images" in f:
+        out.images = (path.parent / str(f["images"]))
+    out.polarity = str(f.get("polarity", "dark"))
+    if out.polarity not in ("dark", "bright"):
+        raise err(f"polarity {out.polarity!r}", "polarity", "dark or bright")
+    out.channel = str(f.get("channel", "green"))
+    if out.channel not in CHANNELS:
+        raise err(f"channel {out.channel!r}", "channel", f"one of {', '.join(CHANNELS)}")
+    for key in ("diameter", "min_diameter", "max_diameter", "min_contrast", "sigma_floor"):
+        if key in f:
+            v = f[key]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) \
+                    or v < 0 or (v == 0 and key in ("min_diameter", "max_diameter")):
+                raise err(f"{key} = {v!r} is not a positive number", key, "give a number > 0")
+            setattr(out, key, float(v))
+    if out.min_diameter >= out.max_diameter:
+        raise err("min_diameter must be smaller than max_diameter", "min_diameter",
+                  "target image diameters in pixels")
+    codes = doc.get("codes", {})
+    if codes:
+        if codes.get("kind", "ring") != "ring":
+            raise err(f"codes kind {codes.get('kind')!r}", "kind", "only ring codes so far")
+        if "radii" in codes:
+            out.code_radii = tuple(float(r) for r in codes["radii"])
+        seen = set()
+        for i, c in enumerate(codes.get("target", [])):
+            cid = str(c.get("id", ""))
+            bits = str(c.get("bits", ""))
+            if not cid or cid in seen:
+                raise err(f"code target {i + 1}: missing or duplicate id {cid!r}", "id",
+                          "every code needs its own id")
+            seen.add(cid)
+            if len(bits) < 2 or set(bits) - {"0", "1"} or "1" not in bits or "0" not in bits:
+                raise err(f"code {cid}: bits {bits!r} must be a string of 0 and 1 with both",
+                          "bits", 'e.g. bits = "11001100"')
+            xyz = c.get("xyz")
+            if not isinstance(xyz, list) or len(xyz) != 3:
+                raise err(f"code {cid}: xyz must be [X, Y, Z]", "xyz",
+                          "approximate object coordinates of the code")
+            out.codes.append(RingCode(cid, bits))
+            out.code_xyz[cid] = np.array(xyz, float)
+    g = doc.get("grid")
+    if g:
+        try:
+            cols, rows = int(g["cols"]), int(g["rows"])
+            spacing = float(g["spacing"])
+            origin = np.array(g.get("origin", [0.0, 0.0]), float)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise err(f"[grid] needs cols, rows, spacing (and origin): {exc}", "[grid",
+                      "e.g. cols = 10, rows = 10, spacing = 0.1") from None
+        if cols < 1 or rows < 1 or not spacing > 0 or origin.shape != (2,):
+            raise err("[grid]: cols, rows >= 1, spacing > 0, origin = [X, Y]", "[grid",
+                      "see docs/measure.md")
+        fmt = str(g.get("id", "D{row}{col}"))
+        r, c = np.mgrid[0:rows, 0:cols]
+        xy = origin + spacing * np.column_stack([c.ravel(), r.ravel()])
+        code_xy = np.array([v[:2] for v in out.code_xyz.values()]).reshape(-1, 2)
+        keep = np.ones(len(xy), bool)
+        if len(code_xy):
+            d = np.linalg.norm(xy[:, None] - code_xy[None], axis=2).min(axis=1)
+            keep = d > 0.25 * spacing
+        try:
+            ids = [fmt.format(row=int(rr), col=int(cc)) for rr, cc in zip(r.ravel(), c.ravel())]
+        except (KeyError, IndexError, ValueError) as exc:
+            raise err(f"[grid] id format {fmt!r}: {exc}", "id", 'e.g. id = "D{row}{col}"') \
+                from None
+        ids = [i for i, k in zip(ids, keep) if k]
+        if len(set(ids)) != len(ids) or set(ids) & set(out.code_xyz):
+            raise err(f"[grid] id format {fmt!r} gives duplicate ids", "id",
+                      'include row and column, e.g. "D{row:02d}{col:02d}"')
+        out.grid_ids = ids
+        out.grid_xy = xy[keep]
+        out.spacing = spacing
+    if not out.codes:
+        raise err("the field has no coded targets", "[codes",
+                  "numbering needs coded targets ([[codes.target]])")
+    return out

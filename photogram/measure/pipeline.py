@@ -1,0 +1,214 @@
+"""From a folder of images and a target field to image observations.
+
+Per image: read (bad or truncated files are an :class:`InputError` naming
+the file), take the field's channel, detect and measure the circular
+targets (:mod:`photogram.measure.detect`), decode the ring codes
+(:mod:`photogram.measure.codes`), number the uncoded targets from the codes
+(:mod:`photogram.measure.label`), optionally correct the eccentricity of
+the projected circle centre (:mod:`photogram.measure.eccentricity`, with
+the image's plane homography and the field's target diameter).
+
+**Pixel convention of the output.** The detectors work in OpenCV's frame
+(pixel centres at integers). The observations are written in the
+*corner* convention of photogram's image frame, DBAT and PhotoModeler: the
+top-left corner of the image is (0, 0) and the first pixel's centre is
+(0.5, 0.5), so that ``x_mm = x_px * pixel_size`` from the corner of the
+format holds (docs/camera-models.md). That is ``+0.5 px`` on both axes.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from photogram.errors import InputError
+from photogram.measure.codes import decode_rings, ring_profiles
+from photogram.measure.detect import Detections, detect_targets
+from photogram.measure.eccentricity import eccentricity
+from photogram.measure.field import TargetField
+from photogram.measure.label import Numbering, number_plane
+
+__all__ = ["ImageResult", "Measurement", "read_image", "measure_image", "measure_images",
+           "IMAGE_SUFFIXES", "PIXEL_OFFSET"]
+
+log = logging.getLogger("photogram")
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm")
+PIXEL_OFFSET = 0.5          # OpenCV frame -> corner convention
+_CHANNEL = {"blue": 0, "green": 1, "red": 2}
+
+
+@dataclass
+class ImageResult:
+    """Everything measured in one image."""
+
+    name: str
+    detections: Detections
+    code_label: np.ndarray          # per detection: code id, "" plain, None rejected ring
+    numbering: Numbering
+    xy: np.ndarray                  # corrected centres, corner convention (n, 2)
+    sigma: np.ndarray               # centre sigma per detection (px)
+    seconds: float = 0.0
+
+    def counts(self) -> dict:
+        """Detections, numbered, codes decoded and rejected, blobs rejected per reason."""
+        lab = self.numbering.labels
+        c = self.detections.counts()
+        c["numbered"] = int(sum(1 for v in lab if v))
+        c["codes"] = int(sum(1 for v in self.code_label if v))
+        c["code_rejected"] = int(sum(1 for v in self.code_label if v is None))
+        c["unnumbered"] = c["accepted"] - c["numbered"] - c["code_rejected"]
+        return c
+
+
+@dataclass
+class Measurement:
+    """The result of :func:`measure_images`."""
+
+    field: TargetField
+    images: list[ImageResult] = field(default_factory=list)
+
+    def table(self) -> list[tuple[str, str, float, float, float]]:
+        """Observations ``(station, point, x, y, sigma)``: numbered targets only."""
+        rows = []
+        for im in self.images:
+            for i, lab in enumerate(im.numbering.labels):
+                if lab:
+                    rows.append((im.name, str(lab), float(im.xy[i, 0]), float(im.xy[i, 1]),
+                                 float(im.sigma[i])))
+        return rows
+
+    def problems(self) -> list[str]:
+        return [p for im in self.images for p in im.numbering.problems]
+
+
+def read_image(path: Path, channel: str = "green") -> np.ndarray:
+    """One channel of an image as uint8 (h, w).
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, is not an image, or a JPEG is truncated
+        (no end-of-image marker).
+    """
+    import cv2
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read this image: {exc.strerror}", file=path,
+                         hint="check the file and its permissions") from None
+    if path.suffix.lower() in (".jpg", ".jpeg") and not data.rstrip(b"\0").endswith(b"\xff\xd9"):
+        raise InputError("truncated JPEG (no end-of-image marker)", file=path,
+                         hint="copy the image again or remove it from the folder")
+    buf = np.frombuffer(data, np.uint8)
+    flag = cv2.IMREAD_GRAYSCALE if channel == "gray" else cv2.IMREAD_COLOR
+    img = cv2.imdecode(buf, flag) if len(buf) else None
+    if img is None:
+        raise InputError("cannot decode this image (damaged or not an image)", file=path,
+                         hint="remove it from the folder or replace it")
+    if img.ndim == 3:
+        img = np.ascontiguousarray(img[:, :, _CHANNEL[channel]])
+    return img
+
+
+def measure_image(gray: np.ndarray, fld: TargetField, name: str = "",
+                  eccentricity_correction: bool = True) -> ImageResult:
+    """Detect, decode, number and correct one image (module doc)."""
+    t0 = time.perf_counter()
+    det = detect_targets(gray, fld.polarity, min_diameter=fld.min_diameter,
+                         max_diameter=fld.max_diameter, min_contrast=fld.min_contrast)
+    t = (255.0 - gray.astype(np.float32)) if fld.polarity == "dark" else gray.astype(np.float32)
+    if len(det):
+        ring, inside, valid = ring_profiles(t, det.xy, det.axes, det.angle,
+                                            det.extra["background"], det.contrast,
+                                            radii=fld.code_radii)
+        code_label, _ = decode_rings(ring, inside, valid, fld.codes)
+    else:
+        code_label = np.zeros(0, dtype=object)
+    ids = [c.id for c in fld.codes]
+    cXY = np.array([fld.code_xyz[c][:2] for c in ids]).reshape(-1, 2)
+    num = number_plane(det.xy, code_label, ids, cXY, fld.grid_ids, fld.grid_xy, fld.spacing,
+                       image=name)
+    xy = det.xy.copy()
+    if eccentricity_correction and fld.diameter > 0 and num.homography is not None:
+        ids_all, XY_all = fld.layout()
+        pos = {k: i for i, k in enumerate(ids_all)}
+        lab = num.labels
+        sel = np.array([bool(v) and v in pos for v in lab], bool)
+        if sel.any():
+            XY = XY_all[[pos[v] for v in lab[sel]]]
+            H = _refit(XY, det.xy[sel], num.homography)
+            xy[sel] -= eccentricity(H, XY, fld.diameter / 2)
+    sigma = np.sqrt(det.sigma ** 2 + fld.sigma_floor ** 2)
+    return ImageResult(name, det, code_label, num, xy + PIXEL_OFFSET, sigma,
+                       time.perf_counter() - t0)
+
+
+def _refit(XY, xy, H0):
+    import cv2
+    if len(XY) >= 4:
+        H, _ = cv2.findHomography(XY.astype(np.float64), xy.astype(np.float64), 0)
+        if H is not None:
+            return H
+    return H0
+
+
+def image_files(folder) -> list[Path]:
+    """The image files of a folder, sorted by name.
+
+    Raises
+    ------
+    InputError
+        Not a folder, or no image in it.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError("not a folder of images", file=folder,
+                         hint="give the folder holding the photographs")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    if not files:
+        raise InputError("no images in the folder", file=folder,
+                         hint=f"image files end with {', '.join(IMAGE_SUFFIXES)}")
+    return files
+
+
+def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bool = True,
+                   progress=None) -> Measurement:
+    """Measure every image of ``folder`` (default: the field's ``images``).
+
+    Raises
+    ------
+    InputError
+        No folder given, empty folder, an unreadable image, or a field that
+        numbers nothing in any image.
+    """
+    folder = folder if folder is not None else fld.images
+    if folder is None:
+        raise InputError("which images?", file=fld.path,
+                         hint="give images = \"folder\" in [field] or --images FOLDER")
+    files = image_files(folder)
+    out = Measurement(fld)
+    size = None
+    for path in files:
+        gray = read_image(path, fld.channel)
+        s = gray.shape
+        if size is None:
+            size = s
+        elif s != size:
+            log.warning("%s: image size %d x %d differs from the first image's", path.name,
+                        s[1], s[0])
+        res = measure_image(gray, fld, path.stem, eccentricity_correction)
+        out.images.append(res)
+        if progress:
+            progress(res)
+    if not out.table():
+        raise InputError(f"the target field numbers no target in any of the {len(files)} "
+                         f"image(s)", file=fld.path,
+                         hint="check polarity, the diameter range in px and the code bits "
+                              "against one image (docs/measure.md)")
+    return out
