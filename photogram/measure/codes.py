@@ -25,8 +25,13 @@ fraction of agreeing samples. A dot is
 * *rejected* (counted, never guessed) otherwise: a partial ring at the
   image border, a neighbouring code's arc, a reflection.
 
-Mis-decoding needs a profile that agrees with a wrong template on 85 % of
-the ring while disagreeing more with the right one.
+The four codes of the sheet differ from each other (at their best
+rotation) in at least 2 of 8 sectors, 90 deg of ring. With ``min_score``
+0.9 and ``margin`` 0.1 a wrong code is accepted only if the profile is
+within 36 deg of it and at least 72 deg away from the right one, i.e.
+after a corruption of 72 deg or more of the ring; smaller corruptions
+(blur, ink spread, noise, a partly hidden ring) decode right or are
+rejected (tests/test_measure_field.py).
 """
 
 from __future__ import annotations
@@ -96,7 +101,7 @@ def ring_profiles(t: np.ndarray, xy: np.ndarray, axes: np.ndarray, angle: np.nda
 
 
 def decode_rings(ring: np.ndarray, inside_ink: np.ndarray, valid: np.ndarray,
-                 codes: list[RingCode], *, min_score: float = 0.85, margin: float = 0.08,
+                 codes: list[RingCode], *, min_score: float = 0.9, margin: float = 0.1,
                  plain_ink: float = 0.03):
     """Decode ring profiles (module doc).
 

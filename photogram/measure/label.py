@@ -15,9 +15,13 @@ step by step (the gate stays small compared with half the spacing, which
 is what keeps a dot from being given its neighbour's number).
 
 **Consistency.** Codes that disagree with the layout are caught: a code
-id decoded twice in one image is dropped (both), and after the numbering
-each code's residual from the homography of the grid dots must be within
-the gate; a code that is not is reported and loses its label.
+id decoded twice in one image is dropped (both, a *problem*); the
+homography of the codes must keep the sheet's handedness (a sheet is seen
+from its front: plane X right / Y up maps to image x right / y down with a
+negative Jacobian determinant; two codes swapped on the sheet or in the
+description give a mirrored mapping, a *conflict*); and after the numbering
+each code's residual from the homography of the grid dots alone must be
+within the gate (otherwise a *conflict*). Conflicts stop the command.
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ class Numbering:
     homography: np.ndarray | None      # plane (X, Y) -> image px
     problems: list[str] = field(default_factory=list)
     iterations: int = 0
+    conflicts: list[str] = field(default_factory=list)
 
 
 def _predict(H, XY):
@@ -105,11 +110,20 @@ def number_plane(xy: np.ndarray, code_label: np.ndarray, code_ids: list[str],
     cidx = np.array([np.nonzero(labels == c)[0][0] for c in have])
     cXY = code_XY[[code_pos[c] for c in have]]
     H = _fit(cXY, xy[cidx])
+    conflicts = []
+    if H is not None:
+        m = cXY.mean(axis=0)
+        J = np.column_stack([(_predict(H, [m + [1e-3 * spacing, 0]]) - _predict(H, [m]))[0],
+                             (_predict(H, [m + [0, 1e-3 * spacing]]) - _predict(H, [m]))[0]])
+        if np.linalg.det(J) > 0:
+            conflicts.append(f"{image}: the codes {', '.join(have)} are seen mirrored: they "
+                             f"disagree with the layout of the target field")
+            return Numbering(labels, None, problems, 0, conflicts)
     if H is None or len(grid_XY) == 0:
-        return Numbering(labels, H, problems)
+        return Numbering(labels, H, problems, 0, conflicts)
     plain = np.nonzero(code_label == "")[0]
     if len(plain) == 0:
-        return Numbering(labels, H, problems)
+        return Numbering(labels, H, problems, 0, conflicts)
     tree = cKDTree(xy[plain])
     assign = np.full(len(grid_XY), -1)
     it = 0
@@ -152,7 +166,8 @@ def number_plane(xy: np.ndarray, code_label: np.ndarray, code_ids: list[str],
             local = np.linalg.norm(Px - P, axis=1)
             bad = np.linalg.norm(P - xy[cidx], axis=1) > gate * local
             for k in np.nonzero(bad)[0]:
-                problems.append(f"{image}: code {have[k]} is {np.linalg.norm(P[k] - xy[cidx[k]]):.1f}"
-                                f" px from where the grid puts it; its label is dropped")
+                conflicts.append(f"{image}: code {have[k]} is "
+                                 f"{np.linalg.norm(P[k] - xy[cidx[k]]):.1f} px from where the "
+                                 f"grid puts it: it disagrees with the layout")
                 labels[cidx[k]] = ""
-    return Numbering(labels, H, problems, it)
+    return Numbering(labels, H, problems, it, conflicts)

@@ -4,7 +4,9 @@ Per image: read (bad or truncated files are an :class:`InputError` naming
 the file), take the field's channel, detect and measure the circular
 targets (:mod:`photogram.measure.detect`), decode the ring codes
 (:mod:`photogram.measure.codes`), number the uncoded targets from the codes
-(:mod:`photogram.measure.label`), optionally correct the eccentricity of
+(:mod:`photogram.measure.label`), measure the targets the layout predicts
+but the detector missed (:mod:`photogram.measure.guided`), optionally
+correct the eccentricity of
 the projected circle centre (:mod:`photogram.measure.eccentricity`, with
 the image's plane homography and the field's target diameter).
 
@@ -30,6 +32,7 @@ from photogram.measure.codes import decode_rings, ring_profiles
 from photogram.measure.detect import Detections, detect_targets
 from photogram.measure.eccentricity import eccentricity
 from photogram.measure.field import TargetField
+from photogram.measure.guided import guided_measure
 from photogram.measure.label import Numbering, number_plane
 
 __all__ = ["ImageResult", "Measurement", "read_image", "measure_image", "measure_images",
@@ -117,7 +120,7 @@ def read_image(path: Path, channel: str = "green") -> np.ndarray:
 
 
 def measure_image(gray: np.ndarray, fld: TargetField, name: str = "",
-                  eccentricity_correction: bool = True) -> ImageResult:
+                  eccentricity_correction: bool = True, guided: bool = True) -> ImageResult:
     """Detect, decode, number and correct one image (module doc)."""
     t0 = time.perf_counter()
     det = detect_targets(gray, fld.polarity, min_diameter=fld.min_diameter,
@@ -134,6 +137,9 @@ def measure_image(gray: np.ndarray, fld: TargetField, name: str = "",
     cXY = np.array([fld.code_xyz[c][:2] for c in ids]).reshape(-1, 2)
     num = number_plane(det.xy, code_label, ids, cXY, fld.grid_ids, fld.grid_xy, fld.spacing,
                        image=name)
+    if guided and num.homography is not None and not num.conflicts and fld.diameter > 0:
+        det, num.labels, code_label, num.homography = guided_measure(
+            t, det, num.labels, code_label, num.homography, fld)
     xy = det.xy.copy()
     if eccentricity_correction and fld.diameter > 0 and num.homography is not None:
         ids_all, XY_all = fld.layout()
@@ -184,8 +190,9 @@ def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bo
     Raises
     ------
     InputError
-        No folder given, empty folder, an unreadable image, or a field that
-        numbers nothing in any image.
+        No folder given, empty folder, an unreadable image, codes that
+        disagree with the layout in an image, or a field that numbers
+        nothing in any image.
     """
     folder = folder if folder is not None else fld.images
     if folder is None:
@@ -203,6 +210,10 @@ def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bo
             log.warning("%s: image size %d x %d differs from the first image's", path.name,
                         s[1], s[0])
         res = measure_image(gray, fld, path.stem, eccentricity_correction)
+        if res.numbering.conflicts:
+            raise InputError(res.numbering.conflicts[0], file=path,
+                             hint="check the code bits and coordinates of the target-field "
+                                  "description against the sheet")
         out.images.append(res)
         if progress:
             progress(res)

@@ -25,7 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PlaneCamera", "draw_sheet", "render_plane", "look_at", "Scene", "grid_scene"]
+__all__ = ["PlaneCamera", "draw_sheet", "render_plane", "look_at", "Scene", "grid_scene",
+           "ring_code_shapes", "field_scene"]
 
 
 @dataclass
@@ -209,3 +210,62 @@ def grid_scene(*, cols: int = 9, rows: int = 7, spacing: float = 0.1, radius: fl
     d = np.linalg.norm(cam.project(XY + [radius, 0]) - cam.project(XY - [radius, 0]), axis=1)
     d2 = np.linalg.norm(cam.project(XY + [0, radius]) - cam.project(XY - [0, radius]), axis=1)
     return Scene(img, truth, ec, np.maximum(d, d2), XY, cam, radius)
+
+
+def ring_code_shapes(codes, radius: float, ring=(2.5, 4.3)):
+    """A ``shapes`` callback for :func:`draw_sheet` drawing ring codes.
+
+    ``codes`` is a list of (X, Y, bits, rotation_deg): inked sectors of a
+    ring from ``ring[0]`` to ``ring[1]`` dot radii, clockwise on the sheet
+    seen from the front, the first sector starting at ``rotation_deg``."""
+    import cv2
+
+    def draw(img, to_texel, ink, texel):
+        paper = int(img[0, 0])
+        sh = 16
+        for X, Y, bits, rot in codes:
+            u, v = to_texel(X, Y)
+            cu, cv = int(round(u * sh)), int(round(v * sh))
+            ro, ri = (int(round(ring[k] * radius / texel * sh)) for k in (1, 0))
+            step = 360.0 / len(bits)
+            for k, b in enumerate(bits):
+                if b == "1":
+                    cv2.ellipse(img, (cu, cv), (ro, ro), 0, rot + k * step, rot + (k + 1) * step,
+                                ink, -1, cv2.LINE_AA, 4)
+            cv2.circle(img, (cu, cv), ri, paper, -1, cv2.LINE_AA, 4)
+            cv2.circle(img, (cu, cv), int(round(radius / texel * sh)), ink, -1, cv2.LINE_AA, 4)
+    return draw
+
+
+def field_scene(fld, *, eye=(0.5, -1.2, 1.9), target=(0.5, 0.5, 0.0), f: float = 700.0,
+                size=(800, 600), k1: float = -0.05, blur: float = 0.7, noise: float = 2.0,
+                jpeg: int = 90, gradient: float = 0.3, ss: int = 3, seed: int = 1,
+                texel: float | None = None, code_rotation: float = 0.0, swap=None):
+    """A rendered planar target field described by a :class:`TargetField`
+    (grid dots and ring codes, diameter ``fld.diameter``).
+
+    ``swap`` = (id_a, id_b) draws two codes at each other's place (a sheet
+    that disagrees with its description). Returns (image, truth dict id ->
+    (x, y) in the OpenCV frame, camera)."""
+    ids, XY = fld.layout()
+    r = fld.diameter / 2
+    texel = texel or r / 12
+    codes = []
+    bits = {c.id: c.bits for c in fld.codes}
+    for c in fld.codes:
+        cid = c.id
+        if swap and cid in swap:
+            cid = swap[1] if cid == swap[0] else swap[0]
+        X, Y = fld.code_xyz[c.id][:2]
+        codes.append((X, Y, bits[cid], code_rotation))
+    grid = np.column_stack([fld.grid_xy, np.full(len(fld.grid_xy), r)])
+    m = 0.3
+    extent = (XY[:, 0].min() - m, XY[:, 1].min() - m, XY[:, 0].max() + m, XY[:, 1].max() + m)
+    tex, org = draw_sheet(extent, texel, grid, fld.polarity, ring_code_shapes(codes, r))
+    R, t = look_at(eye, target, up=(0, 1, 0))
+    K = np.array([[f, 0, size[0] / 2 - 0.5], [0, f, size[1] / 2 - 0.5], [0, 0, 1]])
+    cam = PlaneCamera(K, R, t, tuple(size), k1=k1)
+    img = render_plane(tex, org, texel, cam, ss=ss, blur=blur, noise=noise, jpeg=jpeg,
+                       gradient=gradient, seed=seed)
+    truth = dict(zip(ids, cam.project(XY)))
+    return img, truth, cam
