@@ -148,6 +148,8 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
                          help="replace the results of an earlier run in the output folder")
         sub.add_argument("--no-eccentricity", action="store_true",
                          help="write the ellipse centres without the eccentricity correction")
+        sub.add_argument("--no-report", action="store_true",
+                         help="no drawings (images/*.png) and no report.pdf")
 
 
 def build_parser() -> argparse.ArgumentParser:

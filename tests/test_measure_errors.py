@@ -159,3 +159,21 @@ def test_gross_detections_are_rejected_and_counted():
     assert counts["border"] >= 1
     assert counts["shape"] + counts["roundness"] + counts["fit"] >= 4
     assert len(det.rejected_xy) == sum(v for k, v in counts.items() if k != "accepted")
+
+
+def test_report_drawings_and_pdf(tmp_path, folder, capsys):
+    out = tmp_path / "out"
+    code, err = _run(capsys, [_field_file(tmp_path, folder), "--output", out])
+    assert code == 0, err
+    pngs = sorted(p.name for p in (out / "images").iterdir())
+    assert pngs == ["img0.png", "img1.png"]
+    img = cv2.imread(str(out / "images" / "img0.png"))
+    assert img is not None and max(img.shape[:2]) <= 1200
+    # green rings were drawn (numbered targets)
+    assert ((img[:, :, 1] > 150) & (img[:, :, 0] < 100) & (img[:, :, 2] < 100)).sum() > 100
+    pdf = (out / "report.pdf").read_bytes()
+    assert pdf.startswith(b"%PDF") and pdf.count(b"/Type /Page\n") + pdf.count(b"/Type /Page ") \
+        + pdf.count(b"/Type/Page") >= 1
+    det = (out / "detections.csv").read_text().splitlines()
+    assert det[0].startswith("image,status,label,code,x,y,diameter")
+    assert any(",numbered,D" in ln for ln in det)

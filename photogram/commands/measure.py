@@ -11,7 +11,10 @@ the output folder (default ``results-measure/`` beside the field file, or
 * ``detections.csv`` — every accepted target with its quality measures
   (diameter, roundness, contrast, fit residual, sigma), its code and label,
   and every rejected blob with the reason;
-* ``summary.json`` — counts per image and per target, timings, problems.
+* ``summary.json`` — counts per image and per target, timings, problems;
+* ``images/NAME.png`` — each image downsampled with its detections, labels
+  and rejections drawn, and ``report.pdf`` (a summary page and a page per
+  image), unless ``--no-report`` (:mod:`photogram.measure.report`).
 
 Each file is written atomically and ``summary.json`` last; an output
 folder that holds an earlier run is not replaced without ``--force``.
@@ -27,7 +30,8 @@ from pathlib import Path
 from photogram.errors import InputError
 from photogram.measure.field import read_field
 from photogram.measure.pipeline import PIXEL_OFFSET, image_files, measure_images
-from photogram.project.atomic import atomic_write_text
+from photogram.measure.report import draw_image, png_bytes, report_pdf
+from photogram.project.atomic import atomic_write_bytes, atomic_write_text
 from photogram.project.output_policy import claim_output
 
 __all__ = ["run", "measure_to_folder", "observations_csv", "detections_csv"]
@@ -85,7 +89,7 @@ def _summary(measurement, seconds: float) -> dict:
 
 
 def measure_to_folder(field_path, output=None, *, images=None, force: bool = False,
-                      eccentricity_correction: bool = True):
+                      eccentricity_correction: bool = True, report: bool = True):
     """Measure and write the output folder (module doc); returns (folder, measurement)."""
     fld = read_field(field_path)
     folder = Path(output) if output is not None else fld.path.parent / "results-measure"
@@ -93,7 +97,14 @@ def measure_to_folder(field_path, output=None, *, images=None, force: bool = Fal
     inputs = [fld.path] + (image_files(src) if src is not None and Path(src).is_dir() else [])
     claim_output(folder, command="measure", inputs=inputs, force=force)
     t0 = time.perf_counter()
-    result = measure_images(fld, src, eccentricity_correction=eccentricity_correction)
+    drawings = {}
+
+    def draw(res, gray):
+        if report:
+            drawings[res.name] = draw_image(gray, res)
+
+    result = measure_images(fld, src, eccentricity_correction=eccentricity_correction,
+                            progress=draw)
     seconds = time.perf_counter() - t0
     texts = {"image_points.csv": observations_csv(result),
              "detections.csv": detections_csv(result)}
@@ -105,6 +116,11 @@ def measure_to_folder(field_path, output=None, *, images=None, force: bool = Fal
                          hint="choose another folder with --output") from None
     for name, text in texts.items():
         atomic_write_text(folder / name, text)
+    if report:
+        (folder / "images").mkdir(exist_ok=True)
+        for name, img in drawings.items():
+            atomic_write_bytes(folder / "images" / f"{name}.png", png_bytes(img))
+        atomic_write_bytes(folder / "report.pdf", report_pdf(result, drawings))
     atomic_write_text(folder / "summary.json", summary)
     return folder, result
 
@@ -117,7 +133,8 @@ def run(args) -> int:
                               "projects/camcal/sheet.toml")
     folder, result = measure_to_folder(args.field, args.output, images=args.images,
                                        force=args.force,
-                                       eccentricity_correction=not args.no_eccentricity)
+                                       eccentricity_correction=not args.no_eccentricity,
+                                       report=not args.no_report)
     for p in result.problems():
         log.warning("%s", p)
     n = len(result.table())

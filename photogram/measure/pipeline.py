@@ -187,6 +187,8 @@ def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bo
                    progress=None) -> Measurement:
     """Measure every image of ``folder`` (default: the field's ``images``).
 
+    ``progress(result, gray)`` is called after each image (e.g. to draw it).
+
     Raises
     ------
     InputError
@@ -216,7 +218,7 @@ def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bo
                                   "description against the sheet")
         out.images.append(res)
         if progress:
-            progress(res)
+            progress(res, gray)
     if not out.table():
         raise InputError(f"the target field numbers no target in any of the {len(files)} "
                          f"image(s)", file=fld.path,
