@@ -35,7 +35,7 @@ import numpy as np
 __all__ = ["Detections", "detect_targets", "target_bright", "REASONS"]
 
 #: reasons of rejection, in the order the tests are applied
-REASONS = ("size", "border", "shape", "roundness", "edge", "fit", "contrast")
+REASONS = ("size", "border", "shape", "roundness", "edge", "fit", "contrast", "marker")
 
 
 @dataclass

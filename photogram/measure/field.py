@@ -73,13 +73,26 @@ class TargetField:
     grid_ids: list[str] = field(default_factory=list)
     grid_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     spacing: float = 0.0
+    aruco_dictionary: str | None = None
+    aruco_sigma: float = 0.05
+    markers: dict[int, str] = field(default_factory=dict)        # marker id -> point id
+    marker_xyz: dict[str, np.ndarray] = field(default_factory=dict)
 
-    def layout(self) -> tuple[list[str], np.ndarray]:
-        """Ids and (X, Y) of every target of the plane: codes first, then the grid."""
-        ids = [c.id for c in self.codes] + list(self.grid_ids)
-        xy = np.vstack([np.array([self.code_xyz[c.id][:2] for c in self.codes]).reshape(-1, 2),
-                        self.grid_xy])
-        return ids, xy
+    def coded(self) -> tuple[list[str], np.ndarray]:
+        """Ids and (X, Y) of the coded targets: ring codes, then ArUco markers."""
+        ids = [c.id for c in self.codes] + list(self.markers.values())
+        xyz = [self.code_xyz[c.id] for c in self.codes] + \
+            [self.marker_xyz[p] for p in self.markers.values()]
+        return ids, np.array([v[:2] for v in xyz], float).reshape(-1, 2)
+
+    def layout(self, markers: bool = True) -> tuple[list[str], np.ndarray]:
+        """Ids and (X, Y) of every target of the plane: ring codes, ArUco
+        markers (unless ``markers=False``), then the grid."""
+        ids = [c.id for c in self.codes] + (list(self.markers.values()) if markers else [])
+        xyz = [self.code_xyz[c.id] for c in self.codes] + \
+            ([self.marker_xyz[p] for p in self.markers.values()] if markers else [])
+        xy = np.vstack([np.array([v[:2] for v in xyz], float).reshape(-1, 2), self.grid_xy])
+        return ids + list(self.grid_ids), xy
 
 
 def _line(text: str, key: str) -> int | None:
@@ -113,10 +126,10 @@ def read_field(path) -> TargetField:
     def err(what, key, hint):
         return InputError(what, file=path, line=_line(text, key), hint=hint)
 
-    unknown = set(doc) - {"field", "codes", "grid"}
+    unknown = set(doc) - {"field", "codes", "grid", "aruco"}
     if unknown:
         k = sorted(unknown)[0]
-        raise err(f"unknown section [{k}]", f"[{k}", "allowed: [field], [codes], [grid]")
+        raise err(f"unknown section [{k}]", f"[{k}", "allowed: [field], [codes], [aruco], [grid]")
     f = doc.get("field", {})
     bad = set(f) - _FIELD_KEYS
     if bad:
@@ -164,6 +177,7 @@ def read_field(path) -> TargetField:
                           "approximate object coordinates of the code")
             out.codes.append(RingCode(cid, bits))
             out.code_xyz[cid] = np.array(xyz, float)
+    _read_aruco(doc.get("aruco"), out, err)
     g = doc.get("grid")
     if g:
         try:
@@ -179,7 +193,8 @@ def read_field(path) -> TargetField:
         fmt = str(g.get("id", "D{row}{col}"))
         r, c = np.mgrid[0:rows, 0:cols]
         xy = origin + spacing * np.column_stack([c.ravel(), r.ravel()])
-        code_xy = np.array([v[:2] for v in out.code_xyz.values()]).reshape(-1, 2)
+        code_xy = np.array([v[:2] for v in list(out.code_xyz.values())
+                            + list(out.marker_xyz.values())]).reshape(-1, 2)
         keep = np.ones(len(xy), bool)
         if len(code_xy):
             d = np.linalg.norm(xy[:, None] - code_xy[None], axis=2).min(axis=1)
@@ -190,13 +205,48 @@ def read_field(path) -> TargetField:
             raise err(f"[grid] id format {fmt!r}: {exc}", "id", 'e.g. id = "D{row}{col}"') \
                 from None
         ids = [i for i, k in zip(ids, keep) if k]
-        if len(set(ids)) != len(ids) or set(ids) & set(out.code_xyz):
+        if len(set(ids)) != len(ids) or set(ids) & (set(out.code_xyz) | set(out.marker_xyz)):
             raise err(f"[grid] id format {fmt!r} gives duplicate ids", "id",
                       'include row and column, e.g. "D{row:02d}{col:02d}"')
         out.grid_ids = ids
         out.grid_xy = xy[keep]
         out.spacing = spacing
-    if not out.codes:
+    if not out.codes and not out.markers:
         raise err("the field has no coded targets", "[codes",
-                  "numbering needs coded targets ([[codes.target]])")
+                  "numbering needs coded targets ([[codes.target]] or [[aruco.marker]])")
     return out
+
+
+def _read_aruco(a, out: TargetField, err) -> None:
+    """The [aruco] section (photogram.measure.aruco)."""
+    if not a:
+        return
+    import cv2
+    bad = set(a) - {"dictionary", "sigma", "marker"}
+    if bad:
+        k = sorted(bad)[0]
+        raise err(f"unknown key {k!r} in [aruco]", k, "allowed: dictionary, sigma, marker")
+    name = str(a.get("dictionary", "DICT_4X4_50"))
+    if not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
+        raise err(f"unknown ArUco dictionary {name!r}", "dictionary",
+                  "e.g. DICT_4X4_50, DICT_5X5_100, DICT_6X6_250, DICT_APRILTAG_36h11")
+    out.aruco_dictionary = name
+    sigma = a.get("sigma", 0.05)
+    if isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or not sigma > 0:
+        raise err(f"[aruco] sigma = {sigma!r}", "sigma", "a positive number of pixels")
+    out.aruco_sigma = float(sigma)
+    for m in a.get("marker", []):
+        mid = m.get("id")
+        if isinstance(mid, bool) or not isinstance(mid, int) or mid < 0 or mid in out.markers:
+            raise err(f"[[aruco.marker]] id {mid!r}: a new integer >= 0", "id",
+                      "the marker's id in its dictionary")
+        point = str(m.get("point", f"M{mid}"))
+        xyz = m.get("xyz")
+        if not isinstance(xyz, list) or len(xyz) != 3:
+            raise err(f"marker {mid}: xyz must be [X, Y, Z]", "xyz",
+                      "object coordinates of the marker's centre")
+        if point in out.code_xyz or point in out.marker_xyz:
+            raise err(f"marker {mid}: point id {point!r} is used twice", "point",
+                      "give every marker its own point id")
+        out.markers[mid] = point
+        out.marker_xyz[point] = np.array(xyz, float)

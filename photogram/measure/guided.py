@@ -63,6 +63,8 @@ def _append(det: Detections, fit: dict, idx: np.ndarray) -> Detections:
     extra["background"] = cat([det.extra["background"], fit["background"][idx]])
     extra["guided"] = cat([det.extra.get("guided", np.zeros(len(det), bool)),
                            np.ones(len(idx), bool)])
+    if "marker" in extra:
+        extra["marker"] = cat([extra["marker"], np.zeros(len(idx), bool)])
     return Detections(cat([det.xy, fit["xy"][idx]]),
                       cat([det.xy_centroid, np.full((len(idx), 2), np.nan)]),
                       cat([det.axes, fit["axes"][idx]]), cat([det.angle, fit["angle"][idx]]),
@@ -91,8 +93,9 @@ def guided_measure(t: np.ndarray, det: Detections, labels: np.ndarray, code_labe
         homography fitted to all numbered targets
     """
     import cv2
-    ids, XY = fld.layout()
-    pos = {k: i for i, k in enumerate(ids)}
+    ids, XY = fld.layout(markers=False)          # circles only: markers are not guided
+    all_ids, all_XY = fld.layout()
+    pos = {k: i for i, k in enumerate(all_ids)}
     code_ids = {c.id for c in fld.codes}
     h, w = t.shape
     r = fld.diameter / 2
@@ -144,7 +147,7 @@ def guided_measure(t: np.ndarray, det: Detections, labels: np.ndarray, code_labe
         labels = np.concatenate([labels, np.array([ids[miss[sel[i]]] for i in idx], object)])
         code_label = np.concatenate([code_label, new_codes[idx]])
         num = np.array([bool(v) and v in pos for v in labels])
-        P = XY[[pos[v] for v in labels[num]]]
+        P = all_XY[[pos[v] for v in labels[num]]]
         H2, _ = cv2.findHomography(P.astype(np.float64), det.xy[num].astype(np.float64), 0)
         if H2 is not None:
             H = H2

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
+from photogram.measure.aruco import detect_markers, inside_quads
 from photogram.measure.codes import decode_rings, ring_profiles
 from photogram.measure.detect import Detections, detect_targets
 from photogram.measure.eccentricity import eccentricity
@@ -126,21 +127,30 @@ def measure_image(gray: np.ndarray, fld: TargetField, name: str = "",
     det = detect_targets(gray, fld.polarity, min_diameter=fld.min_diameter,
                          max_diameter=fld.max_diameter, min_contrast=fld.min_contrast)
     t = (255.0 - gray.astype(np.float32)) if fld.polarity == "dark" else gray.astype(np.float32)
-    if len(det):
+    marker_problems = []
+    if fld.aruco_dictionary:
+        det, m_xy, m_quads, m_points, marker_problems = _markers(gray, det, fld, name)
+    if len(det) and fld.codes:
         ring, inside, valid = ring_profiles(t, det.xy, det.axes, det.angle,
                                             det.extra["background"], det.contrast,
                                             radii=fld.code_radii)
         code_label, _ = decode_rings(ring, inside, valid, fld.codes)
     else:
-        code_label = np.zeros(0, dtype=object)
-    ids = [c.id for c in fld.codes]
-    cXY = np.array([fld.code_xyz[c][:2] for c in ids]).reshape(-1, 2)
+        code_label = np.full(len(det), "", dtype=object)
+    if fld.aruco_dictionary and len(m_points):
+        det = _append_markers(det, m_xy, m_quads, fld.aruco_sigma)
+        code_label = np.concatenate([code_label, np.array(m_points, object)])
+    ids, cXY = fld.coded()
     num = number_plane(det.xy, code_label, ids, cXY, fld.grid_ids, fld.grid_xy, fld.spacing,
                        image=name)
+    num.problems[:0] = marker_problems
     if guided and num.homography is not None and not num.conflicts and fld.diameter > 0:
         det, num.labels, code_label, num.homography = guided_measure(
             t, det, num.labels, code_label, num.homography, fld)
     xy = det.xy.copy()
+    is_marker = det.extra.get("marker", np.zeros(len(det), bool))
+    if len(is_marker) < len(det):
+        is_marker = np.concatenate([is_marker, np.zeros(len(det) - len(is_marker), bool)])
     if eccentricity_correction and fld.diameter > 0 and num.homography is not None:
         ids_all, XY_all = fld.layout()
         pos = {k: i for i, k in enumerate(ids_all)}
@@ -149,10 +159,54 @@ def measure_image(gray: np.ndarray, fld: TargetField, name: str = "",
         if sel.any():
             XY = XY_all[[pos[v] for v in lab[sel]]]
             H = _refit(XY, det.xy[sel], num.homography)
-            xy[sel] -= eccentricity(H, XY, fld.diameter / 2)
+            circ = sel & ~is_marker
+            xy[circ] -= eccentricity(H, XY_all[[pos[v] for v in lab[circ]]], fld.diameter / 2)
     sigma = np.sqrt(det.sigma ** 2 + fld.sigma_floor ** 2)
     return ImageResult(name, det, code_label, num, xy + PIXEL_OFFSET, sigma,
                        time.perf_counter() - t0)
+
+
+def _markers(gray, det, fld, name):
+    """ArUco markers of the field in an image; circle detections on them rejected."""
+    m_ids, quads, centres = detect_markers(gray, fld.aruco_dictionary)
+    problems = []
+    keep = []
+    for k, mid in enumerate(m_ids):
+        if mid not in fld.markers:
+            continue
+        if np.sum(m_ids == mid) > 1:
+            problems.append(f"{name}: ArUco marker {mid} seen {int(np.sum(m_ids == mid))} "
+                            f"times; none of them used")
+            continue
+        keep.append(k)
+    on = inside_quads(det.xy, quads) if len(quads) else np.zeros(len(det), bool)
+    if on.any():
+        d = det.subset(~on)
+        d.rejected_xy = np.vstack([det.rejected_xy.reshape(-1, 2), det.xy[on]])
+        d.rejected_reason = np.concatenate([det.rejected_reason,
+                                            np.full(int(on.sum()), "marker")])
+        d.extra["background"] = det.extra["background"][~on]
+        det = d
+    keep = np.array(keep, int)
+    return (det, centres[keep], quads[keep], [fld.markers[int(m)] for m in m_ids[keep]],
+            problems)
+
+
+def _append_markers(det, xy, quads, sigma):
+    cat = np.concatenate
+    n = len(xy)
+    side = np.linalg.norm(quads - np.roll(quads, 1, axis=1), axis=2).mean(axis=1)
+    extra = dict(det.extra)
+    extra["background"] = cat([det.extra["background"], np.full(n, np.nan)])
+    extra["marker"] = cat([det.extra.get("marker", np.zeros(len(det), bool)), np.ones(n, bool)])
+    if "guided" in extra:
+        extra["guided"] = cat([extra["guided"], np.zeros(n, bool)])
+    return Detections(cat([det.xy, xy]), cat([det.xy_centroid, np.full((n, 2), np.nan)]),
+                      cat([det.axes, np.column_stack([side / 2, side / 2])]),
+                      cat([det.angle, np.zeros(n)]), cat([det.contrast, np.full(n, np.nan)]),
+                      cat([det.residual, np.zeros(n)]), cat([det.sigma, np.full(n, sigma)]),
+                      cat([det.n_edge, np.full(n, 4)]), det.rejected_xy, det.rejected_reason,
+                      det.image_size, extra)
 
 
 def _refit(XY, xy, H0):

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["PlaneCamera", "draw_sheet", "render_plane", "look_at", "Scene", "grid_scene",
-           "ring_code_shapes", "field_scene"]
+           "ring_code_shapes", "field_scene", "aruco_shapes"]
 
 
 @dataclass
@@ -269,3 +269,27 @@ def field_scene(fld, *, eye=(0.5, -1.2, 1.9), target=(0.5, 0.5, 0.0), f: float =
                        gradient=gradient, seed=seed)
     truth = dict(zip(ids, cam.project(XY)))
     return img, truth, cam
+
+
+def aruco_shapes(markers, side: float, dictionary: str = "DICT_4X4_50"):
+    """A ``shapes`` callback drawing ArUco markers (id, X, Y) of side ``side``
+    (object units) centred at (X, Y), upright on the sheet seen from the front.
+    The centres actually drawn (snapped to the texel grid) are stored in the
+    callback's ``centres`` dict (id -> (X, Y)) for the truth."""
+    import cv2
+    dic = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
+
+    def draw(img, to_texel, ink, texel):
+        paper = int(img[0, 0])
+        S = int(round(side / texel))
+        for mid, X, Y in markers:
+            m = cv2.aruco.generateImageMarker(dic, int(mid), S)
+            m = np.where(m > 127, paper, ink).astype(np.uint8)
+            u, v = to_texel(X, Y)
+            u0, v0 = int(round(u - (S - 1) / 2)), int(round(v - (S - 1) / 2))
+            img[v0:v0 + S, u0:u0 + S] = m
+            uc, vc = u0 + (S - 1) / 2, v0 + (S - 1) / 2
+            draw.centres[mid] = (X + (uc - u) * texel, Y - (vc - v) * texel)
+
+    draw.centres = {}
+    return draw
