@@ -77,6 +77,20 @@ class TargetField:
     aruco_sigma: float = 0.05
     markers: dict[int, str] = field(default_factory=dict)        # marker id -> point id
     marker_xyz: dict[str, np.ndarray] = field(default_factory=dict)
+    target_ids: list[str] = field(default_factory=list)          # 3D field: uncoded targets
+    target_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    @property
+    def spatial(self) -> bool:
+        """A 3D field (numbered by DLT from the codes) rather than a plane."""
+        return bool(self.target_ids)
+
+    def coded3(self) -> tuple[list[str], np.ndarray]:
+        """Ids and (X, Y, Z) of the coded targets: ring codes, then ArUco markers."""
+        ids = [c.id for c in self.codes] + list(self.markers.values())
+        xyz = [self.code_xyz[c.id] for c in self.codes] + \
+            [self.marker_xyz[p] for p in self.markers.values()]
+        return ids, np.array(xyz, float).reshape(-1, 3)
 
     def coded(self) -> tuple[list[str], np.ndarray]:
         """Ids and (X, Y) of the coded targets: ring codes, then ArUco markers."""
@@ -126,10 +140,11 @@ def read_field(path) -> TargetField:
     def err(what, key, hint):
         return InputError(what, file=path, line=_line(text, key), hint=hint)
 
-    unknown = set(doc) - {"field", "codes", "grid", "aruco"}
+    unknown = set(doc) - {"field", "codes", "grid", "aruco", "targets"}
     if unknown:
         k = sorted(unknown)[0]
-        raise err(f"unknown section [{k}]", f"[{k}", "allowed: [field], [codes], [aruco], [grid]")
+        raise err(f"unknown section [{k}]", f"[{k}",
+                  "allowed: [field], [codes], [aruco], [grid], [targets]")
     f = doc.get("field", {})
     bad = set(f) - _FIELD_KEYS
     if bad:
@@ -211,10 +226,59 @@ def read_field(path) -> TargetField:
         out.grid_ids = ids
         out.grid_xy = xy[keep]
         out.spacing = spacing
+    if "targets" in doc:
+        if g:
+            raise err("[grid] and [targets] together", "[targets",
+                      "a plane's grid or a 3D field's table of targets, not both")
+        _read_targets(doc["targets"], out, err)
     if not out.codes and not out.markers:
         raise err("the field has no coded targets", "[codes",
                   "numbering needs coded targets ([[codes.target]] or [[aruco.marker]])")
     return out
+
+
+def _read_targets(t, out: TargetField, err) -> None:
+    """[targets] file = "points.csv": the uncoded targets of a 3D field
+    (columns id, X, Y, Z; others, e.g. a project's kind or sigmas, ignored;
+    rows without coordinates skipped)."""
+    import csv
+    bad = set(t) - {"file"}
+    if bad or "file" not in t:
+        raise err("[targets] takes one key, file", "[targets",
+                  'e.g. file = "points.csv" with columns id, X, Y, Z')
+    path = out.path.parent / str(t["file"])
+    try:
+        lines = [ln for ln in path.read_text(encoding="utf-8-sig").splitlines()
+                 if ln.strip() and not ln.lstrip().startswith("#")]
+    except OSError as exc:
+        raise InputError(f"cannot read the targets table: {exc.strerror}", file=path,
+                         hint="[targets] file is relative to the field description") from None
+    rows = list(csv.reader(lines))
+    head = [h.strip() for h in rows[0]] if rows else []
+    if not {"id", "X", "Y", "Z"} <= set(head):
+        raise InputError(f"the targets table needs columns id, X, Y, Z (has {head})",
+                         file=path, line=1, hint="a header line id,X,Y,Z")
+    k = [head.index(c) for c in ("id", "X", "Y", "Z")]
+    ids, xyz = [], []
+    known = set(out.code_xyz) | set(out.marker_xyz)
+    for n, r in enumerate(rows[1:], 2):
+        cells = [r[i].strip() if i < len(r) else "" for i in k]
+        if not all(cells[1:]):
+            continue
+        try:
+            v = [float(c) for c in cells[1:]]
+        except ValueError:
+            raise InputError(f"coordinates of {cells[0]} are not numbers", file=path, line=n,
+                             hint="X, Y, Z as numbers") from None
+        if cells[0] in known or cells[0] in ids:
+            continue                          # a coded target's own row, or a duplicate
+        ids.append(cells[0])
+        xyz.append(v)
+    if not ids:
+        raise InputError("the targets table has no target with coordinates", file=path,
+                         hint="rows id,X,Y,Z")
+    out.target_ids = ids
+    out.target_xyz = np.array(xyz, float)
 
 
 def _read_aruco(a, out: TargetField, err) -> None:

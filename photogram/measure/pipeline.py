@@ -35,6 +35,7 @@ from photogram.measure.eccentricity import eccentricity
 from photogram.measure.field import TargetField
 from photogram.measure.guided import guided_measure
 from photogram.measure.label import Numbering, number_plane
+from photogram.measure.space import number_space
 
 __all__ = ["ImageResult", "Measurement", "read_image", "measure_image", "measure_images",
            "IMAGE_SUFFIXES", "PIXEL_OFFSET"]
@@ -140,9 +141,15 @@ def measure_image(gray: np.ndarray, fld: TargetField, name: str = "",
     if fld.aruco_dictionary and len(m_points):
         det = _append_markers(det, m_xy, m_quads, fld.aruco_sigma)
         code_label = np.concatenate([code_label, np.array(m_points, object)])
-    ids, cXY = fld.coded()
-    num = number_plane(det.xy, code_label, ids, cXY, fld.grid_ids, fld.grid_xy, fld.spacing,
-                       image=name)
+    if fld.spatial:
+        ids, cXYZ = fld.coded3()
+        num = number_space(det.xy, code_label, ids, cXYZ, fld.target_ids, fld.target_xyz,
+                           (gray.shape[1], gray.shape[0]), image=name)
+        guided = eccentricity_correction = False        # need the targets' normals
+    else:
+        ids, cXY = fld.coded()
+        num = number_plane(det.xy, code_label, ids, cXY, fld.grid_ids, fld.grid_xy,
+                           fld.spacing, image=name)
     num.problems[:0] = marker_problems
     if guided and num.homography is not None and not num.conflicts and fld.diameter > 0:
         det, num.labels, code_label, num.homography = guided_measure(
