@@ -74,25 +74,35 @@ def number_space(xy: np.ndarray, code_label: np.ndarray, code_ids: list[str],
         return Numbering(labels, None, problems)
     cidx = np.array([np.nonzero(labels == c)[0][0] for c in have])
     cX = code_XYZ[[pos[c] for c in have]]
-    # codes that disagree with the field: leave one out, the worst first
+    # codes that disagree with the field: the largest consensus of projections
+    # from 6-code subsets (a subset close to degenerate predicts wildly and
+    # finds no consensus, so approximate coordinates do not raise false alarms)
     keep = np.ones(len(have), bool)
-    scale = np.median(np.linalg.norm(xy[cidx] - xy[cidx].mean(axis=0), axis=1))
-    while keep.sum() > 6:
-        loo = np.zeros(len(have))
-        for k in np.nonzero(keep)[0]:
-            others = keep.copy()
-            others[k] = False
+    pair = np.linalg.norm(xy[cidx][:, None] - xy[cidx][None], axis=2)
+    scale = np.median(pair[np.triu_indices(len(cidx), 1)])
+    thr = max(10.0, 0.1 * scale)
+    if len(have) >= 7:
+        import itertools
+        combos = list(itertools.combinations(range(len(have)), 6))
+        if len(combos) > 300:
+            pick = np.random.default_rng(0).choice(len(combos), 300, replace=False)
+            combos = [combos[i] for i in pick]
+        best = (0, np.inf, None)
+        for sub in combos:
             try:
-                Pk = dlt(cX[others], xy[cidx[others]])
+                Pk = dlt(cX[list(sub)], xy[cidx[list(sub)]])
             except GeometryError:
                 continue
-            loo[k] = np.linalg.norm(_project(Pk, cX[k:k + 1])[0][0] - xy[cidx[k]])
-        worst = int(np.argmax(loo))
-        if not loo[worst] > max(5.0, 0.05 * scale):
-            break
-        conflicts.append(f"{image}: code {have[worst]} is {loo[worst]:.1f} px from the "
-                         f"projection of the other codes: it disagrees with the field")
-        keep[worst] = False
+            r = np.linalg.norm(_project(Pk, cX)[0] - xy[cidx], axis=1)
+            inl = r < thr
+            score = (int(inl.sum()), float(np.median(r[inl])) if inl.any() else np.inf)
+            if score[0] > best[0] or (score[0] == best[0] and score[1] < best[1]):
+                best = (score[0], score[1], r)
+        if best[2] is not None and best[0] >= 6:
+            for k in np.nonzero(best[2] >= thr)[0]:
+                conflicts.append(f"{image}: code {have[k]} is {best[2][k]:.1f} px from the "
+                                 f"projection of the other codes: it disagrees with the field")
+                keep[k] = False
     if conflicts:
         for k in np.nonzero(~keep)[0]:
             labels[cidx[k]] = ""
