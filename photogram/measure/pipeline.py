@@ -5,7 +5,9 @@ the file), take the field's channel, detect and measure the circular
 targets (:mod:`photogram.measure.detect`), decode the ring codes
 (:mod:`photogram.measure.codes`), number the uncoded targets from the codes
 (:mod:`photogram.measure.label`), measure the targets the layout predicts
-but the detector missed (:mod:`photogram.measure.guided`), optionally
+but the detector missed (:mod:`photogram.measure.guided`; for a 3D field,
+after all images, from the network: :mod:`photogram.measure.network`),
+optionally
 correct the eccentricity of
 the projected circle centre (:mod:`photogram.measure.eccentricity`, with
 the image's plane homography and the field's target diameter).
@@ -35,6 +37,7 @@ from photogram.measure.eccentricity import eccentricity
 from photogram.measure.field import TargetField
 from photogram.measure.guided import guided_measure
 from photogram.measure.label import Numbering, number_plane
+from photogram.measure.network import refine_space
 from photogram.measure.space import number_space
 
 __all__ = ["ImageResult", "Measurement", "read_image", "measure_image", "measure_images",
@@ -280,6 +283,8 @@ def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bo
         out.images.append(res)
         if progress:
             progress(res, gray)
+    if fld.spatial:
+        refine_space(out.images, fld)
     if not out.table():
         raise InputError(f"the target field numbers no target in any of the {len(files)} "
                          f"image(s)", file=fld.path,

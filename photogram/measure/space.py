@@ -7,7 +7,9 @@ Zisserman alg. 7.1) gives the image's projection matrix from their
 approximate 3D coordinates; it predicts every uncoded target of the field's
 table. A prediction takes the nearest plain detection within ``gate``
 times the distance to the nearest *other* prediction (so that two targets
-that appear close together in this view cannot swap), one-to-one; the
+that appear close together in this view cannot swap), if the second
+nearest detection is at least twice as far and the detection's nearest
+prediction is this target (mutual), one-to-one; the
 projection matrix is computed again from everything numbered and the
 prediction repeated until the numbering no longer changes. Targets behind
 the camera or outside the image are not predicted.
@@ -129,8 +131,15 @@ def number_space(xy: np.ndarray, code_label: np.ndarray, code_ids: list[str],
         dd = np.linalg.norm(p[:, None] - allp[None], axis=2)
         dd[np.arange(len(p)), np.arange(len(p))] = np.inf
         sep = dd.min(axis=1)
-        d, j = tree.query(np.where(ok[:, None], p, 1e12), k=1)
-        new = np.where(ok & (d < gate * sep), plain[np.minimum(j, len(plain) - 1)], -1)
+        dk, jk = tree.query(np.where(ok[:, None], p, 1e12), k=2)
+        d, j = dk[:, 0], jk[:, 0]
+        # unambiguous: the nearest dot within the gate, the second nearest at
+        # least twice as far, and the dot's nearest prediction is this target
+        second = dk[:, 1] if len(plain) > 1 else np.full(len(d), np.inf)
+        jj = plain[np.minimum(j, len(plain) - 1)]
+        back = cKDTree(np.where(ok[:, None], p, 1e12)).query(xy[jj], k=1)[1]
+        new = np.where(ok & (d < gate * sep) & (second > 2 * d) & (back == np.arange(len(p))),
+                       jj, -1)
         taken = set()
         for g in np.argsort(d):
             if new[g] < 0:
