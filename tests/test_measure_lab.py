@@ -1,8 +1,8 @@
-"""The lab example measured from its rendered photographs (projects/lab/images,
-written by projects/lab/render_images.py from the simulated truth): numbered
-from ArUco markers over the 3D frame, compared with the true image points,
-then calibrated (projects/lab/lab-measured.prj) and compared with the true
-cameras and with the calibration from the typed observations."""
+"""The lab example measured from rendered photographs (projects/lab-photos/images,
+written by projects/lab-photos/render_images.py from projects/lab/truth):
+numbered from ArUco markers over the 3D frame, compared with the true image
+points, then calibrated (projects/lab-photos/lab-photos.prj) and compared
+with the true cameras and with the calibration from the typed observations."""
 
 import json
 import re
@@ -18,13 +18,14 @@ from photogram.project import read_project
 from photogram_cli.main import main
 
 LAB = Path(__file__).resolve().parents[1] / "projects" / "lab"
+PHOTOS = LAB.parent / "lab-photos"
 MARKERS = ["T01", "T25", "T05", "T21", "T13", "T28", "T34", "T31", "T37"]
 
 
 @pytest.fixture(scope="module")
 def measured(tmp_path_factory):
     out = tmp_path_factory.mktemp("lab") / "measured"
-    assert main(["measure", str(LAB / "frame.toml"), "--output", str(out), "-q",
+    assert main(["measure", str(PHOTOS / "frame.toml"), "--output", str(out), "-q",
                  "--no-report"]) == 0
     return out
 
@@ -32,7 +33,7 @@ def measured(tmp_path_factory):
 def test_images_are_reproducible():
     truth = read_truth(LAB / "truth")
     img = render_project(truth, MARKERS, seed=20250101, stations=["K2b"])["K2b"]
-    stored = cv2.imread(str(LAB / "images" / "K2b.jpg"), cv2.IMREAD_GRAYSCALE)
+    stored = cv2.imread(str(PHOTOS / "images" / "K2b.jpg"), cv2.IMREAD_GRAYSCALE)
     assert stored.shape == img.shape
     assert np.abs(stored.astype(float) - img).mean() < 1.5      # JPEG 92
 
@@ -59,14 +60,14 @@ def test_measured_against_the_true_image_points(measured):
 
 
 def test_calibrate_from_the_measured_photographs(measured, tmp_path):
-    text = (LAB / "lab-measured.prj").read_text()
+    text = (PHOTOS / "lab-photos.prj").read_text()
     text = text.replace('"results-measure/image_points.csv"',
                         json.dumps(str(measured / "image_points.csv")))
     text = re.sub(r'folder = "results-measured"', f'folder = "{tmp_path / "out"}"', text)
     for name in ("lab_stations.csv", "lab_points.csv"):
-        text = text.replace(f'"{name}"', json.dumps(str(LAB / name)))
-    (tmp_path / "lab-measured.prj").write_text(text)
-    ours = adjust(read_project(tmp_path / "lab-measured.prj"))
+        text = text.replace(f'"../lab/{name}"', json.dumps(str(LAB / name)))
+    (tmp_path / "lab-photos.prj").write_text(text)
+    ours = adjust(read_project(tmp_path / "lab-photos.prj"))
     typed = adjust(read_project(LAB / "lab.prj"))
     true = {r["camera"]: r for r in _rows(LAB / "truth" / "cameras.csv")}
     for cam in ("K1", "K2", "K3"):
