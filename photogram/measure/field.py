@@ -109,6 +109,12 @@ class TargetField:
         return ids + list(self.grid_ids), xy
 
 
+def _is_xyz(v) -> bool:
+    return (isinstance(v, list) and len(v) == 3
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
+                    for x in v))
+
+
 def _line(text: str, key: str) -> int | None:
     for i, raw in enumerate(text.splitlines(), 1):
         if raw.strip().startswith(key):
@@ -140,19 +146,34 @@ def read_field(path) -> TargetField:
     def err(what, key, hint):
         return InputError(what, file=path, line=_line(text, key), hint=hint)
 
+    try:
+        return _read(path, doc, err)
+    except (TypeError, ValueError, AttributeError, KeyError, IndexError) as exc:
+        raise InputError(f"malformed value in the target-field description ({exc})", file=path,
+                         hint="compare with projects/camcal/sheet.toml and docs/measure.md") \
+            from None
+
+
+def _read(path: Path, doc: dict, err) -> TargetField:
+
     unknown = set(doc) - {"field", "codes", "grid", "aruco", "targets"}
     if unknown:
         k = sorted(unknown)[0]
         raise err(f"unknown section [{k}]", f"[{k}",
                   "allowed: [field], [codes], [aruco], [grid], [targets]")
     f = doc.get("field", {})
+    for sec in ("field", "codes", "grid", "aruco", "targets"):
+        if sec in doc and not isinstance(doc[sec], dict):
+            raise err(f"{sec} must be a section [{sec}]", sec, "see docs/measure.md")
     bad = set(f) - _FIELD_KEYS
     if bad:
         k = sorted(bad)[0]
         raise err(f"unknown key {k!r} in [field]", k, f"allowed: {', '.join(sorted(_FIELD_KEYS))}")
     out = TargetField(path=path, name=str(f.get("name", path.stem)))
     if "images" in f:
-        out.images = (path.parent / str(f["images"]))
+        if not isinstance(f["images"], str) or not f["images"]:
+            raise err(f"images = {f['images']!r}", "images", 'a folder, e.g. images = "images"')
+        out.images = (path.parent / f["images"])
     out.polarity = str(f.get("polarity", "dark"))
     if out.polarity not in ("dark", "bright"):
         raise err(f"polarity {out.polarity!r}", "polarity", "dark or bright")
@@ -174,9 +195,19 @@ def read_field(path) -> TargetField:
         if codes.get("kind", "ring") != "ring":
             raise err(f"codes kind {codes.get('kind')!r}", "kind", "only ring codes so far")
         if "radii" in codes:
-            out.code_radii = tuple(float(r) for r in codes["radii"])
+            radii = codes["radii"]
+            if not isinstance(radii, list) or not radii or not all(
+                    isinstance(r, (int, float)) and not isinstance(r, bool) and 1 < r < 20
+                    for r in radii):
+                raise err(f"radii = {radii!r}", "radii",
+                          "a list of ring radii in dot radii, e.g. [2.9, 3.3, 3.7]")
+            out.code_radii = tuple(float(r) for r in radii)
         seen = set()
-        for i, c in enumerate(codes.get("target", [])):
+        targets = codes.get("target", [])
+        if not isinstance(targets, list) or not all(isinstance(c, dict) for c in targets):
+            raise err("[[codes.target]] must be tables", "[[codes.target]",
+                      "one [[codes.target]] block per code")
+        for i, c in enumerate(targets):
             cid = str(c.get("id", ""))
             bits = str(c.get("bits", ""))
             if not cid or cid in seen:
@@ -187,7 +218,7 @@ def read_field(path) -> TargetField:
                 raise err(f"code {cid}: bits {bits!r} must be a string of 0 and 1 with both",
                           "bits", 'e.g. bits = "11001100"')
             xyz = c.get("xyz")
-            if not isinstance(xyz, list) or len(xyz) != 3:
+            if not _is_xyz(xyz):
                 raise err(f"code {cid}: xyz must be [X, Y, Z]", "xyz",
                           "approximate object coordinates of the code")
             out.codes.append(RingCode(cid, bits))
@@ -202,7 +233,8 @@ def read_field(path) -> TargetField:
         except (KeyError, TypeError, ValueError) as exc:
             raise err(f"[grid] needs cols, rows, spacing (and origin): {exc}", "[grid",
                       "e.g. cols = 10, rows = 10, spacing = 0.1") from None
-        if cols < 1 or rows < 1 or not spacing > 0 or origin.shape != (2,):
+        if cols < 1 or rows < 1 or cols * rows > 100000 or not 0 < spacing < np.inf \
+                or origin.shape != (2,) or not np.isfinite(origin).all():
             raise err("[grid]: cols, rows >= 1, spacing > 0, origin = [X, Y]", "[grid",
                       "see docs/measure.md")
         fmt = str(g.get("id", "D{row}{col}"))
@@ -306,7 +338,7 @@ def _read_aruco(a, out: TargetField, err) -> None:
                       "the marker's id in its dictionary")
         point = str(m.get("point", f"M{mid}"))
         xyz = m.get("xyz")
-        if not isinstance(xyz, list) or len(xyz) != 3:
+        if not _is_xyz(xyz):
             raise err(f"marker {mid}: xyz must be [X, Y, Z]", "xyz",
                       "object coordinates of the marker's centre")
         if point in out.code_xyz or point in out.marker_xyz:
