@@ -17,9 +17,10 @@ EYES = {"a": (2.2, 1.8, 1.6), "b": (2.6, 0.9, 1.2), "c": (1.0, 2.5, 1.8)}
 
 def _field(folder: Path, plates, swap=None):
     rng = np.random.default_rng(0)
-    rows = ["id,kind,X,Y,Z"] + [
+    rows = ["id,kind,X,Y,Z,nX,nY,nZ"] + [
         f"{p.id},tie,{p.X[0] + rng.normal(0, 0.005):.4f},{p.X[1] + rng.normal(0, 0.005):.4f},"
-        f"{p.X[2] + rng.normal(0, 0.005):.4f}" for p in plates if p.kind == "dot"]
+        f"{p.X[2] + rng.normal(0, 0.005):.4f},{p.normal[0]},{p.normal[1]},{p.normal[2]}"
+        for p in plates if p.kind == "dot"]
     (folder / "targets.csv").write_text("\n".join(rows) + "\n")
     mk = []
     for p in plates:
@@ -47,6 +48,32 @@ def scene():
         cam = PlaneCamera(K, R, t, (800, 600), k1=-0.05)
         views[name] = (render_plates(plates, cam, blur=0.8, noise=2.0, jpeg=90, seed=1), cam)
     return plates, views
+
+
+def test_network_and_eccentricity_over_all_views(tmp_path, scene):
+    """measure_images: the network step and the 3D eccentricity correction
+    (targets' normals from the table) over the three views."""
+    from photogram.measure.pipeline import measure_images
+    plates, views = scene
+    folder = tmp_path / "images"
+    folder.mkdir()
+    import cv2
+    for name, (img, cam) in views.items():
+        cv2.imwrite(str(folder / f"{name}.png"), img)
+    fld = _field(tmp_path, plates)
+    assert fld.target_normal is not None
+    truth = {name: {p.id: project3(cam, p.X)[0] for p in plates}
+             for name, (img, cam) in views.items()}
+    rms = {}
+    for ecc in (True, False):
+        m = measure_images(fld, folder, eccentricity_correction=ecc)
+        e = np.array([np.array([x, y]) - PIXEL_OFFSET - truth[st][pt]
+                      for st, pt, x, y, _ in m.table() if not pt.startswith("A")])
+        assert len(m.table()) == 3 * 75 and np.hypot(*e.T).max() < 0.5
+        rms[ecc] = float(np.sqrt((e ** 2).sum(axis=1).mean()))
+    print(f"3 views, dots: RMS {rms[True]:.4f} px with the eccentricity correction, "
+          f"{rms[False]:.4f} px without")
+    assert rms[True] < rms[False]
 
 
 @pytest.mark.parametrize("view", list(EYES))

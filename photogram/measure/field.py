@@ -79,6 +79,7 @@ class TargetField:
     marker_xyz: dict[str, np.ndarray] = field(default_factory=dict)
     target_ids: list[str] = field(default_factory=list)          # 3D field: uncoded targets
     target_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    target_normal: np.ndarray | None = None     # (m, 3) unit normals, or None (unknown)
 
     @property
     def spatial(self) -> bool:
@@ -271,13 +272,19 @@ def _read(path: Path, doc: dict, err) -> TargetField:
 
 def _read_targets(t, out: TargetField, err) -> None:
     """[targets] file = "points.csv": the uncoded targets of a 3D field
-    (columns id, X, Y, Z; others, e.g. a project's kind or sigmas, ignored;
-    rows without coordinates skipped)."""
+    (columns id, X, Y, Z, optionally their normals nX, nY, nZ; others, e.g. a
+    project's kind or sigmas, ignored; rows without coordinates skipped);
+    ``normal = [..]`` gives one normal for all."""
     import csv
-    bad = set(t) - {"file"}
+    bad = set(t) - {"file", "normal"}
     if bad or "file" not in t:
-        raise err("[targets] takes one key, file", "[targets",
+        raise err("[targets] takes the keys file and normal", "[targets",
                   'e.g. file = "points.csv" with columns id, X, Y, Z')
+    normal = t.get("normal")
+    if normal is not None:
+        if not _is_xyz(normal) or not np.linalg.norm(normal) > 0:
+            raise err(f"normal = {normal!r}", "normal",
+                      "the targets' common normal, e.g. normal = [0, 0, 1]")
     path = out.path.parent / str(t["file"])
     try:
         lines = [ln for ln in path.read_text(encoding="utf-8-sig").splitlines()
@@ -291,7 +298,8 @@ def _read_targets(t, out: TargetField, err) -> None:
         raise InputError(f"the targets table needs columns id, X, Y, Z (has {head})",
                          file=path, line=1, hint="a header line id,X,Y,Z")
     k = [head.index(c) for c in ("id", "X", "Y", "Z")]
-    ids, xyz = [], []
+    kn = [head.index(c) for c in ("nX", "nY", "nZ")] if {"nX", "nY", "nZ"} <= set(head) else []
+    ids, xyz, normals = [], [], []
     known = set(out.code_xyz) | set(out.marker_xyz)
     for n, r in enumerate(rows[1:], 2):
         cells = [r[i].strip() if i < len(r) else "" for i in k]
@@ -304,6 +312,16 @@ def _read_targets(t, out: TargetField, err) -> None:
                              hint="X, Y, Z as numbers") from None
         if cells[0] in known or cells[0] in ids:
             continue                          # a coded target's own row, or a duplicate
+        if kn:
+            try:
+                nv = np.array([float(r[i]) for i in kn])
+            except (ValueError, IndexError):
+                raise InputError(f"normal of {cells[0]} is not three numbers", file=path,
+                                 line=n, hint="nX, nY, nZ as numbers") from None
+            if not np.linalg.norm(nv) > 0 or not np.isfinite(nv).all():
+                raise InputError(f"normal of {cells[0]} is zero", file=path, line=n,
+                                 hint="the direction the target faces")
+            normals.append(nv / np.linalg.norm(nv))
         ids.append(cells[0])
         xyz.append(v)
     if not ids:
@@ -311,6 +329,11 @@ def _read_targets(t, out: TargetField, err) -> None:
                          hint="rows id,X,Y,Z")
     out.target_ids = ids
     out.target_xyz = np.array(xyz, float)
+    if kn:
+        out.target_normal = np.array(normals)
+    elif normal is not None:
+        n = np.array(normal, float) / np.linalg.norm(normal)
+        out.target_normal = np.tile(n, (len(ids), 1))
 
 
 def _read_aruco(a, out: TargetField, err) -> None:

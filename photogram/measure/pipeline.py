@@ -148,7 +148,7 @@ def measure_image(gray: np.ndarray, fld: TargetField, name: str = "",
         ids, cXYZ = fld.coded3()
         num = number_space(det.xy, code_label, ids, cXYZ, fld.target_ids, fld.target_xyz,
                            (gray.shape[1], gray.shape[0]), image=name)
-        guided = eccentricity_correction = False        # need the targets' normals
+        guided = eccentricity_correction = False   # 3D: after the network (measure_images)
     else:
         ids, cXY = fld.coded()
         num = number_plane(det.xy, code_label, ids, cXY, fld.grid_ids, fld.grid_xy,
@@ -219,6 +219,34 @@ def _append_markers(det, xy, quads, sigma):
                       det.image_size, extra)
 
 
+def _eccentricity_3d(res: ImageResult, fld: TargetField) -> None:
+    """Eccentricity correction of the numbered circles of a 3D field: each
+    target's plane (its point and normal) is mapped to the image by the
+    homography ``H = [P (e1, 0), P (e2, 0), P (X, 1)]`` of the image's DLT
+    projection matrix P (from the numbered targets), and the eccentricity of
+    its circle is subtracted (:func:`photogram.measure.eccentricity.eccentricity`)."""
+    from photogram.errors import GeometryError
+    from photogram.init.dlt import dlt
+    pos = {k: i for i, k in enumerate(fld.target_ids)}
+    lab = res.numbering.labels
+    sel = np.array([i for i, v in enumerate(lab) if v in pos], int)
+    if len(sel) < 6:
+        return
+    X = fld.target_xyz[[pos[lab[i]] for i in sel]]
+    try:
+        P = dlt(X, res.detections.xy[sel])
+    except GeometryError:
+        return
+    for i, Xi in zip(sel, X):
+        n = fld.target_normal[pos[lab[i]]]
+        up = np.array([0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        e1 = np.cross(up, n)
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(n, e1)
+        H = np.column_stack([P[:, :3] @ e1, P[:, :3] @ e2, P[:, :3] @ Xi + P[:, 3]])
+        res.xy[i] -= eccentricity(H, np.zeros((1, 2)), fld.diameter / 2)[0]
+
+
 def _refit(XY, xy, H0):
     import cv2
     if len(XY) >= 4:
@@ -285,6 +313,9 @@ def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bo
             progress(res, gray)
     if fld.spatial:
         refine_space(out.images, fld)
+        if eccentricity_correction and fld.target_normal is not None and fld.diameter > 0:
+            for res in out.images:
+                _eccentricity_3d(res, fld)
     if not out.table():
         raise InputError(f"the target field numbers no target in any of the {len(files)} "
                          f"image(s)", file=fld.path,

@@ -157,5 +157,6 @@ def field_description(markers: list[str], approx: dict, *, points_file: str, ima
         X = approx[pid]
         lines += ["[[aruco.marker]]", f"id = {k}", f'point = "{pid}"',
                   f"xyz = [{float(X[0])!r}, {float(X[1])!r}, {float(X[2])!r}]", ""]
-    lines += ["[targets]", f'file = "{points_file}"', ""]
+    lines += ["[targets]", f'file = "{points_file}"',
+              "normal = [0, 0, 1]          # the plates face up (eccentricity correction)", ""]
     return "\n".join(lines)
