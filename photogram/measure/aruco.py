@@ -9,8 +9,9 @@ were off by 0.2-1.9 px in oblique views), so the corners are measured again
 (:func:`refine_quads`): subpixel edge points across each of the four sides
 of the marker's black border (mid-level crossing between paper and border,
 as for the circles), a straight line fitted to each side (total least
-squares, outlying points dropped), corners where adjacent lines meet. The centre of a square is the intersection of its diagonals and a
-homography maps lines to lines, so the image of the centre is exactly the
+squares, outlying points dropped), corners where adjacent lines meet. The
+centre of a square is the intersection of its diagonals and a homography
+maps lines to lines, so the image of the centre is exactly the
 intersection of the imaged diagonals: no eccentricity, unlike a circle
 (lens distortion over the marker aside).
 

@@ -4,8 +4,8 @@ The coded marks of the PhotoModeler calibration sheet (and similar sheets)
 are a dot surrounded by a ring divided into equal sectors, each inked or
 blank: a cyclic bit string (the sheet's four marks have 8 sectors of 45 deg:
 ``11111000``, ``11001100``, ``10010100``, ``10101010``; measured on the
-CAMCAL photographs, docs/measure.md). The decoder samples the ring of every detected dot **in the dot's
-own normalised frame**: the fitted ellipse of the dot maps to the unit
+CAMCAL photographs, docs/measure.md). The decoder samples the ring of
+every detected dot **in the dot's own normalised frame**: the fitted ellipse of the dot maps to the unit
 circle, which removes the affine part of the perspective (an affinity that
 maps a circle onto a circle is a similarity, so angles along the ring are
 the sheet's angles up to a rotation; the orientation sense is kept because

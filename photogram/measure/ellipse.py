@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["fit_ellipse", "fit_ellipses", "conic_centres", "sampson_distances", "conic_centre", "conic_axes", "sampson_distance", "conic_matrix",
+__all__ = ["fit_ellipse", "fit_ellipses", "conic_centres", "sampson_distances", "conic_centre",
+           "conic_axes", "sampson_distance", "conic_matrix",
            "conic_from_matrix"]
 
 

@@ -48,7 +48,8 @@ def read_truth(folder) -> dict:
                          np.array([float(r[k]) * gon for k in ("omega", "phi", "kappa")]))
           for r in _rows(folder / "stations.csv")}
     names = ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2")
-    cams = {r["camera"]: np.array([float(r[k]) for k in names]) for r in _rows(folder / "cameras.csv")}
+    cams = {r["camera"]: np.array([float(r[k]) for k in names])
+            for r in _rows(folder / "cameras.csv")}
     return {"points": pts, "stations": st, "cameras": cams}
 
 
