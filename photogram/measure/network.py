@@ -183,4 +183,8 @@ def refine_space(results: list, fld, rounds: int = 3) -> None:
                 if P is None:
                     continue
                 gate = 3.0
+                res.numbering.problems = [
+                    p for p in res.numbering.problems if "needs at least 6" not in p] + \
+                    ([] if rnd else [f"{res.name}: too few codes for its own DLT; numbered "
+                                     f"through the network (PnP)"])
             _renumber(res, P, fld.target_ids, X[len(code_ids):], code_set, gate)
