@@ -131,3 +131,38 @@ def test_harsher_rendering_through_the_network(tmp_path):
     assert len(e) >= 0.9 * 225                  # measured 213
     assert e.max() < 1.0                        # no wrong label
     assert rms < 0.12                           # measured 0.079
+
+
+def test_uncoded_targets_matched_across_views_without_a_layout(tmp_path):
+    """Only the nine markers are described: the 66 dots are matched by
+    epipolar geometry over four views and triangulation (a third view
+    confirms every pair), each track one true target."""
+    import cv2
+    from photogram.measure.pipeline import measure_images
+    plates, _ = corner_frame()
+    K = np.array([[800.0, 0, 399.5], [0, 800, 299.5], [0, 0, 1]])
+    eyes = dict(EYES, d=(2.0, 2.2, 1.0))
+    folder = tmp_path / "images"
+    folder.mkdir()
+    cams = {}
+    for name, eye in eyes.items():
+        R, t = look_at(eye, (0.4, 0.4, 0.35), up=(0, 0, 1))
+        cams[name] = PlaneCamera(K, R, t, (800, 600), k1=-0.05)
+        cv2.imwrite(str(folder / f"{name}.png"),
+                    render_plates(plates, cams[name], blur=0.8, noise=2.0, jpeg=90, seed=1))
+    fld = _field(tmp_path, plates)
+    fld.target_ids, fld.target_xyz, fld.target_normal = [], np.zeros((0, 3)), None
+    assert fld.spatial
+    m = measure_images(fld, folder)
+    dots = [p for p in plates if p.kind == "dot"]
+    track = {}
+    for st, pt, x, y, _ in m.table():
+        if pt.startswith("U"):
+            tp = project3(cams[st], np.array([p.X for p in dots]))
+            d = np.hypot(*(np.array([x, y]) - PIXEL_OFFSET - tp).T)
+            assert d.min() < 0.5
+            track.setdefault(pt, set()).add(dots[int(d.argmin())].id)
+    print(f"{len(track)} tracks over {len(eyes)} views, "
+          f"{sum(1 for r in m.table() if r[1].startswith('U'))} observations")
+    assert all(len(v) == 1 for v in track.values())             # one target per track
+    assert len({next(iter(v)) for v in track.values()}) == len(track) == 66

@@ -83,8 +83,19 @@ class TargetField:
 
     @property
     def spatial(self) -> bool:
-        """A 3D field (numbered by DLT from the codes) rather than a plane."""
-        return bool(self.target_ids)
+        """A 3D field (numbered by DLT from the codes) rather than a plane: a
+        table of targets, or no grid and six or more codes not in one plane
+        (then the uncoded targets are matched across views,
+        :mod:`photogram.measure.epipolar`)."""
+        if self.target_ids:
+            return True
+        if self.grid_ids:
+            return False
+        _, xyz = self.coded3()
+        if len(xyz) < 6:
+            return False
+        sv = np.linalg.svd(xyz - xyz.mean(axis=0), compute_uv=False)
+        return bool(sv[2] > 1e-3 * sv[0])
 
     def coded3(self) -> tuple[list[str], np.ndarray]:
         """Ids and (X, Y, Z) of the coded targets: ring codes, then ArUco markers."""

@@ -219,6 +219,26 @@ def _append_markers(det, xy, quads, sigma):
                       det.image_size, extra)
 
 
+def _match_uncoded(images: list[ImageResult]) -> None:
+    """A 3D field without a table of targets: the plain detections of the
+    images oriented by their codes are matched across views
+    (:func:`photogram.measure.epipolar.match_tracks`) and numbered U0001..."""
+    from photogram.measure.epipolar import match_tracks
+    idx, pts, Ps = [], [], []
+    for res in images:
+        plain = np.array([i for i in range(len(res.detections))
+                          if res.code_label[i] == "" and not res.numbering.labels[i]], int)
+        idx.append(plain)
+        pts.append(res.detections.xy[plain] if len(plain) else np.zeros((0, 2)))
+        P = res.numbering.homography
+        Ps.append(P if P is not None and P.shape == (3, 4) else None)
+    labels, _ = match_tracks(pts, Ps)
+    for res, plain, lab in zip(images, idx, labels):
+        for i, v in zip(plain, lab):
+            if v:
+                res.numbering.labels[i] = v
+
+
 def _eccentricity_3d(res: ImageResult, fld: TargetField) -> None:
     """Eccentricity correction of the numbered circles of a 3D field: each
     target's plane (its point and normal) is mapped to the image by the
@@ -311,11 +331,13 @@ def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bo
         out.images.append(res)
         if progress:
             progress(res, gray)
-    if fld.spatial:
+    if fld.spatial and fld.target_ids:
         refine_space(out.images, fld)
         if eccentricity_correction and fld.target_normal is not None and fld.diameter > 0:
             for res in out.images:
                 _eccentricity_3d(res, fld)
+    elif fld.spatial:
+        _match_uncoded(out.images)
     if not out.table():
         raise InputError(f"the target field numbers no target in any of the {len(files)} "
                          f"image(s)", file=fld.path,
