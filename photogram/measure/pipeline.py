@@ -219,10 +219,13 @@ def _append_markers(det, xy, quads, sigma):
                       det.image_size, extra)
 
 
-def _match_uncoded(images: list[ImageResult]) -> None:
+def _match_uncoded(images: list[ImageResult], fld: TargetField) -> None:
     """A 3D field without a table of targets: the plain detections of the
     images oriented by their codes are matched across views
-    (:func:`photogram.measure.epipolar.match_tracks`) and numbered U0001..."""
+    (:func:`photogram.measure.epipolar.match_tracks`) and numbered U0001...;
+    then the tracks serve as the field's table for the network step
+    (:func:`photogram.measure.network.refine_space`), which orients the
+    images with too few codes (PnP) and numbers what the matching missed."""
     from photogram.measure.epipolar import match_tracks
     idx, pts, Ps = [], [], []
     for res in images:
@@ -232,11 +235,18 @@ def _match_uncoded(images: list[ImageResult]) -> None:
         pts.append(res.detections.xy[plain] if len(plain) else np.zeros((0, 2)))
         P = res.numbering.homography
         Ps.append(P if P is not None and P.shape == (3, 4) else None)
-    labels, _ = match_tracks(pts, Ps)
+    labels, xyz = match_tracks(pts, Ps)
     for res, plain, lab in zip(images, idx, labels):
         for i, v in zip(plain, lab):
             if v:
                 res.numbering.labels[i] = v
+    if xyz:
+        import copy
+        tracks = copy.copy(fld)
+        tracks.target_ids = list(xyz)
+        tracks.target_xyz = np.array(list(xyz.values()))
+        tracks.target_normal = None
+        refine_space(images, tracks)
 
 
 def _eccentricity_3d(res: ImageResult, fld: TargetField) -> None:
@@ -337,7 +347,7 @@ def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bo
             for res in out.images:
                 _eccentricity_3d(res, fld)
     elif fld.spatial:
-        _match_uncoded(out.images)
+        _match_uncoded(out.images, fld)
     if not out.table():
         raise InputError(f"the target field numbers no target in any of the {len(files)} "
                          f"image(s)", file=fld.path,
