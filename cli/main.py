@@ -64,6 +64,10 @@ COMMANDS: dict[str, Command] = {
     "mocap": Command("photogram.commands.mocap:run", "the motion-capture pipeline",
                      "markerless motion capture: track the athlete in every camera, "
                      "reconstruct its joints, metrics (docs/mocap.md)"),
+    "measure": Command("photogram.commands.measure:run", "the target measurement",
+                       "measure targets in a folder of photographs: detection, subpixel "
+                       "centres, codes, numbering -> image_points.csv (docs/measure.md)",
+                       needs_project=False),
     "demo": Command("photogram.demo:run", "the demo",
                     "run the built-in demonstration", needs_project=False),
     "import": Command("photogram.commands.convert:run_import", "the importers",
@@ -138,6 +142,19 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
                          help="images: camera model of the calibration project")
     if name == "export":
         sub.add_argument("--force", action="store_true", help="replace existing files")
+    if name == "measure":
+        # optional in the parser, checked by the command (exit 2 with a hint)
+        sub.add_argument("field", nargs="?", type=Path, metavar="FIELD",
+                         help="the target-field description (.toml), e.g. "
+                              "projects/camcal/sheet.toml")
+        sub.add_argument("--images", type=Path, metavar="DIR",
+                         help="folder of images (default: images of the field file)")
+        sub.add_argument("--force", action="store_true",
+                         help="replace the results of an earlier run in the output folder")
+        sub.add_argument("--no-eccentricity", action="store_true",
+                         help="write the ellipse centres without the eccentricity correction")
+        sub.add_argument("--no-report", action="store_true",
+                         help="no drawings (images/*.png) and no report.pdf")
 
 
 def build_parser() -> argparse.ArgumentParser:
