@@ -18,6 +18,20 @@ is fitted again. The centre sigma is ``rms * sqrt(2 / n)``, the standard
 deviation of a circle's centre from n evenly spread points with residual
 RMS ``rms``.
 
+*Blurred-step edges* (``edge="erf"``, an alternative, not the default):
+each profile is fitted by least squares with a blurred step
+``outer + (inner - outer) Phi((e - d) / s)`` (the target's inner and outer
+levels held, edge position ``e`` and blur ``s`` free per ray; three
+Gauss-Newton steps from the mid-level crossing). It uses every sample
+across the edge instead of the two around the crossing: on rendered truth
+it is better on the noisiest levels (blur 1.8 px, noise 8, JPEG 30: 0.064
+against 0.070 px; bright targets 0.054 against 0.066) and slightly worse at
+good contrast (0.0144 against 0.0139), and it costs 2.5 times the time
+(docs/measure.md). Edges at the gradient maximum of the profiles were tried
+too and dropped: on bilinearly interpolated profiles the gradient is
+piecewise constant between pixel lines, and its maximum snaps to them
+(0.06 px RMS even on the good rendering).
+
 **Grey-value weighted centroid** (:func:`weighted_centroid`): the centroid
 of ``max(I - background, 0)`` inside 1.3 times the fitted ellipse
 (Luhmann et al. sec. 5.4.2.4; Shortis, Clarke & Short 1994, "A comparison of
@@ -58,7 +72,7 @@ def _profiles(t, c, a, b, theta, n_rays):
 
 
 def edge_ellipse(t: np.ndarray, c: np.ndarray, a: np.ndarray, b: np.ndarray,
-                 theta: np.ndarray, n_rays: int = 64) -> dict:
+                 theta: np.ndarray, n_rays: int = 64, edge: str = "mid") -> dict:
     """Ellipse fit to subpixel edge points of targets (module doc).
 
     Parameters
@@ -68,6 +82,9 @@ def edge_ellipse(t: np.ndarray, c: np.ndarray, a: np.ndarray, b: np.ndarray,
     c : (n, 2)
         Approximate centres; ``a, b, theta`` the approximate semi-axes and
         the angle of the major axis (rad).
+    edge : "mid" | "erf"
+        Edge points at the mid-level crossing (default) or from a blurred
+        step fitted to each profile (module doc).
 
     Returns
     -------
@@ -103,6 +120,12 @@ def edge_ellipse(t: np.ndarray, c: np.ndarray, a: np.ndarray, b: np.ndarray,
     with np.errstate(invalid="ignore", divide="ignore"):
         f = (p0 - mid[:, None]) / (p0 - p1)
     rr = np.where(has, d0 + np.nan_to_num(f) * (d1 - d0), 0.0)
+    if edge == "erf":
+        rr, ok_step = _step_edges(prof, dist, rr, inner, outer)
+        has &= ok_step
+        rr = np.where(has, rr, 0.0)
+    elif edge != "mid":
+        raise ValueError(f"edge {edge!r}: mid or erf")
     ex = c[:, 0, None] + rr * u[None, :, 0]
     ey = c[:, 1, None] + rr * u[None, :, 1]
     out["contrast"] = inner - outer
@@ -140,6 +163,35 @@ def edge_ellipse(t: np.ndarray, c: np.ndarray, a: np.ndarray, b: np.ndarray,
     out["n_edge"][ok] = m[ok]
     out["ok_fit"] = ok
     return out
+
+
+def _step_edges(prof, dist, rr, inner, outer, n_iter=3):
+    """Edge positions from a least-squares fit of a blurred step
+    ``outer + (inner - outer) Phi((e - d) / s)`` to every profile (levels
+    held; ``e`` and ``s`` by Gauss-Newton, vectorised over all rays),
+    started at the mid-level crossings ``rr`` with ``s = 1`` px. Returns the
+    positions and which converged within 1.5 px of the crossing."""
+    from scipy.special import ndtr
+    e = rr.copy()
+    s = np.ones_like(rr)
+    amp = (inner - outer)[:, None, None]
+    lo = outer[:, None, None]
+    for _ in range(n_iter):
+        z = (e[..., None] - dist) / s[..., None]
+        phi = np.exp(-0.5 * z * z) * (1.0 / np.sqrt(2 * np.pi))
+        res = prof - (lo + amp * ndtr(z))
+        je = amp * phi / s[..., None]
+        js = -je * z
+        a11, a12, a22 = (je * je).sum(2), (je * js).sum(2), (js * js).sum(2)
+        b1, b2 = (je * res).sum(2), (js * res).sum(2)
+        det = a11 * a22 - a12 * a12
+        with np.errstate(invalid="ignore", divide="ignore"):
+            de = (a22 * b1 - a12 * b2) / det
+            ds = (a11 * b2 - a12 * b1) / det
+        e = e + np.clip(np.nan_to_num(de), -1.0, 1.0)
+        s = np.clip(s + np.clip(np.nan_to_num(ds), -0.5 * s, 0.5 * s), 0.3, 6.0)
+    ok = np.isfinite(e) & (np.abs(e - rr) < 1.5)
+    return np.where(ok, e, rr), ok
 
 
 def _axes(conics, centre):

@@ -137,7 +137,7 @@ def detect_targets(gray: np.ndarray, polarity: str = "dark", *, min_diameter: fl
                    min_fill: float = 0.85, max_fill: float = 1.15,
                    min_roundness: float = 0.25, max_residual: float = 0.5,
                    n_rays: int = 64, centroid: bool = False,
-                   relative_residual: float = 3.0) -> Detections:
+                   relative_residual: float = 3.0, edge: str = "mid") -> Detections:
     """Find circular targets and measure their centres (module doc).
 
     Parameters
@@ -164,6 +164,10 @@ def detect_targets(gray: np.ndarray, polarity: str = "dark", *, min_diameter: fl
     relative_residual : float
         Reject (as ``fit``) a target whose edge residual exceeds this many
         times the median residual of the image's targets (and 0.05 px).
+    edge : "mid" | "erf"
+        Edge points at the mid-level crossing of each ray's profile
+        (default) or from a blurred step fitted to it
+        (:func:`photogram.measure.centre.edge_ellipse`).
 
     Returns
     -------
@@ -195,7 +199,7 @@ def detect_targets(gray: np.ndarray, polarity: str = "dark", *, min_diameter: fl
     with np.errstate(divide="ignore", invalid="ignore"):
         reject(b / a < min_roundness, "roundness")
     cand = np.nonzero(reason == "")[0]
-    fit = edge_ellipse(t, c[cand], a[cand], b[cand], theta[cand], n_rays=n_rays)
+    fit = edge_ellipse(t, c[cand], a[cand], b[cand], theta[cand], n_rays=n_rays, edge=edge)
     reject_c = np.full(len(cand), "", dtype=object)
     reject_c[~fit["ok_edge"]] = "edge"
     reject_c[(reject_c == "") & (~fit["ok_fit"] | (fit["residual"] > max_residual)
