@@ -14,7 +14,7 @@ from photogram.adjust.solver import solve
 from photogram.adjust.state import Layout, State
 from photogram.geometry import matrix_to_opk, opk_to_matrix
 from photogram.geometry.circle import ellipse_centre_offset, ellipse_centre_point
-from photogram.simulation.network import frame_network, observe, to_project
+from photogram.simulation.network import frame_network, to_project
 
 
 def _random(n=6, seed=3):
@@ -150,7 +150,8 @@ def _exact_ellipse_centres(net, radius, normals, n_edge=72):
     b = np.cross(n, a)
     t = np.linspace(0, 2 * np.pi, n_edge, endpoint=False)
     edge = (net.points[net.point][:, None, :]
-            + radius * (np.cos(t)[None, :, None] * a[:, None] + np.sin(t)[None, :, None] * b[:, None]))
+            + radius * (np.cos(t)[None, :, None] * a[:, None]
+                        + np.sin(t)[None, :, None] * b[:, None]))
     N = len(net.point)
     st = np.repeat(net.station, n_edge)
     xy = model.project(edge.reshape(-1, 3), matrix_to_opk(net.R[st]), net.X0[st],
