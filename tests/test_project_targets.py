@@ -63,9 +63,13 @@ def test_point_columns_and_switch(tmp_path):
     assert np.allclose(r[:2], [0.015, 0.025]) and np.isnan(r[2:]).all()
     assert np.allclose(n[:2], [[0, 0, 1], [0, 1, 0]])
     blocks = _blocks(prj)
-    ecc = np.concatenate([b.point for b in blocks if isinstance(b, EccentricImagePointBlock)])
+    eb = [b for b in blocks if isinstance(b, EccentricImagePointBlock)]
+    ecc = np.concatenate([b.point[b.radius > 0] for b in eb])
     ids = np.array(prj.points.ids)[np.unique(ecc)]
-    assert set(ids) <= {"1", "2"} and len(ids) > 0
+    assert set(ids) == {"1", "2"}
+    for b in eb:                                   # radius per observation, by point
+        pid = np.array(prj.points.ids)[b.point]
+        assert np.allclose(b.radius, np.select([pid == "1", pid == "2"], [0.015, 0.025], 0.0))
     images = [b for b in blocks if b.name == "image points"]
     assert sum(len(b) for b in images) == len(prj.image_points)
     replace_switch = path.read_text().replace("[targets]\n", "[targets]\neccentricity = false\n")
@@ -121,3 +125,22 @@ def test_written_project_keeps_the_targets(tmp_path):
         a, b = prj.targets.for_points(ids), back.targets.for_points(ids)
         np.testing.assert_array_equal(a[0], b[0])
         np.testing.assert_array_equal(a[1], b[1])
+
+
+def test_calibrate_command_with_targets(tmp_path, capsys):
+    """End to end through the command: exit 0, residuals in the order of
+    the image points table although the observations were split into
+    eccentric and plain blocks."""
+    import csv
+    import json
+    path = make_project(tmp_path)
+    _with_columns(path, {"1": "0.03,0,-1,0", "5": "0.03,0,-1,0", "C1": "0.03,0,-1,0"})
+    assert main(["calibrate", str(path)]) == 0
+    res = path.parent / "results"
+    assert json.loads((res / "summary.json").read_text())["status"] == "converged"
+    with open(res / "residuals.csv", encoding="utf-8") as f:
+        got = [(r["station"], r["point"]) for r in csv.DictReader(f)]
+    with open(path.parent / "image_points.csv", encoding="utf-8") as f:
+        want = [(r["station"], r["point"])
+                for r in csv.DictReader(line for line in f if not line.startswith("#"))]
+    assert got == want

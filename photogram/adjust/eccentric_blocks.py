@@ -78,31 +78,26 @@ class EccentricImagePointBlock(ImagePointBlock):
 
 
 def with_ellipse_centres(blocks, radius, normal, layout):
-    """Split every :class:`ImagePointBlock` of ``blocks``: the observations
-    of circular targets (finite ``radius[point] > 0``) go into an
-    :class:`EccentricImagePointBlock` with the same group, labels and rows;
-    the others stay as they are. ``radius`` (n_p,), ``normal`` (n_p, 3)
-    per object point."""
+    """Replace every :class:`ImagePointBlock` of ``blocks`` that observes a
+    circular target (finite ``radius[point] > 0``) by an
+    :class:`EccentricImagePointBlock` with the same observations, order,
+    group, labels and rows; the other points of the block get radius 0
+    (``delta = 0``, the plain collinearity residual). ``radius`` (n_p,),
+    ``normal`` (n_p, 3) per object point."""
     radius = np.asarray(radius, float)
     target = np.isfinite(radius) & (radius > 0)
+    r = np.where(target, radius, 0.0)
+    nv = np.where(target[:, None], np.asarray(normal, float), [0.0, 0.0, 1.0])
     out = []
     for blk in blocks:
         if type(blk) is not ImagePointBlock or not target[blk.point].any():
             out.append(blk)
             continue
-        rows = getattr(blk, "rows", np.arange(len(blk.point)))
-        labels = None if blk.labels is None else np.asarray(blk.labels)
-        for ecc in (False, True):
-            sel = np.flatnonzero(target[blk.point] == ecc)
-            if not len(sel):
-                continue
-            args = (blk.model, blk.cameras, blk.camera[sel], blk.station[sel], blk.point[sel],
-                    blk.xy[sel], blk.sigma[sel, 0], layout)
-            lab = None if labels is None else labels[sel]
-            new = (EccentricImagePointBlock(*args, radius[blk.point[sel]],
-                                            normal[blk.point[sel]], labels=lab)
-                   if ecc else ImagePointBlock(*args, labels=lab))
-            new.group = blk.group
-            new.rows = np.asarray(rows)[sel]
-            out.append(new)
+        new = EccentricImagePointBlock(blk.model, blk.cameras, blk.camera, blk.station,
+                                       blk.point, blk.xy, blk.sigma[:, 0], layout,
+                                       r[blk.point], nv[blk.point], labels=blk.labels)
+        new.group = blk.group
+        if hasattr(blk, "rows"):
+            new.rows = blk.rows
+        out.append(new)
     return out
