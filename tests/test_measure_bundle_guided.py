@@ -113,3 +113,24 @@ def test_guided_measurement_from_the_bundle_finds_what_the_first_pass_missed():
     print(f"fx, fy error: first pass {e0:.4f} px, with the guided observations {e1:.4f} px; "
           f"cx, cy {p0:.4f} / {p1:.4f} px")
     assert e1 < 0.05 and e1 < 0.5 * e0 and p1 < p0
+
+
+def test_bad_input_is_one_input_error(tmp_path):
+    import pytest
+    from photogram.errors import InputError
+    from photogram.init.chain import approximate
+    from photogram.project import read_project
+    from project_cases import append, make_project
+    path = make_project(tmp_path)
+    prj = approximate(read_project(path))[0]
+    images = {s: np.zeros((1080, 1920), np.uint8) for s in prj.stations.names}
+    with pytest.raises(InputError, match="diameter and normal"):
+        guided_from_bundle(prj, images)
+    append(path, "\n[targets]\ndiameter = 0.02\nnormal = [0, 1, 0]\n")
+    prj = approximate(read_project(path))[0]
+    with pytest.raises(InputError, match=f"no image for station {prj.stations.names[0]}"):
+        guided_from_bundle(prj, {})
+    # blank images: everything predicted, nothing measured, one round
+    out, rep = guided_from_bundle(prj, images)
+    assert rep.rounds == 1 and rep.added == [0] and rep.predicted[0] > 0
+    assert len(out.image_points) == len(prj.image_points)
