@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from photogram.adjust.datum import inner_constraints
+from photogram.adjust.eccentric_blocks import with_ellipse_centres
 from photogram.adjust.residual_blocks import (
     DistanceBlock, ImagePointBlock, InteriorPriorBlock, PointPriorBlock,
     StationPriorBlock, VerticalBlock)
@@ -213,6 +214,9 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
             blk.group = f"image {group}" if group else f"image {name}"
             blk.rows = rows
             blocks.append(blk)
+    targets = getattr(project, "targets", None)
+    if targets is not None and targets.eccentricity:       # ellipse centres (eq. (1) of
+        blocks = with_ellipse_centres(blocks, *targets.for_points(pts.ids), layout)  # geometry.circle)
 
     if adj.datum == "weighted" and len(control):
         # fixed coordinates (sigma 0) are held at their values, not observed

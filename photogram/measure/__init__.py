@@ -16,6 +16,8 @@ table of a project (``image_points.csv`` with a sigma per observation):
 * :mod:`~photogram.measure.network` — 3D fields: numbering again from the
   network over all images (resection / intersection)
 * :mod:`~photogram.measure.guided` — guided measurement of missed targets (plane)
+* :mod:`~photogram.measure.bundle_guided` — guided measurement from a bundle
+  adjustment (adjusted cameras with lens distortion), iterated
 * :mod:`~photogram.measure.eccentricity` — eccentricity of projected circle
   centres and its Jacobian
 * :mod:`~photogram.measure.sphere` — balls: outline of a sphere, its eccentricity

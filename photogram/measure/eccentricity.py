@@ -15,6 +15,10 @@ pull-back) this is ``e ~ H (R^2 h' - (m . h' + h3) (m, 1))`` with h' = h[:2] (up
 sign and scale), written out in :func:`ellipse_centres`. The
 eccentricity is ``e - H (m, 1)``: subtracting it from a measured ellipse
 centre gives the image of the circle's centre.
+
+The same pole in object space, for the adjustment (which predicts ellipse
+centres from the orientation instead of correcting the measurements with a
+homography), is :func:`photogram.geometry.circle.ellipse_centre_point`.
 """
 
 from __future__ import annotations

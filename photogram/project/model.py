@@ -119,6 +119,9 @@ class Points:
     xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     record: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    # circular targets (optional columns diameter, nX nY nZ): NaN = not given
+    diameter: np.ndarray | None = None
+    normal: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -195,6 +198,35 @@ class AdjustmentSettings:
     variance_components: bool = False
     snooping_alpha: float | None = None
     inner_constraints: list[str] | None = None  # point ids; None: all points
+
+
+@dataclass
+class TargetSettings:
+    """``[targets]``: circular targets measured as ellipse centres; the
+    adjustment predicts the imaged ellipse centre (docs/adjustment.md,
+    "Eccentricity of circular targets"). ``radius`` and ``normal`` per
+    point (NaN: not a circular target), resolved from the points table's
+    ``diameter``, ``nX nY nZ`` and the section's defaults."""
+
+    eccentricity: bool = True
+    diameter: float | None = None       # default diameter, object units
+    normal: tuple | None = None         # default target normal
+    ids: list | None = None             # point ids the arrays below follow
+    radius: np.ndarray | None = None    # per point, NaN: not a circular target
+    normals: np.ndarray | None = None   # (., 3) unit normals
+
+    def for_points(self, ids) -> tuple[np.ndarray, np.ndarray]:
+        """Radius (n,) and unit normal (n, 3) of the points ``ids`` (NaN
+        for points that are not circular targets or unknown here)."""
+        where = {p: i for i, p in enumerate(self.ids or [])}
+        j = np.array([where.get(p, -1) for p in ids], dtype=int)
+        ok = j >= 0
+        r = np.full(len(j), np.nan)
+        nv = np.full((len(j), 3), np.nan)
+        if self.radius is not None:
+            r[ok] = self.radius[j[ok]]
+            nv[ok] = self.normals[j[ok]]
+        return r, nv
 
 
 @dataclass
@@ -286,6 +318,7 @@ class Project:
     output: OutputSettings = field(default_factory=OutputSettings)
     intersect: IntersectSettings = field(default_factory=IntersectSettings)
     montecarlo: MonteCarloSettings | None = None
+    targets: TargetSettings | None = None   # [targets]: None = no eccentricity correction
     mocap: object | None = None        # MocapSettings (photogram.project.reader_mocap)
     sources: dict[str, Path] = field(default_factory=dict)  # table -> file
     warnings: list[str] = field(default_factory=list)  # found by the reader

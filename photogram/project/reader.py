@@ -23,6 +23,7 @@ from photogram.project.model import (  # noqa: F401  (also re-exported)
     VerticalConstraint,
 )
 from photogram.project.model import PERTURBATIONS, TRUTHS, MonteCarloSettings
+from photogram.project.reader_targets import read_targets
 from photogram.project.reader_dbat import _camera_from_dbat, _read_dbat_style, _uses_dbat_features
 from photogram.project.reader_tables import (_read_observations, _read_points, _read_stations,
                                              _source_table)
@@ -42,7 +43,7 @@ from photogram.project.reader_tables import (  # noqa: F401,E402  (re-exports)
 __all__ = ["read_project", "SECTIONS", "STATION_COLUMNS", "POINT_COLUMNS"]
 
 SECTIONS = ("project", "cameras", "stations", "points", "observations",
-            "constraints", "adjustment", "output", "intersect", "montecarlo", "mocap")
+            "constraints", "adjustment", "output", "intersect", "montecarlo", "mocap", "targets")
 REQUIRED_SECTIONS = ("project", "cameras", "stations", "observations")
 INTERSECT_KEYS = ("fps", "points", "skis", "ski_length", "binding_fraction", "orientation",
                   "swap_skis")
@@ -145,6 +146,7 @@ def read_project(path: str | Path) -> Project:
         project.points = Points() if no_points else _read_points(tables[1], project)
         _read_observations(tables[2], project)
     _read_constraints(root.table("constraints", required=False), project)
+    read_targets(root.table("targets", required=False), project)
     project.warnings = project.warnings + validate_project(project, src)
     return project
 

@@ -40,7 +40,7 @@ RECONSTRUCTION_KEYS = ("solver", "n_dct", "window", "overlap", "sigma2", "lambda
                        "step_tol", "n_rotation_dct", "lambda_rot", "bootstrap_iterations",
                        "pose_basis", "rotation_basis", "rotation_prior")
 _FORBIDDEN = ("points", "observations", "constraints", "intersect", "montecarlo",
-              "adjustment")
+              "adjustment", "targets")
 
 
 @dataclass

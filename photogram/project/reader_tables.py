@@ -17,6 +17,7 @@ import numpy as np
 from photogram.project.camera_schema import invert_opk
 from photogram.project.model import (IMAGE_UNITS, POINT_KINDS, ImageLines, ImagePoints, Points,
                                      Project, Stations)
+from photogram.project.reader_targets import TARGET_COLUMNS
 from photogram.project.tables import Table, read_table
 from photogram.project.text_input import suggest
 from photogram.project.toml_source import Section
@@ -158,7 +159,8 @@ def _read_points(sec: Section, project: Project) -> Points:
                             hint="a CSV points table names its columns in its header and "
                                  "marks check points in its kind column")
     table = _source_table(sec, "file", "points table", "points", project,
-                          required=POINT_COLUMNS[:2], optional=POINT_COLUMNS[2:])
+                          required=POINT_COLUMNS[:2],
+                          optional=POINT_COLUMNS[2:] + TARGET_COLUMNS)
     ids = _ids(table, "id", "point")
     kinds = [k.lower() for k in table.text("kind")]
     for i, kind in enumerate(kinds):
@@ -172,7 +174,8 @@ def _read_points(sec: Section, project: Project) -> Points:
                               hint=f"give X, Y and Z of every {kind} point, or make it a tie "
                                    f"point")
     return Points(ids=ids, kind=np.array(kinds, dtype=object), xyz=xyz,
-                  sigma=_sigmas(table, ("sX", "sY", "sZ"), xyz), record=table.records)
+                  sigma=_sigmas(table, ("sX", "sY", "sZ"), xyz), record=table.records,
+                  diameter=table.floats("diameter"), normal=_block(table, TARGET_COLUMNS[1:]))
 
 
 def _read_observations(sec: Section, project: Project) -> None:

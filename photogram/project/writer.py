@@ -166,6 +166,12 @@ def point_columns(project: Project, *, include_sigma: bool | None = None) -> dic
     if include_sigma or include_sigma is None and np.isfinite(pts.sigma).any():
         for j, c in enumerate("XYZ"):
             cols["s" + c] = pts.sigma[:, j]
+    targets = getattr(project, "targets", None)
+    if targets is not None:                      # circular targets (docs/project-files.md)
+        r, n = targets.for_points(pts.ids)
+        cols["diameter"] = 2 * r
+        for j, c in enumerate(("nX", "nY", "nZ")):
+            cols[c] = n[:, j]
     return cols
 
 
@@ -228,6 +234,8 @@ def project_to_toml(project: Project, tables: dict[str, str]) -> str:
     if constraints:
         doc["constraints"] = constraints
     doc["adjustment"] = _settings(project)
+    if getattr(project, "targets", None) is not None:
+        doc["targets"] = {"eccentricity": bool(project.targets.eccentricity)}
     doc["output"] = {"folder": project.output.folder}
     comments = {("cameras", n): f"taken from {comment_string(c.source)}"
                 for n, c in project.cameras.items() if c.source}
