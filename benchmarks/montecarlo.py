@@ -1,8 +1,8 @@
 """Speed of photogram montecarlo: the field orientation plus the intersection
 of the 24-exposure jump (projects/jumps/montecarlo.prj), per run.
 
-Runs the lab calibration and the field orientation first if their results
-are missing (as `make demo` does), then
+Runs the lab measurement, the lab calibration and the field orientation
+first if their results are missing (as `make demo` does), then
 
 * N1 runs with 1 worker (this process): runs per second;
 * N runs with 2 workers (local processes, loky): runs per second and the
@@ -31,6 +31,9 @@ PROJECTS = ROOT / "projects"
 
 
 def _prepare():
+    if not (PROJECTS / "lab" / "results-measure" / "image_points.csv").is_file():
+        from photogram.commands.measure import measure_to_folder
+        measure_to_folder(PROJECTS / "lab" / "frame.toml", report=False)
     if not (PROJECTS / "lab" / "results" / "covariance.npz").is_file():
         calibrate(read_project(PROJECTS / "lab" / "lab.prj"))
     if not (PROJECTS / "field" / "results" / "stations.csv").is_file():

@@ -1,7 +1,10 @@
 """`photogram demo` (and `make demo`): the main job on the bundled example
 projects, in the order a user runs it.
 
-1. ``calibrate projects/lab/lab.prj``   self-calibration of the simulated lab frame
+1. ``measure projects/lab/frame.toml``  the rendered photographs of the simulated lab
+   frame measured (targets found, numbered from the ArUco markers), then checked
+   against the typed observations ``lab_image_points.csv``; and
+   ``calibrate projects/lab/lab.prj``   self-calibration of the lab frame from them
 2. ``orient projects/field/field.prj``  the simulated arena, cameras from step 1
 3. ``intersect projects/jumps/jumps.prj``  the simulated jump: jumper points,
    ski lines and the stick model, orientation covariance propagated
@@ -49,9 +52,33 @@ def _mocap(project):
     return project.output_folder(), None
 
 
+def _measure(path):
+    """photogram measure of a target field into its default folder (the demo
+    replaces its own earlier measurement, and says so), then the check
+    against the typed observations beside it."""
+    from photogram.commands.measure import measure_to_folder
+    from photogram.measure.compare import compare_tables
+    from photogram.project.output_policy import claim_output
+
+    folder = path.parent / "results-measure"
+    rel = path.relative_to(ROOT)
+    if claim_output(folder, command="measure", force=True) != "new":
+        print(f"measure {rel}: replacing the earlier results in {folder.relative_to(ROOT)}")
+    folder, result = measure_to_folder(path, folder, force=True)
+    per = [len([v for v in im.numbering.labels if v]) for im in result.images]
+    print(f"measure {rel}: {len(result.table())} observations in {len(result.images)} images "
+          f"({min(per)}-{max(per)} per image); results in {folder.relative_to(ROOT)}")
+    typed = path.parent / "lab_image_points.csv"
+    if typed.is_file():
+        c = compare_tables(folder / "image_points.csv", typed, sigma_reference=0.33)
+        print(f"measure {rel}: check against the typed {typed.name}: {c.line()}")
+    return folder
+
+
 def steps():
     """(command, function, project path, needs) of the demo, in order."""
-    return [("calibrate", calibrate, PROJECTS / "lab" / "lab.prj", None),
+    return [("measure", _measure, PROJECTS / "lab" / "frame.toml", None),
+            ("calibrate", calibrate, PROJECTS / "lab" / "lab.prj", None),
             ("orient", orient, PROJECTS / "field" / "field.prj", None),
             ("intersect", intersect_and_write, PROJECTS / "jumps" / "jumps.prj", None),
             ("montecarlo", _montecarlo, PROJECTS / "jumps" / "montecarlo.prj", None),
@@ -73,6 +100,9 @@ def run(args=None):
             print(f"skipping {path.relative_to(ROOT)}: reference data {needs} not present")
             continue
         if not path.is_file():
+            continue
+        if command == "measure":
+            folders.append(function(path))
             continue
         project = read_project(path)
         from photogram.project.output_policy import claim_output, project_inputs

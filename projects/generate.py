@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Generate the simulated example projects, projects/lab, projects/field
-and projects/jumps.
+and projects/jumps (with the rendered photographs of the lab frame).
 
 All data are SIMULATED (nothing here was measured): the networks of the
 ski-jump paper's laboratory calibration (Fig. 5) and field orientation
@@ -19,7 +19,13 @@ What is written (``<stem>_*.csv`` is write_project's naming)::
     lab/lab.prj                  free-network self-calibration (datum free + scale bar)
     lab/lab_stations.csv         9 stations, approximate values from a sketch
     lab/lab_points.csv           50 targets, approximate coordinates
-    lab/lab_image_points.csv     image measurements, sigma 0.33 px
+    lab/lab_image_points.csv     typed image measurements, sigma 0.33 px (the check
+                                 of the measurement; the input of lab-typed.prj)
+    lab/lab-typed.prj            the same calibration from the typed measurements
+    lab/images/*.jpg             rendered photographs of the true frame (9, 640 x 480,
+                                 retro dots and ArUco markers; photogram.measure.scenes)
+    lab/frame.toml               their target-field description for photogram measure
+                                 (lab.prj reads what it writes, results-measure/)
     lab/truth/*.csv              the true cameras, stations, points, scale bar,
                                  noise-free image coordinates
     field/field.prj              alternative 1: orientation with 15 reference
@@ -54,7 +60,7 @@ import numpy as np
 
 from photogram.geometry import camera_model
 from photogram.project import write_project
-from photogram.project.atomic import atomic_write_text
+from photogram.project.atomic import atomic_write_bytes, atomic_write_text
 from photogram.project.camera_schema import camera_to_toml
 from photogram.project.tables import format_angle, format_table
 from photogram.project.toml_writer import dumps
@@ -79,7 +85,12 @@ DESCRIPTIONS = {
     "lab_stations.csv": "lab stations, approximate values from a sketch "
                         "(truth + ~3 cm, ~3 gon)",
     "lab_points.csv": "lab targets, approximate coordinates (truth + ~1 cm)",
-    "lab_image_points.csv": "lab image measurements (px; noise N(0, 0.33 px))",
+    "lab_image_points.csv": "lab image measurements, typed (px; noise N(0, 0.33 px)); "
+                            "lab.prj measures its own from images/, this table is the check",
+    "lab-typed.prj": "laboratory self-calibration of K1, K2, K3 from the typed image "
+                     "measurements (lab_image_points.csv)",
+    "frame.toml": "target field of the rendered lab photographs (images/) for "
+                  "photogram measure",
     "field.prj": "field orientation of K1, K2, K3 at a K120-like hill (ski-jump paper, "
                  "Fig. 7), alternative 1: reference and tie points",
     "field-alt2.prj": "field orientation of K1, K2, K3 at a K120-like hill (ski-jump "
@@ -195,19 +206,82 @@ def _with_header(text: str, header: str) -> str:
     return _comment(header) + _strip_writer_header(text)
 
 
+#: the lab's measured observations: photogram measure frame.toml writes them
+LAB_MEASURED = "results-measure/image_points.csv"
+LAB_JPEG_QUALITY = 92
+
+
+def _jpeg_with_comment(image: np.ndarray, comment: str) -> bytes:
+    """JPEG bytes (quality LAB_JPEG_QUALITY) with a COM segment right after
+    the start-of-image marker, so that the file itself says it is simulated."""
+    import cv2
+    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, LAB_JPEG_QUALITY])
+    if not ok:  # pragma: no cover - encoding a valid array does not fail
+        raise RuntimeError("JPEG encoding failed")
+    data = buf.tobytes()
+    text = comment.encode("ascii")
+    return data[:2] + b"\xff\xfe" + (len(text) + 2).to_bytes(2, "big") + text + data[2:]
+
+
+def lab_images(truth_folder: Path) -> dict[str, bytes | str]:
+    """The rendered photographs of the lab frame (images/*.jpg) and their
+    target-field description (frame.toml), from the truth tables the
+    generator writes (photogram.measure.scenes: photogram's brown model,
+    retro dots of 16 mm on black plates, ArUco DICT_4X4_50 markers of 70 mm
+    on nine points spread over the plate and the post tops; 640 x 480, blur
+    0.7 px, noise 2, JPEG 92). The description gives the project's
+    approximate coordinates (lab_points.csv), never the truth."""
+    from photogram.measure.scenes import (_rows, choose_markers, field_description, read_truth,
+                                          render_project)
+    truth = read_truth(truth_folder)
+    markers = choose_markers(truth["points"])
+    note = _simulated("photograph of the lab frame rendered from truth/ (K1, K2, K3 at the true "
+                      "stations; photogram.measure.scenes)", LAB_SEED).replace("\n", " ")
+    files: dict[str, bytes | str] = {}
+    for name, img in render_project(truth, markers, seed=LAB_SEED).items():
+        files[f"images/{name}.jpg"] = _jpeg_with_comment(img, note)
+    folder = Path(truth_folder).parent
+    approx = {r["id"]: np.array([float(r["X"]), float(r["Y"]), float(r["Z"])])
+              for r in _rows(folder / "lab_points.csv")}
+    text = field_description(markers, approx, points_file="lab_points.csv", images="images")
+    header = _simulated(DESCRIPTIONS["frame.toml"], LAB_SEED) + (
+        "\nRun: photogram measure projects/lab/frame.toml  (writes results-measure/, whose "
+        "image_points.csv\nlab.prj calibrates from). See README.md.")
+    files["frame.toml"] = _comment(header) + text
+    return files
+
+
 def lab_files() -> dict[str, str]:
     project, truth = lab_design(LAB_SEED)
     files = {}
     for name, text in _written(project, "lab").items():
-        header = _simulated(DESCRIPTIONS[name], LAB_SEED)
         if name.endswith(".prj"):
-            header += ("\nRun: photogram calibrate projects/lab/lab.prj  (writes results/, "
-                       "whose cameras.toml\nthe field projects use). See README.md.")
+            typed = _with_header(text.replace('folder = "results"', 'folder = "results-typed"'),
+                                 _simulated(DESCRIPTIONS["lab-typed.prj"], LAB_SEED)
+                                 + "\nRun: photogram calibrate projects/lab/lab-typed.prj  "
+                                   "(writes results-typed/). See README.md.")
+            files["lab-typed.prj"] = typed
+            text = _replace_observations(text, "lab_image_points.csv", LAB_MEASURED)
+            header = _simulated(DESCRIPTIONS[name], LAB_SEED) + (
+                "\nThe image points are measured from the rendered photographs images/:\n"
+                "run photogram measure projects/lab/frame.toml  (writes results-measure/),\n"
+                "then photogram calibrate projects/lab/lab.prj  (writes results/, whose "
+                "cameras.toml\nthe field projects use). The typed lab_image_points.csv is "
+                "the check (lab-typed.prj). See README.md.")
+        else:
+            header = _simulated(DESCRIPTIONS[name], LAB_SEED)
         files[name] = _with_header(text, header)
     truth = _truth_with_rows(project, truth)
     for name, text in _truth_tables(truth, ("m", "gon")).items():
         files[f"truth/{name}"] = text
     return files
+
+
+def _replace_observations(prj: str, old: str, new: str) -> str:
+    target = f'points = "{old}"'
+    if prj.count(target) != 1:
+        raise RuntimeError(f"{old} not found once in the written .prj")
+    return prj.replace(target, f'points = "{new}"   # written by photogram measure frame.toml')
 
 
 def field_files() -> dict[str, str]:
@@ -345,11 +419,16 @@ def generate(out: Path = HERE) -> list[Path]:
     out = Path(out)
     written = []
     for folder, files in (("lab", lab_files()), ("field", field_files()),
-                          ("jumps", jumps_files())):
+                          ("jumps", jumps_files()), ("lab", None)):
+        if files is None:                 # the photographs, rendered from the truth just written
+            files = lab_images(out / "lab" / "truth")
         for name, text in files.items():
             path = out / folder / name
             path.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write_text(path, text)
+            if isinstance(text, bytes):
+                atomic_write_bytes(path, text)
+            else:
+                atomic_write_text(path, text)
             path.chmod(0o644)
             written.append(path)
     return written

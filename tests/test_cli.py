@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import types
 from pathlib import Path
 
@@ -94,15 +95,22 @@ def test_demo_runs_the_lab_and_field_chain(tmp_path, monkeypatch, capsys):
     import photogram.demo as demo
     root = Path(demo.__file__).resolve().parents[1]
     shutil.copytree(root / "projects" / "lab", tmp_path / "projects" / "lab",
-                    ignore=shutil.ignore_patterns("results"))
+                    ignore=shutil.ignore_patterns("results", "results-*"))
     shutil.copytree(root / "projects" / "field", tmp_path / "projects" / "field",
                     ignore=shutil.ignore_patterns("results"))
     monkeypatch.setattr(demo, "ROOT", tmp_path)
     monkeypatch.setattr(demo, "PROJECTS", tmp_path / "projects")
     all_steps = demo.steps
-    monkeypatch.setattr(demo, "steps", lambda: all_steps()[:2])
+    assert [s[0] for s in all_steps()[:3]] == ["measure", "calibrate", "orient"]
+    monkeypatch.setattr(demo, "steps", lambda: all_steps()[:3])
     assert main(["demo"]) == 0
     out = capsys.readouterr().out
+    # the photographs are measured first, checked against the typed table, then calibrated
+    assert re.search(r"measure projects/lab/frame\.toml: \d+ observations in 9 images", out)
+    check = re.search(r"check against the typed lab_image_points\.csv: (\d+) of 446 found.*"
+                      r" (\d+) more than 3 px off \(wrong labels\)", out)
+    assert check and int(check.group(1)) >= 0.84 * 446 and check.group(2) == "0", out
+    assert (tmp_path / "projects" / "lab" / "results-measure" / "image_points.csv").is_file()
     assert "calibrate projects/lab/lab.prj: converged" in out
     assert "orient projects/field/field.prj: converged" in out
     assert (tmp_path / "projects" / "field" / "results" / "summary.json").is_file()

@@ -23,7 +23,8 @@ __all__ = ["Section", "SECTIONS", "MODULES", "section", "sections"]
 
 #: page modules, imported by :func:`sections`
 MODULES = ("photogram.report.pages_summary", "photogram.report.pages_cameras",
-           "photogram.report.pages_stations", "photogram.report.pages_residuals",
+           "photogram.report.pages_stations", "photogram.report.pages_measurement",
+           "photogram.report.pages_residuals",
            "photogram.report.pages_points", "photogram.report.pages_geometry",
            "photogram.report.pages_network",
            "photogram.report.pages_intersect", "photogram.report.hooks")

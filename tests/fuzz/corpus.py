@@ -38,7 +38,7 @@ SHARED = ROOT.parent / "shared" / "data"
 # staging
 
 
-_SKIP = {"results", "results-estimate"}
+_SKIP = {"results", "results-estimate", "results-measure", "results-typed"}
 
 
 def stage(base: Path) -> Path:
@@ -60,14 +60,17 @@ def stage(base: Path) -> Path:
 
 def _results(base: Path) -> None:
     """The lab and field results the jumps project and the importer sources
-    read, computed in the staged copy (a fresh clone has none)."""
+    read, computed in the staged copy (a fresh clone has none): the lab's
+    photographs measured (its observations), the lab calibrated, the field
+    oriented."""
     import contextlib
     import io
 
     from photogram_cli.main import main
-    for command, prj in (("calibrate", "lab/lab.prj"), ("orient", "field/field.prj")):
+    for command, prj, *more in (("measure", "lab/frame.toml", "--no-report"),
+                                ("calibrate", "lab/lab.prj"), ("orient", "field/field.prj")):
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            code = main([command, str(base / prj), "-q"])
+            code = main([command, str(base / prj), "-q", *more])
         if code != 0:
             raise RuntimeError(f"photogram {command} {prj} failed while staging the corpus")
 
@@ -467,10 +470,14 @@ def build_cases(base: Path) -> list[Case]:
                        "cli", lab, refs={"camera": "camera"}, unique=("station",), all_rows=True)
     cases += csv_cases("lab_points", "lab/lab_points.csv", read("lab/lab_points.csv"), "cli",
                        lab, unique=("id",), all_rows=True)
+    # the typed table is read by lab-typed.prj; lab.prj reads the measured one
     cases += csv_cases("lab_image_points", "lab/lab_image_points.csv",
-                       read("lab/lab_image_points.csv"), "cli", lab,
+                       read("lab/lab_image_points.csv"), "cli", _check("lab/lab-typed.prj"),
                        refs={"station": "station", "point": "point"}, unique=("station", "point"),
                        all_rows=True)
+    cases += csv_cases("lab_measured_points", "lab/results-measure/image_points.csv",
+                       read("lab/results-measure/image_points.csv"), "cli", lab,
+                       refs={"station": "station", "point": "point"}, unique=("station", "point"))
     # field: its tables and the lab's cameras.toml it refers to
     field = _check("field/field.prj")
     # ([project] and [output] keys are mutated in lab.prj)
