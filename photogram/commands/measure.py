@@ -95,33 +95,34 @@ def measure_to_folder(field_path, output=None, *, images=None, force: bool = Fal
     folder = Path(output) if output is not None else fld.path.parent / "results-measure"
     src = Path(images) if images is not None else fld.images
     inputs = [fld.path] + (image_files(src) if src is not None and Path(src).is_dir() else [])
-    claim_output(folder, command="measure", inputs=inputs, force=force)
-    t0 = time.perf_counter()
-    drawings = {}
+    from photogram.project.results_folder import output_lock, staged_results
+    # one run per output folder (a lock), written whole or not at all (a
+    # staging folder moved into place at the end), as every command
+    with output_lock(folder, command="measure"):
+        claim_output(folder, command="measure", inputs=inputs, force=force)
+        t0 = time.perf_counter()
+        drawings = {}
 
-    def draw(res, gray):
-        if report:
-            drawings[res.name] = draw_image(gray, res)
+        def draw(res, gray):
+            if report:
+                drawings[res.name] = draw_image(gray, res)
 
-    result = measure_images(fld, src, eccentricity_correction=eccentricity_correction,
-                            progress=draw)
-    seconds = time.perf_counter() - t0
-    texts = {"image_points.csv": observations_csv(result),
-             "detections.csv": detections_csv(result)}
-    summary = json.dumps(_summary(result, seconds), indent=1) + "\n"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot create the output folder: {exc.strerror}", file=folder,
-                         hint="choose another folder with --output") from None
-    for name, text in texts.items():
-        atomic_write_text(folder / name, text)
-    if report:
-        (folder / "images").mkdir(exist_ok=True)
-        for name, img in drawings.items():
-            atomic_write_bytes(folder / "images" / f"{name}.png", png_bytes(img))
-        atomic_write_bytes(folder / "report.pdf", report_pdf(result, drawings))
-    atomic_write_text(folder / "summary.json", summary)
+        result = measure_images(fld, src, eccentricity_correction=eccentricity_correction,
+                                progress=draw)
+        seconds = time.perf_counter() - t0
+        texts = {"image_points.csv": observations_csv(result),
+                 "detections.csv": detections_csv(result)}
+        summary = json.dumps(_summary(result, seconds), indent=1) + "\n"
+        with staged_results(folder, command="measure", inputs=inputs) as stage:
+            out = stage.path
+            for name, text in texts.items():
+                atomic_write_text(out / name, text)
+            if report:
+                (out / "images").mkdir(exist_ok=True)
+                for name, img in drawings.items():
+                    atomic_write_bytes(out / "images" / f"{name}.png", png_bytes(img))
+                atomic_write_bytes(out / "report.pdf", report_pdf(result, drawings))
+            atomic_write_text(out / "summary.json", summary)
     return folder, result
 
 
