@@ -157,9 +157,10 @@ def test_camera_to_world_station_sigmas_are_propagated_not_copied(tmp_path):
     from photogram.project.tables import format_angle
 
     root = DATA.parents[1] / "projects"
-    for name in ("lab", "field"):
-        shutil.copytree(root / name, tmp_path / name, ignore=shutil.ignore_patterns(
-            "results*", ".*"))
+    shutil.copytree(root / "field", tmp_path / "field",
+                    ignore=shutil.ignore_patterns("results*", ".*"))
+    from lab_stage import stage_lab
+    stage_lab(tmp_path / "lab")               # copied and its photographs measured
     calibrate(read_project(tmp_path / "lab" / "lab.prj"))
     field = tmp_path / "field"
     w2c_folder, _ = orient(read_project(field / "field.prj"), output=tmp_path / "w2c")

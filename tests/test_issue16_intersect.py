@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from lab_stage import stage_lab
 
 import photogram
 from photogram_cli.main import main
@@ -27,8 +28,10 @@ PROJECTS = Path(photogram.__file__).resolve().parents[1] / "projects"
 def chain(tmp_path_factory):
     """calibrate lab, orient field, intersect jumps (copies of the examples)."""
     root = tmp_path_factory.mktemp("i16")
-    for name in ("lab", "field", "jumps"):
-        shutil.copytree(PROJECTS / name, root / name, ignore=shutil.ignore_patterns("results*"))
+    for name in ("field", "jumps"):
+        shutil.copytree(PROJECTS / name, root / name,
+                        ignore=shutil.ignore_patterns("results*", ".*"))
+    stage_lab(root / "lab")                   # copied and its photographs measured
     assert main(["calibrate", "-q", str(root / "lab" / "lab.prj")]) == 0
     assert main(["orient", "-q", str(root / "field" / "field.prj")]) == 0
     assert main(["intersect", "-q", str(root / "jumps" / "jumps.prj")]) == 0

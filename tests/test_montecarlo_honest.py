@@ -265,9 +265,11 @@ def demo_chain(tmp_path_factory):
     import photogram.report
     from photogram_cli.main import main
     root = tmp_path_factory.mktemp("demo")
-    for name in ("lab", "field", "jumps"):
+    for name in ("field", "jumps"):
         shutil.copytree(ROOT / "projects" / name, root / name,
-                        ignore=shutil.ignore_patterns("results", "results-*"))
+                        ignore=shutil.ignore_patterns("results", "results-*", ".*"))
+    from lab_stage import stage_lab
+    stage_lab(root / "lab")                   # copied and its photographs measured
     mp = pytest.MonkeyPatch()
     mp.setattr(photogram.report, "write_report", lambda *a, **k: None)
     try:

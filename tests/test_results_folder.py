@@ -30,10 +30,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _lab(tmp_path) -> Path:
-    prj = tmp_path / "lab"
-    shutil.copytree(ROOT / "projects" / "lab", prj,
-                    ignore=shutil.ignore_patterns("results", ".*"))
-    return prj / "lab.prj"
+    from lab_stage import stage_lab
+    return stage_lab(tmp_path / "lab") / "lab.prj"     # copied and measured
 
 
 def _digest(folder: Path) -> dict:
