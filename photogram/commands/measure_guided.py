@@ -18,8 +18,9 @@ image points (an input):
 * ``image_points.csv`` — every observation: the first measurement's
   rows, then the added ones (same columns and pixel convention);
 * ``guided.csv`` — the added observations alone, with their round;
-* ``summary.json`` (last) — per round the targets predicted and added and
-  the adjustment's sigma0, and per image the observations added.
+* ``summary.json`` (last) — per round the adjustment's sigma0, the added
+  observations it removed (off the adjusted prediction), the targets
+  predicted and added; per image the observations added.
 """
 
 from __future__ import annotations
@@ -27,8 +28,6 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-
-import numpy as np
 
 from photogram.errors import InputError
 from photogram.measure.bundle_guided import guided_from_bundle
@@ -129,7 +128,9 @@ def guided_to_folder(field_path, project_path, output=None, *, images=None,
                 f"y down, top-left corner of the image at (0, 0); ellipse centres")
         table = [head, "station,point,x,y,sigma"]
         table += [f"{s},{p},{x:.4f},{y:.4f},{g:.4f}" for s, p, x, y, g in _rows(out)]
-        rounds = np.repeat(np.arange(1, report.rounds + 1), report.added)
+        obs = out.image_points
+        rounds = [report.round_of.get((int(obs.station[i]), int(obs.point[i])), 0)
+                  for i in range(n_before, n_after)]
         added = [f"{s},{p},{x:.4f},{y:.4f},{g:.4f},{r}"
                  for (s, p, x, y, g), r in zip(_rows(out, n_before), rounds)]
         per_image: dict[str, int] = {s: 0 for s in project.stations.names}
@@ -138,11 +139,11 @@ def guided_to_folder(field_path, project_path, output=None, *, images=None,
         summary = {"command": "measure --guided", "field": str(fld.path), "project": str(prj),
                    "first_measurement": str(src_points), "observations_before": n_before,
                    "observations": n_after, "added": n_after - n_before,
-                   "rounds": [{"round": k + 1, "predicted": int(pr), "added": int(ad),
-                               "sigma0": round(float(s0), 4)}
-                              for k, (pr, ad, s0) in enumerate(zip(report.predicted,
-                                                                   report.added,
-                                                                   report.sigma0))],
+                   "rounds": [{"round": k + 1, "sigma0": round(float(s0), 4),
+                               "removed": int(rm), "predicted": int(pr), "added": int(ad)}
+                              for k, (s0, rm, pr, ad) in enumerate(zip(
+                                  report.sigma0, report.removed, report.predicted,
+                                  report.added))],
                    "added_per_image": per_image, "eccentricity_correction": False,
                    "seconds": round(seconds, 3)}
         with staged_results(folder, command="measure --guided", inputs=inputs) as stage:
