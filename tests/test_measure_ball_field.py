@@ -107,3 +107,10 @@ def test_unknown_shape_is_one_line(scene, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "shape" in err[0] and "cube.toml" in err[0]
     assert not (tmp_path / "out").exists()
+    plain = folder / "plain.toml"
+    plain.write_text((folder / "frame.toml").read_text().replace('[targets]\nfile = "balls.csv"',
+                                                                 ""))
+    assert main(["measure", str(plain), "--output", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "table of targets" in err[0]
+    assert not (tmp_path / "out").exists()

@@ -75,8 +75,8 @@ def targets_toml(fld) -> str | None:
     """``targets.toml``: the ``[targets]`` section of a project whose image
     points are this field's ellipse centres (``--no-eccentricity``), or
     None when the field has no diameter or no common normal."""
-    if not fld.diameter > 0:
-        return None
+    if not fld.diameter > 0 or fld.shape != "circle":
+        return None                                  # balls: no in-adjustment counterpart
     if fld.spatial:
         nv = fld.target_normal
         if nv is None or not len(nv) or not np.allclose(nv, nv[0], atol=1e-9):

@@ -279,6 +279,9 @@ def _read(path: Path, doc: dict, err) -> TargetField:
             raise err("[grid] and [targets] together", "[targets",
                       "a plane's grid or a 3D field's table of targets, not both")
         _read_targets(doc["targets"], out, err)
+    if out.shape == "ball" and not out.target_ids:
+        raise err("shape = \"ball\" needs a 3D field's table of targets", "shape",
+                  "give [targets] file = ... (balls are corrected from each image's DLT)")
     if not out.codes and not out.markers:
         raise err("the field has no coded targets", "[codes",
                   "numbering needs coded targets ([[codes.target]] or [[aruco.marker]])")
