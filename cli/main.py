@@ -155,6 +155,11 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
                          help="write the ellipse centres without the eccentricity correction")
         sub.add_argument("--no-report", action="store_true",
                          help="no drawings (images/*.png) and no report.pdf")
+        sub.add_argument("--guided", type=Path, metavar="PROJECT",
+                         help="after a first measurement (--no-eccentricity): adjust "
+                              "PROJECT, predict the missing targets through the adjusted "
+                              "cameras, measure them, repeat until nothing new "
+                              "(-> results-guided/)")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -27,6 +27,8 @@ import logging
 import time
 from pathlib import Path
 
+import numpy as np
+
 from photogram.errors import InputError
 from photogram.measure.field import read_field
 from photogram.measure.pipeline import PIXEL_OFFSET, image_files, measure_images
@@ -34,7 +36,7 @@ from photogram.measure.report import draw_image, png_bytes, report_pdf
 from photogram.project.atomic import atomic_write_bytes, atomic_write_text
 from photogram.project.output_policy import claim_output
 
-__all__ = ["run", "measure_to_folder", "observations_csv", "detections_csv"]
+__all__ = ["run", "measure_to_folder", "observations_csv", "detections_csv", "targets_toml"]
 
 log = logging.getLogger("photogram")
 
@@ -69,7 +71,37 @@ def detections_csv(measurement) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _summary(measurement, seconds: float) -> dict:
+def targets_toml(fld) -> str | None:
+    """``targets.toml``: the ``[targets]`` section of a project whose image
+    points are this field's ellipse centres (``--no-eccentricity``), or
+    None when the field has no diameter or no common normal."""
+    if not fld.diameter > 0 or fld.shape != "circle":
+        return None                                  # balls: no in-adjustment counterpart
+    if fld.spatial:
+        nv = fld.target_normal
+        if nv is None or not len(nv) or not np.allclose(nv, nv[0], atol=1e-9):
+            return None
+        normal = nv[0]
+    elif fld.grid_ids:
+        normal = np.array([0.0, 0.0, 1.0])           # the grid lies in the plane Z = 0
+    else:                                            # a plane of codes: its normal
+        _, xyz = fld.coded3()
+        if len(xyz) < 3:
+            return None
+        normal = np.linalg.svd(xyz - xyz.mean(axis=0))[2][2]
+        normal = normal * (1 if normal[np.argmax(np.abs(normal))] > 0 else -1)
+    n = ", ".join(f"{v:g}" for v in normal)
+    return (f"# photogram measure: the targets of {fld.name} ({fld.path.name}).\n"
+            f"# image_points.csv beside this file holds ellipse centres (--no-eccentricity):\n"
+            f"# copy this section into the .prj that reads it, and the adjustment corrects\n"
+            f"# their eccentricity (docs/measure.md, docs/project-files.md).\n"
+            + (f"# The ArUco markers ({', '.join(sorted(fld.marker_xyz))}) are not circles: give\n"
+               f"# them diameter = 0 in the points table (a diameter column; empty = this one).\n"
+               if fld.marker_xyz else "")
+            + f"[targets]\ndiameter = {fld.diameter:g}\nnormal = [{n}]\n")
+
+
+def _summary(measurement, seconds: float, eccentricity: bool = True) -> dict:
     per_image = {im.name: im.counts() | {"seconds": round(im.seconds, 4)}
                  for im in measurement.images}
     per_target: dict[str, int] = {}
@@ -84,6 +116,7 @@ def _summary(measurement, seconds: float) -> dict:
             "observations": len(measurement.table()), "totals": total,
             "per_image": per_image, "per_target": dict(sorted(per_target.items())),
             "problems": measurement.problems(), "seconds": round(seconds, 3),
+            "eccentricity_correction": bool(eccentricity),
             "pixel_convention": "corner: the image's top-left corner is (0, 0), the first "
                                 "pixel's centre (0.5, 0.5)"}
 
@@ -112,7 +145,12 @@ def measure_to_folder(field_path, output=None, *, images=None, force: bool = Fal
         seconds = time.perf_counter() - t0
         texts = {"image_points.csv": observations_csv(result),
                  "detections.csv": detections_csv(result)}
-        summary = json.dumps(_summary(result, seconds), indent=1) + "\n"
+        summary = json.dumps(_summary(result, seconds, eccentricity_correction),
+                             indent=1) + "\n"
+        if not eccentricity_correction:
+            snippet = targets_toml(fld)
+            if snippet is not None:
+                texts["targets.toml"] = snippet
         with staged_results(folder, command="measure", inputs=inputs) as stage:
             out = stage.path
             for name, text in texts.items():
@@ -127,11 +165,21 @@ def measure_to_folder(field_path, output=None, *, images=None, force: bool = Fal
 
 
 def run(args) -> int:
-    """Command-line entry (``photogram measure FIELD [--images DIR] [--output DIR]``)."""
+    """Command-line entry (``photogram measure FIELD [--images DIR] [--output DIR]
+    [--guided PROJECT]``)."""
     if getattr(args, "field", None) is None:
         raise InputError("photogram measure: which target field?",
                          hint="give its description, e.g. photogram measure "
                               "projects/camcal/sheet.toml")
+    if getattr(args, "guided", None) is not None:
+        from photogram.commands.measure_guided import guided_to_folder
+        folder, rep, n0, n1 = guided_to_folder(args.field, args.guided, args.output,
+                                               images=args.images, force=args.force)
+        if not getattr(args, "quiet", False):
+            print(f"measure --guided: {n0} -> {n1} observations in {rep.rounds} rounds "
+                  f"(added {', '.join(str(a) for a in rep.added)}) "
+                  f"-> {folder / 'image_points.csv'}")
+        return 0
     folder, result = measure_to_folder(args.field, args.output, images=args.images,
                                        force=args.force,
                                        eccentricity_correction=not args.no_eccentricity,

@@ -31,7 +31,12 @@ the full camera model:
    factor 0.7-1.4 of the predicted ones, and no observation of the image is
    closer than the predicted minor axis;
 4. add the accepted ellipse centres (sigma: the fit's, with ``sigma_floor``
-   in quadrature) and repeat from 1 until a round adds nothing.
+   in quadrature) and repeat from 1 until a round adds nothing;
+5. after each adjustment, an added observation farther from the adjusted
+   prediction of its ellipse centre than ``max_misfit`` times the median
+   misfit of its image's observations (and 0.05 px) is removed and never
+   predicted again (a partly hidden or merged outline that the edge fit
+   accepted), and the project adjusted again.
 
 The new observations are ellipse centres: the adjustment corrects their
 eccentricity when the project's ``[targets]`` is on
@@ -58,11 +63,14 @@ __all__ = ["BundleGuided", "predict_ellipses", "guided_from_bundle"]
 @dataclass
 class BundleGuided:
     """What :func:`guided_from_bundle` did: per round the number of
-    predicted and of accepted targets, and the sigma0 of each adjustment."""
+    predicted and of accepted targets, of added observations removed
+    after the round's adjustment, and the sigma0 of each adjustment."""
 
     predicted: list = field(default_factory=list)
     added: list = field(default_factory=list)
+    removed: list = field(default_factory=list)
     sigma0: list = field(default_factory=list)
+    round_of: dict = field(default_factory=dict)    # (station, point) index -> round added
 
     @property
     def rounds(self) -> int:
@@ -115,7 +123,8 @@ def guided_from_bundle(project, images: dict, *, polarity: str = "dark", offset:
                        min_contrast: float = 20.0, max_residual: float = 0.5, gate: float = 1.0,
                        gate_axis: float = 0.3,
                        min_diameter: float = 5.0, min_cos: float = 0.3,
-                       sigma_floor: float = 0.02, max_rounds: int = 5,
+                       sigma_floor: float = 0.02, max_rounds: int = 8,
+                       max_misfit: float = 5.0,
                        options: SolverOptions | None = None):
     """Adjust, predict the missing targets, measure them, repeat (module doc).
 
@@ -129,6 +138,10 @@ def guided_from_bundle(project, images: dict, *, polarity: str = "dark", offset:
     images : dict
         Station name -> grey image (h, w) of that station.
     polarity : "dark" or "bright" targets
+    max_misfit : float
+        Step 5 (module doc).
+    max_rounds : int
+        Adjustments at most.
     offset : float
         Project image coordinates minus OpenCV pixel coordinates (0.5:
         ``photogram measure``'s convention, top-left corner at (0, 0)).
@@ -151,20 +164,73 @@ def guided_from_bundle(project, images: dict, *, polarity: str = "dark", offset:
         raise InputError(f"no image for station {missing[0]}", file=project.path,
                          hint="give one image per station, named like the station")
     report = BundleGuided()
+    n_first = len(project.image_points.station)
+    refused: set = set()
     for _ in range(max_rounds):
         built = build_problem(_two_rays(project))
         summary = solve(built.problem, options or SolverOptions(
             max_iterations=project.adjustment.max_iterations))
         report.sigma0.append(float(summary.sigma0))
         project = _with_state(project, built)
+        bad = _off_the_bundle(project, n_first, max_misfit)
+        report.removed.append(int(bad.sum()))
+        if bad.any():
+            # an added observation the adjustment does not fit (a partly hidden or merged
+            # outline): removed, never predicted again, and the project adjusted without it
+            obs = project.image_points
+            refused |= set(zip(obs.station[bad].tolist(), obs.point[bad].tolist()))
+            project = _without(project, bad)
+            report.predicted.append(0)
+            report.added.append(0)
+            continue
         new = _measure_missing(project, images, polarity, offset, min_contrast, max_residual,
-                               gate, gate_axis, min_diameter, min_cos, sigma_floor)
+                               gate, gate_axis, min_diameter, min_cos, sigma_floor, refused)
         report.predicted.append(new.pop("predicted"))
         report.added.append(len(new["station"]))
         if not len(new["station"]):
             break
+        for s_, p_ in zip(new["station"], new["point"]):
+            report.round_of[(int(s_), int(p_))] = report.rounds
         project = _with_observations(project, new)
+    for key in refused:
+        report.round_of.pop(key, None)
     return project, report
+
+
+def _off_the_bundle(project, n_first: int, max_misfit: float) -> np.ndarray:
+    """Which observations (from ``n_first`` on: the added ones) lie farther
+    from the adjusted prediction of their ellipse centre than ``max_misfit``
+    times the median misfit of the image's observations (and 0.05 px)."""
+    obs, st, pts = project.image_points, project.stations, project.points
+    bad = np.zeros(len(obs.station), bool)
+    if len(obs.station) <= n_first:
+        return bad
+    radius, normal = project.targets.for_points(pts.ids)
+    for s in np.unique(obs.station[n_first:]):
+        rows = np.flatnonzero((obs.station == s) & np.isfinite(radius[obs.point])
+                              & (radius[obs.point] > 0))
+        if not len(rows):
+            continue
+        cam = project.cameras[st.camera[s]]
+        n = len(rows)
+        c = predict_ellipses(camera_model(cam.model),
+                             np.tile(np.asarray(cam.values(), float), (n, 1)),
+                             np.tile(opk_to_matrix(st.angles[s]), (n, 1, 1)),
+                             np.tile(st.position[s], (n, 1)), pts.xyz[obs.point[rows]],
+                             normal[obs.point[rows]], radius[obs.point[rows]])[0]
+        v = np.linalg.norm(obs.xy[rows] - c, axis=1)
+        limit = max(0.05, max_misfit * float(np.nanmedian(v)))
+        bad[rows[(rows >= n_first) & ~(v <= limit)]] = True
+    return bad
+
+
+def _without(project, drop):
+    obs = project.image_points
+    keep = ~drop
+    sub = replace(obs, station=obs.station[keep], point=obs.point[keep], xy=obs.xy[keep],
+                  sigma=obs.sigma[keep], record=obs.record[keep],
+                  group=None if obs.group is None else obs.group[keep])
+    return replace(project, image_points=sub)
 
 
 def _two_rays(project):
@@ -196,11 +262,13 @@ def _with_state(project, built):
 
 
 def _measure_missing(project, images, polarity, offset, min_contrast, max_residual, gate,
-                     gate_axis, min_diameter, min_cos, sigma_floor):
+                     gate_axis, min_diameter, min_cos, sigma_floor, refused=frozenset()):
     st, pts, obs = project.stations, project.points, project.image_points
     radius, normal = project.targets.for_points(pts.ids)
     seen = np.zeros((len(st), len(pts)), bool)
     seen[obs.station, obs.point] = True
+    for s_, p_ in refused:
+        seen[s_, p_] = True
     new = {"station": [], "point": [], "xy": [], "sigma": [], "predicted": 0}
     for s, name in enumerate(st.names):
         cam = project.cameras[st.camera[s]]

@@ -50,7 +50,7 @@ __all__ = ["TargetField", "read_field", "CHANNELS"]
 
 CHANNELS = ("green", "red", "blue", "gray")
 _FIELD_KEYS = {"name", "images", "polarity", "channel", "diameter", "min_diameter",
-               "max_diameter", "min_contrast", "sigma_floor"}
+               "max_diameter", "min_contrast", "sigma_floor", "shape"}
 
 
 @dataclass
@@ -63,6 +63,7 @@ class TargetField:
     polarity: str = "dark"
     channel: str = "green"
     diameter: float = 0.0
+    shape: str = "circle"       # circle (flat targets) | ball (spheres)
     min_diameter: float = 5.0
     max_diameter: float = 80.0
     min_contrast: float = 20.0
@@ -189,6 +190,9 @@ def _read(path: Path, doc: dict, err) -> TargetField:
     out.polarity = str(f.get("polarity", "dark"))
     if out.polarity not in ("dark", "bright"):
         raise err(f"polarity {out.polarity!r}", "polarity", "dark or bright")
+    out.shape = str(f.get("shape", "circle"))
+    if out.shape not in ("circle", "ball"):
+        raise err(f"shape {out.shape!r}", "shape", "circle (flat targets) or ball (spheres)")
     out.channel = str(f.get("channel", "green"))
     if out.channel not in CHANNELS:
         raise err(f"channel {out.channel!r}", "channel", f"one of {', '.join(CHANNELS)}")
@@ -275,6 +279,9 @@ def _read(path: Path, doc: dict, err) -> TargetField:
             raise err("[grid] and [targets] together", "[targets",
                       "a plane's grid or a 3D field's table of targets, not both")
         _read_targets(doc["targets"], out, err)
+    if out.shape == "ball" and not out.target_ids:
+        raise err("shape = \"ball\" needs a 3D field's table of targets", "shape",
+                  "give [targets] file = ... (balls are corrected from each image's DLT)")
     if not out.codes and not out.markers:
         raise err("the field has no coded targets", "[codes",
                   "numbering needs coded targets ([[codes.target]] or [[aruco.marker]])")

@@ -267,6 +267,9 @@ def _eccentricity_3d(res: ImageResult, fld: TargetField) -> None:
         P = dlt(X, res.detections.xy[sel])
     except GeometryError:
         return
+    if fld.shape == "ball":
+        res.xy[sel] -= _ball_eccentricity(P, X, fld.diameter / 2)
+        return
     for i, Xi in zip(sel, X):
         n = fld.target_normal[pos[lab[i]]]
         up = np.array([0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
@@ -275,6 +278,23 @@ def _eccentricity_3d(res: ImageResult, fld: TargetField) -> None:
         e2 = np.cross(n, e1)
         H = np.column_stack([P[:, :3] @ e1, P[:, :3] @ e2, P[:, :3] @ Xi + P[:, 3]])
         res.xy[i] -= eccentricity(H, np.zeros((1, 2)), fld.diameter / 2)[0]
+
+
+def _ball_eccentricity(P: np.ndarray, X: np.ndarray, radius: float) -> np.ndarray:
+    """Outline centre minus image of the centre of balls at X (n, 3) for the
+    projection matrix P (decomposed into K [R | -R C];
+    :func:`photogram.measure.sphere.ball_eccentricity`)."""
+    import cv2
+    from photogram.measure.sphere import ball_eccentricity
+    P = P / np.linalg.norm(P[2, :3])
+    if np.median(X @ P[2, :3] + P[2, 3]) < 0:        # points in front: positive depth
+        P = -P
+    K, R, C = cv2.decomposeProjectionMatrix(P)[:3]
+    D = np.diag(np.where(np.diag(K) < 0, -1.0, 1.0))      # K with a positive diagonal
+    K, R = K @ D, D @ R
+    C = C[:3, 0] / C[3, 0]
+    K = K / K[2, 2]
+    return np.array([ball_eccentricity(K, R @ (Xi - C), radius) for Xi in X])
 
 
 def _refit(XY, xy, H0):
@@ -343,7 +363,8 @@ def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bo
             progress(res, gray)
     if fld.spatial and fld.target_ids:
         refine_space(out.images, fld)
-        if eccentricity_correction and fld.target_normal is not None and fld.diameter > 0:
+        if eccentricity_correction and fld.diameter > 0 and (
+                fld.target_normal is not None or fld.shape == "ball"):
             for res in out.images:
                 _eccentricity_3d(res, fld)
     elif fld.spatial:
