@@ -81,3 +81,20 @@ def test_propagated_covariance_is_symmetric_and_grows_with_orientation_noise():
     C2 = propagate_orientation(S, np.diag((2 * sig) ** 2))
     assert np.allclose(C2, 4 * C)
     assert np.all(np.diag(C) > 0)
+
+
+def test_combine_covariance_blocks_union_override_and_fixed():
+    """The union of labelled blocks: a later block overrides the shared
+    parameters, a zero variance (held fixed there) is not copied."""
+    from photogram.stats.propagation import combine_covariance_blocks
+    a = np.array([[4.0, 1.0, 0.5], [1.0, 9.0, 0.0], [0.5, 0.0, 1.0]])
+    b = np.array([[2.0, 0.3, 0.0], [0.3, 5.0, 0.0], [0.0, 0.0, 0.0]])
+    labels, total = combine_covariance_blocks([["c", "x", "y"], ["x", "z", "c"]], [a, b])
+    assert labels == ["c", "x", "y", "z"]
+    i = {k: n for n, k in enumerate(labels)}
+    assert total[i["x"], i["x"]] == 2.0 and total[i["z"], i["z"]] == 5.0    # b overrides
+    assert total[i["x"], i["z"]] == total[i["z"], i["x"]] == 0.3
+    assert total[i["c"], i["c"]] == 4.0       # fixed in b (variance 0): a's value kept
+    assert total[i["c"], i["y"]] == 0.5 and total[i["y"], i["y"]] == 1.0
+    assert total[i["c"], i["x"]] == 1.0       # only a holds the pair with c
+    assert np.allclose(total, total.T)

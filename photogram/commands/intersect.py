@@ -51,13 +51,8 @@ def _orientation(project):
         lab, mat = read_orientation_covariance(folder)
         labels.append(lab)
         blocks.append(mat)
-    union = list(dict.fromkeys(l for lab in labels for l in lab))
-    index = {l: i for i, l in enumerate(union)}
-    total = np.zeros((len(union), len(union)))
-    for lab, mat in zip(labels, blocks):       # a later folder overrides an earlier one
-        ix = np.array([index[l] for l in lab])
-        keep = np.diag(mat) > 0
-        total[np.ix_(ix[keep], ix[keep])] = mat[np.ix_(keep, keep)]
+    from photogram.stats.propagation import combine_covariance_blocks
+    union, total = combine_covariance_blocks(labels, blocks)   # later folders override
     _check_stations_covered(project, folders, union)
     return union, total
 

@@ -63,13 +63,8 @@ def _orientation_for_intersect(prj2, prj1, result):
             lab, mat = read_orientation_covariance(folder)
         labels.append(list(lab))
         blocks.append(mat)
-    union = list(dict.fromkeys(x for lab in labels for x in lab))
-    index = {x: i for i, x in enumerate(union)}
-    total = np.zeros((len(union), len(union)))
-    for lab, mat in zip(labels, blocks):       # a later folder overrides an earlier one
-        ix = np.array([index[x] for x in lab])
-        keep = np.diag(mat) > 0
-        total[np.ix_(ix[keep], ix[keep])] = mat[np.ix_(keep, keep)]
+    from photogram.stats.propagation import combine_covariance_blocks
+    union, total = combine_covariance_blocks(labels, blocks)   # later folders override
     return union, total
 
 

@@ -80,3 +80,34 @@ def propagate_orientation(sensitivity, covariance):
     """Joint covariance (3 n_points, 3 n_points) that the orientation
     covariance adds to the points."""
     return sensitivity @ covariance @ sensitivity.T
+
+
+def combine_covariance_blocks(labels, blocks):
+    """One covariance over the union of several labelled covariance blocks
+    (the folders of ``[intersect] orientation``: a lab's interior, a field's
+    joint interior-exterior covariance).
+
+    Parameters
+    ----------
+    labels : sequence of sequence of str
+        The parameter labels of each block, in the order of its rows.
+    blocks : sequence of ndarray
+        The square covariance matrices.
+
+    Returns
+    -------
+    (list of str, ndarray)
+        The union of the labels (first appearance order) and the combined
+        matrix; a later block overrides an earlier one where they share
+        parameters, and parameters with zero variance (held fixed in that
+        block) are not copied.
+    """
+    union = list(dict.fromkeys(x for lab in labels for x in lab))
+    index = {x: i for i, x in enumerate(union)}
+    total = np.zeros((len(union), len(union)))
+    for lab, mat in zip(labels, blocks):
+        mat = np.asarray(mat, dtype=float)
+        ix = np.array([index[x] for x in lab], dtype=int)
+        keep = np.diag(mat) > 0
+        total[np.ix_(ix[keep], ix[keep])] = mat[np.ix_(keep, keep)]
+    return union, total
