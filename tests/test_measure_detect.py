@@ -153,3 +153,27 @@ def test_blurred_step_edges_against_mid_level_edges(scenes):
         assert rms["erf"] <= 0.075               # measured 0.054-0.064; goal 0.05 not met here
     with pytest.raises(ValueError):
         detect_targets(scenes["good"].image, "dark", edge="gradient")
+
+
+def test_nearest_claim_wins_keeps_the_nearest_of_each_detection():
+    """One-to-one numbering: of predictions claiming the same detection only
+    the nearest keeps it; unclaimed stay -1."""
+    from photogram.measure.label import nearest_claim_wins
+    claims = np.array([3, 3, -1, 5, 3, 5, 7])
+    dist = np.array([0.4, 0.1, 0.0, 0.9, 0.2, 0.3, 2.0])
+    assert nearest_claim_wins(claims, dist).tolist() == [-1, 3, -1, -1, -1, 5, 7]
+    assert nearest_claim_wins(np.array([], dtype=int), np.array([])).tolist() == []
+
+
+def test_degrade_blur_noise_jpeg():
+    """The camera's degradation: a flat image stays flat without noise, the
+    noise has the asked sigma, blur keeps the mean, JPEG returns 8 bits."""
+    from photogram.measure.render import degrade
+    flat = np.full((64, 64), 100.0)
+    assert (degrade(flat) == 100).all()
+    noisy = degrade(flat, noise=5.0, seed=1).astype(float)
+    assert abs(noisy.std() - 5.0) < 0.3 and abs(noisy.mean() - 100) < 0.3
+    step = np.zeros((64, 64)); step[:, 32:] = 200.0
+    blurred = degrade(step, blur=2.0).astype(float)
+    assert abs(blurred.mean() - 100) < 1 and 0 < blurred[0, 31] < 200
+    assert degrade(step, jpeg=50).dtype == np.uint8

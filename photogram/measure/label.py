@@ -135,16 +135,7 @@ def number_plane(xy: np.ndarray, code_label: np.ndarray, code_ids: list[str],
         ok = np.isfinite(P).all(axis=1)
         d, j = tree.query(np.where(ok[:, None], P, 1e12), k=1)
         new = np.where(ok & (d < gate * local), plain[np.minimum(j, len(plain) - 1)], -1)
-        # one-to-one: a dot claimed twice goes to the nearer node
-        order = np.argsort(d)
-        taken = set()
-        for g in order:
-            if new[g] < 0:
-                continue
-            if new[g] in taken:
-                new[g] = -1
-            else:
-                taken.add(new[g])
+        new = nearest_claim_wins(new, d)   # a dot claimed twice goes to the nearer node
         if np.array_equal(new, assign):
             break
         assign = new
@@ -171,3 +162,30 @@ def number_plane(xy: np.ndarray, code_label: np.ndarray, code_ids: list[str],
                                  f"grid puts it: it disagrees with the layout")
                 labels[cidx[k]] = ""
     return Numbering(labels, H, problems, it, conflicts)
+
+
+def nearest_claim_wins(claims, distance):
+    """One-to-one assignment: where several predictions claim the same
+    detection, only the nearest keeps it.
+
+    Parameters
+    ----------
+    claims : ndarray (n,) of int
+        The detection each prediction claims (-1: none).
+    distance : ndarray (n,)
+        The distance of each prediction to its detection.
+
+    Returns
+    -------
+    ndarray (n,) of int
+        ``claims`` with every claim but the nearest of each detection set to
+        -1.
+    """
+    claims = np.asarray(claims).copy()
+    order = np.argsort(distance, kind="stable")
+    order = order[claims[order] >= 0]
+    _, first = np.unique(claims[order], return_index=True)
+    keep = np.zeros(len(claims), dtype=bool)
+    keep[order[first]] = True
+    claims[~keep] = -1
+    return claims

@@ -160,10 +160,30 @@ def render_plane(texture: np.ndarray, origin, texel: float, cam: PlaneCamera, *,
     if gradient:
         gx = np.linspace(1 - gradient / 2, 1 + gradient / 2, w)
         out *= gx[None, :]
+    return degrade(out, blur=blur, noise=noise, seed=seed, jpeg=jpeg)
+
+
+def degrade(out, *, blur: float = 0.0, noise: float = 0.0, seed=0, jpeg=None):
+    """What a camera does to an ideal grey image: Gaussian blur (sigma
+    ``blur`` px), Gaussian noise (sigma ``noise`` grey values, seeded),
+    rounding to 8 bits and JPEG compression at quality ``jpeg``.
+
+    Parameters
+    ----------
+    out : ndarray (H, W) of float
+        The ideal image (grey values 0-255).
+
+    Returns
+    -------
+    ndarray (H, W) of uint8
+    """
+    import cv2
+
+    out = np.asarray(out, dtype=np.float64)
     if blur > 0:
         out = cv2.GaussianBlur(out, (0, 0), blur)
     if noise > 0:
-        out += np.random.default_rng(seed).normal(0, noise, out.shape)
+        out = out + np.random.default_rng(seed).normal(0, noise, out.shape)
     img = np.clip(np.rint(out), 0, 255).astype(np.uint8)
     if jpeg:
         ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg)])

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from photogram.measure.render import PlaneCamera
+from photogram.measure.render import PlaneCamera, degrade
 
 __all__ = ["Plate", "project3", "render_plates", "corner_frame"]
 
@@ -109,15 +109,7 @@ def render_plates(plates: list[Plate], cam: PlaneCamera, *, background: float = 
         region = buf[y0 * ss:(y1 + 1) * ss, x0 * ss:(x1 + 1) * ss]
         region[inside] = val[inside]
     out = buf.reshape(h, ss, w, ss).mean(axis=(1, 3)).astype(np.float64)
-    if blur > 0:
-        out = cv2.GaussianBlur(out, (0, 0), blur)
-    if noise > 0:
-        out += np.random.default_rng(seed).normal(0, noise, out.shape)
-    img = np.clip(np.rint(out), 0, 255).astype(np.uint8)
-    if jpeg:
-        ok, data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg)])
-        img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE)
-    return img
+    return degrade(out, blur=blur, noise=noise, seed=seed, jpeg=jpeg)
 
 
 def corner_frame(n: int = 5, spacing: float = 0.2, radius: float = 0.012,

@@ -25,7 +25,7 @@ import numpy as np
 
 from photogram.errors import GeometryError
 from photogram.init.dlt import dlt
-from photogram.measure.label import Numbering
+from photogram.measure.label import Numbering, nearest_claim_wins
 
 __all__ = ["number_space"]
 
@@ -140,14 +140,7 @@ def number_space(xy: np.ndarray, code_label: np.ndarray, code_ids: list[str],
         back = cKDTree(np.where(ok[:, None], p, 1e12)).query(xy[jj], k=1)[1]
         new = np.where(ok & (d < gate * sep) & (second > 2 * d) & (back == np.arange(len(p))),
                        jj, -1)
-        taken = set()
-        for g in np.argsort(d):
-            if new[g] < 0:
-                continue
-            if new[g] in taken:
-                new[g] = -1
-            else:
-                taken.add(new[g])
+        new = nearest_claim_wins(new, d)   # one-to-one: the nearer claim wins
         if np.array_equal(new, assign):
             break
         assign = new

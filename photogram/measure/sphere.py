@@ -55,7 +55,6 @@ def render_balls(centres: np.ndarray, radius: float, K: np.ndarray, Rm: np.ndarr
     bounding box only); covered sub-samples take the ball's grey level.
     Then blur, noise, JPEG as :func:`photogram.measure.render.render_plane`.
     """
-    import cv2
     w, h = size
     buf = np.full((h * ss, w * ss), background, np.float32)
     Ki = np.linalg.inv(K)
@@ -91,12 +90,5 @@ def render_balls(centres: np.ndarray, radius: float, K: np.ndarray, Rm: np.ndarr
         region = buf[y0 * ss:y1 * ss, x0 * ss:x1 * ss]
         region[inside] = ball
     out = buf.reshape(h, ss, w, ss).mean(axis=(1, 3)).astype(np.float64)
-    if blur > 0:
-        out = cv2.GaussianBlur(out, (0, 0), blur)
-    if noise > 0:
-        out += np.random.default_rng(seed).normal(0, noise, out.shape)
-    img = np.clip(np.rint(out), 0, 255).astype(np.uint8)
-    if jpeg:
-        ok, data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg)])
-        img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE)
-    return img
+    from photogram.measure.render import degrade
+    return degrade(out, blur=blur, noise=noise, seed=seed, jpeg=jpeg)
