@@ -140,3 +140,30 @@ def test_differences_to_qualisys(results):
     rows = np.array(rows)
     # principal point: |cx - cx_Q| and |cy - cy_Q| exceed 1 sigma on most cameras
     assert np.sum(np.abs(rows[:, 2:4]) > 1) >= 4
+
+
+def test_1080_vs_1088_does_not_explain_the_principal_point(results):
+    """The videos of cam01/cam02 are 1080 x 1920 (portrait: the 8 px are in
+    x, the width), cam03/cam04's and every calibration photo 1088 x 1920,
+    as Qualisys' calibration. So the crop enters only when this calibration
+    is applied to cam01/cam02's videos (cx shifts by 0-8 px, 4 px for a
+    centred crop); it plays no part in this comparison, cannot make a cy
+    offset, and the observed cx differences on cam01-cam03 exceed 4 px by
+    more than 3 sigma."""
+    videos = DATA / "videos"
+    q = qualisys()
+    for cam in CAMS:
+        assert results[cam][2] == q[cam]["size"] == (1088, 1920)
+        path = videos / f"{cam}.mp4"
+        if path.is_file():
+            cap = cv2.VideoCapture(str(path))
+            w, h = cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)
+            cap.release()
+            if w > 0:
+                assert (int(w), int(h)) == ((1080, 1920) if cam in ("cam01", "cam02")
+                                            else (1088, 1920))
+    for cam in ("cam01", "cam02", "cam03"):
+        result = results[cam][0]
+        cx = result.project.cameras["camera"].parameters["cx"].value
+        s = result.camera_sigma["camera"]["cx"]
+        assert abs(cx - q[cam]["cx"]) - 4 > 3 * s
