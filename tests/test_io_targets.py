@@ -152,3 +152,25 @@ def test_cli_images_to_calibrate(chessboard, tmp_path, capsys):
     assert main(["check", "-q", str(tmp_path / "cal" / "cal.prj")]) == 0
     text = (tmp_path / "cal" / "cal_points.csv").read_text()
     assert text.startswith("id,kind,X,Y,Z,sX,sY,sZ\n0,control,0.0,0.0,0.0,0.0,0.0,0.0")
+
+
+def test_unrefined_chessboard_corner_is_left_out(chessboard, monkeypatch, caplog):
+    """cornerSubPix returns a corner's start unchanged when its iterate
+    leaves the window (a real case: the Pose2Sim demo's cam04_07, corner 3,
+    14 px off); detect() leaves such a corner out, with a warning."""
+    folder, target, _ = chessboard
+    image = cv2.imread(str(sorted(folder.iterdir())[0]), cv2.IMREAD_GRAYSCALE)
+    ids_all, _ = detect(image, target)
+    real = cv2.cornerSubPix
+
+    def stuck(gray, corners, win, zero, crit):
+        start = corners.copy()
+        out = real(gray, corners, win, zero, crit)
+        out[5] = start[5]
+        return out
+
+    monkeypatch.setattr(cv2, "cornerSubPix", stuck)
+    with caplog.at_level("WARNING", logger="photogram"):
+        ids, xy = detect(image, target)
+    assert len(ids_all) == 54 and len(ids) == 53 and 5 not in ids and len(xy) == 53
+    assert "not refined" in caplog.text

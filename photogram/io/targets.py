@@ -11,7 +11,9 @@ metres by default)::
     acircles:COLSxROWS:SPACING                   asymmetric grid (OpenCV's layout)
 
 Detection: ``cv2.findChessboardCorners`` + ``cv2.cornerSubPix`` (window 11
-x 11, stopped at 1e-4 px / 100 iterations), ``cv2.aruco.CharucoDetector``
+x 11, stopped at 1e-4 px / 100 iterations; a corner that cornerSubPix
+returns unchanged, because its iterate left the window, is left out with a
+warning), ``cv2.aruco.CharucoDetector``
 (its corners are refined by OpenCV), ``cv2.findCirclesGrid`` (blob centres).
 
 The project: one camera (``opencv``: fx fy cx cy k1 k2 p1 p2 k3 free, or
@@ -136,8 +138,17 @@ def detect(image, target: Target) -> tuple[np.ndarray, np.ndarray] | None:
         if not ok:
             return None
         crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
-        corners = cv2.cornerSubPix(gray, corners, (11, 11), (-1, -1), crit)
-        return np.arange(len(corners)), corners.reshape(-1, 2).astype(float)
+        start = corners.reshape(-1, 2).astype(float)
+        corners = cv2.cornerSubPix(gray, corners.copy(), (11, 11), (-1, -1), crit)
+        xy = corners.reshape(-1, 2).astype(float)
+        # cornerSubPix returns the start unchanged when its iterate leaves the
+        # window: the corner was not refined (and the start may be pixels off)
+        keep = np.any(xy != start, axis=1)
+        if not keep.all():
+            log.warning("%d chessboard corner(s) not refined by cornerSubPix (ids %s): "
+                        "left out", int((~keep).sum()),
+                        ", ".join(str(i) for i in np.flatnonzero(~keep)))
+        return np.flatnonzero(keep), xy[keep]
     if target.kind in ("circles", "acircles"):
         flag = cv2.CALIB_CB_SYMMETRIC_GRID if target.kind == "circles" else \
             cv2.CALIB_CB_ASYMMETRIC_GRID
