@@ -115,7 +115,7 @@ def test_qualisys_file_and_pose2sim_conversion():
 
 def test_differences_to_qualisys(results):
     """(c) photogram - Qualisys in photogram's sigmas. Honest assertions:
-    the focal lengths agree within 5 sigma (1671-1691 vs 1673-1682 px),
+    the focal lengths agree within 5 sigma (1671-1679 vs 1673-1682 px),
     Qualisys' k1 carries OpenCV's normalisation (Pose2Sim's k1 / 64 is more
     than 4 sigma from ours on every camera, Qualisys' k1 is nearer
     to ours) and the
