@@ -43,7 +43,7 @@ from photogram.errors import InputError
 from photogram.project.limits import check_image
 
 __all__ = ["Target", "parse_target", "detect", "detect_folder", "images_project",
-           "IMAGE_SUFFIXES"]
+           "IMAGE_SUFFIXES", "image_files"]
 
 log = logging.getLogger("photogram")
 
@@ -163,10 +163,19 @@ def detect(image, target: Target) -> tuple[np.ndarray, np.ndarray] | None:
     return ids.ravel().astype(int), corners.reshape(-1, 2).astype(float)
 
 
-def _images(folder: Path) -> list[Path]:
+def image_files(folder) -> list[Path]:
+    """The image files of a folder (by their ending, IMAGE_SUFFIXES), sorted
+    by name.
+
+    Raises
+    ------
+    InputError
+        Not a folder, or no image in it.
+    """
+    folder = Path(folder)
     if not folder.is_dir():
         raise InputError("not a folder of images", file=folder,
-                         hint="give the folder holding the calibration images")
+                         hint="give the folder holding the photographs")
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
     if not files:
         raise InputError("no images in the folder", file=folder,
@@ -187,7 +196,7 @@ def detect_folder(folder, target: Target):
     import cv2
     folder = Path(folder)
     names, found, missed, size = [], [], [], None
-    for path in _images(folder):
+    for path in image_files(folder):
         check_image(path)          # before decoding: a header may claim gigapixels
         try:
             image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
+from photogram.io.targets import IMAGE_SUFFIXES, image_files   # one list of image endings
 from photogram.measure.aruco import detect_markers, inside_quads
 from photogram.measure.codes import decode_rings, ring_profiles
 from photogram.measure.detect import Detections, detect_targets
@@ -45,7 +46,6 @@ __all__ = ["ImageResult", "Measurement", "read_image", "measure_image", "measure
 
 log = logging.getLogger("photogram")
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm")
 PIXEL_OFFSET = 0.5          # OpenCV frame -> corner convention
 _CHANNEL = {"blue": 0, "green": 1, "red": 2}
 
@@ -304,25 +304,6 @@ def _refit(XY, xy, H0):
         if H is not None:
             return H
     return H0
-
-
-def image_files(folder) -> list[Path]:
-    """The image files of a folder, sorted by name.
-
-    Raises
-    ------
-    InputError
-        Not a folder, or no image in it.
-    """
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise InputError("not a folder of images", file=folder,
-                         hint="give the folder holding the photographs")
-    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-    if not files:
-        raise InputError("no images in the folder", file=folder,
-                         hint=f"image files end with {', '.join(IMAGE_SUFFIXES)}")
-    return files
 
 
 def measure_images(fld: TargetField, folder=None, *, eccentricity_correction: bool = True,

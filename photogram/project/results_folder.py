@@ -79,6 +79,16 @@ def final_folder(path) -> Path:
     return path
 
 
+def _make_folder(path: Path, what: str, named: Path) -> None:
+    """Create ``path`` (and its parents), or one line naming ``named``."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create {what}: {exc.strerror}", file=named,
+                         hint="check the path and permissions ([output] folder or "
+                              "--output)") from None
+
+
 @contextlib.contextmanager
 def output_lock(folder, *, command: str = "this command"):
     """Hold the lock of ``folder`` (module doc) for the ``with`` block.
@@ -94,12 +104,7 @@ def output_lock(folder, *, command: str = "this command"):
     folder = Path(folder).absolute()
     path = lock_path(folder)
     key = str(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot create the folder of the results: {exc.strerror}",
-                         file=path.parent, hint="check the path and permissions "
-                                                "([output] folder or --output)") from None
+    _make_folder(path.parent, "the folder of the results", path.parent)
     with _REGISTRY_LOCK:
         entry = _REGISTRY.setdefault(key, [filelock.FileLock(key, thread_local=False), 0])
         try:
@@ -171,12 +176,7 @@ class Stage:
         state), or start it afresh."""
         if self.path.exists() and not (self.resumable and _has_state(self.path)):
             _remove(self.path)
-        try:
-            self.path.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise InputError(f"cannot create the results folder: {exc.strerror}",
-                             file=self.final, hint="check the path and permissions "
-                                                   "([output] folder or --output)") from None
+        _make_folder(self.path, "the results folder", self.final)
         if self.resumable and self.final.is_dir():
             for name in RESUMABLE_STATE:       # an earlier run's trials, by hard links
                 src, dst = self.final / name, self.path / name
