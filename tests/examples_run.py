@@ -1,0 +1,137 @@
+"""The example projects run from a clean copy, and the figures that must not
+change when the code is only restructured (issue 17, "no behaviour change").
+
+:func:`run_examples` copies ``projects/`` (without results folders) into a
+temporary folder beside a link to ``../shared`` (so the real-data projects
+find their tables by the same relative paths), runs every example's command
+through the command-line entry point, and returns per step:
+
+* ``summary``: the figures of ``summary.json`` that the issue names (sigma0,
+  redundancy; for motion capture the reprojection, limb and accuracy
+  figures) as written;
+* ``tables``: SHA-256 of the result tables written with a fixed number of
+  digits (the stick-model tables ``exposures.csv``, ``points3d.csv``,
+  ``lines3d.csv``; the lab's measured ``image_points.csv``), so "equal to the
+  last digit written" is checked byte for byte.
+
+``tests/data/examples_before_issue17.json`` holds these figures as produced
+by the code before the restructuring (commit def3da7); it was written with
+``python tests/examples_run.py --record`` on that commit.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import json
+import shutil
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared"
+RECORD = Path(__file__).parent / "data" / "examples_before_issue17.json"
+
+#: (step name, command line relative to the copied projects/, results folder,
+#: needs ../shared/data, tables compared byte for byte)
+STEPS = [
+    ("measure lab", ["measure", "lab/frame.toml", "--no-report"], "lab/results-measure",
+     False, ["image_points.csv"]),
+    ("calibrate lab", ["calibrate", "lab/lab.prj"], "lab/results", False, []),
+    ("orient field", ["orient", "field/field.prj"], "field/results", False, []),
+    ("intersect jumps", ["intersect", "jumps/jumps.prj"], "jumps/results", False,
+     ["exposures.csv", "points3d.csv", "lines3d.csv"]),
+    ("mocap ski-ptz", ["mocap", "ski-ptz/ski-ptz.prj"], "ski-ptz/results", False, []),
+    ("mocap ski-ptz-estimate", ["mocap", "ski-ptz/ski-ptz-estimate.prj"],
+     "ski-ptz/results-estimate", False, []),
+    ("simulate situation-b", ["simulate", "designs/situation-b.toml", "--output", "designs/sim-b"],
+     "designs/sim-b", False, ["situation-b_image_points.csv", "situation-b_points.csv",
+                              "situation-b_stations.csv"]),
+    ("calibrate situation-b", ["calibrate", "designs/sim-b/situation-b.prj"],
+     "designs/sim-b/results", False, []),
+    ("calibrate camcal", ["calibrate", "camcal/camcal.prj"], "camcal/results", True, []),
+    ("orient sxb", ["orient", "sxb/sxb.prj"], "sxb/results", True, []),
+    ("mocap pose2sim-demo", ["mocap", "pose2sim-demo/demo.prj"], "pose2sim-demo/results",
+     True, []),
+]
+
+#: summary.json keys compared as written (nested dicts compared whole)
+SUMMARY_KEYS = ("sigma0", "redundancy", "iterations", "reprojection", "limb_lengths",
+                "bone_cv_mean", "accuracy", "reconstruction", "metrics_mean")
+#: parts of the summary that are not results (run times, versions)
+NOT_RESULTS = ("timings", "seconds", "time_s", "wall_s", "cpu_s")
+
+
+def _drop_timings(value):
+    if isinstance(value, dict):
+        return {k: _drop_timings(v) for k, v in value.items()
+                if not any(t in k for t in NOT_RESULTS)}
+    if isinstance(value, list):
+        return [_drop_timings(v) for v in value]
+    return value
+
+
+def have_shared_data() -> bool:
+    return (SHARED / "data" / "dbat" / "camcal").is_dir()
+
+
+def stage_projects(dest: Path) -> Path:
+    """Copy projects/ without results into ``dest``/repo/projects and link
+    ``dest``/shared to ../shared; returns the copied projects folder."""
+    dest = Path(dest)
+    projects = dest / "repo" / "projects"
+    shutil.copytree(REPO / "projects", projects,
+                    ignore=shutil.ignore_patterns("results", "results-*", ".*", "__pycache__"))
+    if SHARED.is_dir():
+        (dest / "shared").symlink_to(SHARED, target_is_directory=True)
+    return projects
+
+
+def _options(options: list[str], projects: Path) -> list[str]:
+    """The options of a step, with the folder after --output inside the copy."""
+    return [str(projects / a) if k and options[k - 1] == "--output" else a
+            for k, a in enumerate(options)]
+
+
+def run_examples(dest: Path, *, with_shared: bool | None = None) -> dict:
+    """Run every example step in a copy under ``dest``; returns the figures
+    per step (see the module docstring)."""
+    from photogram_cli.main import main
+    if with_shared is None:
+        with_shared = have_shared_data()
+    projects = stage_projects(dest)
+    figures = {}
+    for name, argv, folder, shared, tables in STEPS:
+        if shared and not with_shared:
+            continue
+        args = [argv[0], str(projects / argv[1]), *_options(argv[2:], projects), "-q"]
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(args)
+        if code != 0:
+            raise RuntimeError(f"photogram {' '.join(args)} exited {code}: {err.getvalue()}")
+        results = projects / folder
+        entry = {"tables": {}}
+        summary_path = results / "summary.json"
+        if summary_path.is_file():
+            summary = json.loads(summary_path.read_text())
+            entry["summary"] = {k: _drop_timings(summary[k]) for k in SUMMARY_KEYS if k in summary}
+        for table in tables:
+            entry["tables"][table] = hashlib.sha256((results / table).read_bytes()).hexdigest()
+        figures[name] = entry
+    return figures
+
+
+def load_record() -> dict:
+    return json.loads(RECORD.read_text())
+
+
+if __name__ == "__main__":
+    import tempfile
+    if "--record" not in sys.argv:
+        sys.exit("usage: python tests/examples_run.py --record   (writes " + str(RECORD) + ")")
+    with tempfile.TemporaryDirectory() as tmp:
+        figures = run_examples(Path(tmp), with_shared=True)
+    RECORD.write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n")
+    print(f"wrote {RECORD} ({len(figures)} steps)")

@@ -1,0 +1,73 @@
+"""Issue 17, "no behaviour change": every example project gives the same
+numbers as before the restructuring (summary.json sigma0, redundancy and the
+motion-capture figures as written; the stick-model tables and the measured
+and simulated tables byte for byte).
+
+The figures before are tests/data/examples_before_issue17.json, written by
+``python tests/examples_run.py --record`` on commit def3da7 (before any
+move). The real-data steps (DBAT's CAMCAL and SXB, the Pose2Sim demo) skip
+when ../shared/data is absent.
+"""
+
+import math
+
+import pytest
+
+from examples_run import STEPS, have_shared_data, load_record, run_examples
+
+RECORD = load_record()
+
+
+@pytest.fixture(scope="module")
+def figures(tmp_path_factory):
+    return run_examples(tmp_path_factory.mktemp("examples"))
+
+
+def _differences(before, now, path=""):
+    """Paths (a/b/c) where two JSON values differ."""
+    if isinstance(before, dict) and isinstance(now, dict):
+        out = [f"{path}/{k}: missing now" for k in before if k not in now]
+        out += [f"{path}/{k}: new" for k in now if k not in before]
+        for k in before.keys() & now.keys():
+            out += _differences(before[k], now[k], f"{path}/{k}")
+        return out
+    if isinstance(before, list) and isinstance(now, list) and len(before) == len(now):
+        return [d for k, (a, b) in enumerate(zip(before, now))
+                for d in _differences(a, b, f"{path}[{k}]")]
+    return [] if before == now else [f"{path}: {before!r} before, {now!r} now"]
+
+
+@pytest.mark.parametrize("step", [s[0] for s in STEPS])
+def test_example_gives_the_same_numbers_as_before(figures, step):
+    needs_shared = dict((s[0], s[3]) for s in STEPS)[step]
+    if needs_shared and not have_shared_data():
+        pytest.skip("../shared/data is absent (real-data example)")
+    assert step in RECORD, f"{step} has no recorded figures (tests/examples_run.py --record)"
+    before, now = RECORD[step], figures[step]
+    differences = _differences(before, now)
+    assert not differences, f"{step} changed:\n" + "\n".join(differences[:20])
+
+
+def test_the_record_covers_every_step_and_the_key_figures():
+    assert set(RECORD) == {s[0] for s in STEPS}
+    for step in ("calibrate lab", "orient field", "intersect jumps", "calibrate camcal",
+                 "orient sxb", "calibrate situation-b"):
+        assert {"sigma0", "redundancy"} <= set(RECORD[step]["summary"]), step
+    assert set(RECORD["intersect jumps"]["tables"]) == {"exposures.csv", "points3d.csv",
+                                                        "lines3d.csv"}
+    for step in ("mocap ski-ptz", "mocap ski-ptz-estimate", "mocap pose2sim-demo"):
+        assert "reprojection" in RECORD[step]["summary"], step
+
+
+def test_a_changed_digit_is_caught():
+    """The comparison is exact: one changed last digit of sigma0 or one
+    changed table byte is a difference."""
+    before = RECORD["orient field"]
+    changed = {"summary": dict(before["summary"]), "tables": dict(before["tables"])}
+    changed["summary"]["sigma0"] = math.nextafter(before["summary"]["sigma0"], 2.0)
+    assert _differences(before, changed) == [
+        f"/summary/sigma0: {before['summary']['sigma0']!r} before, "
+        f"{changed['summary']['sigma0']!r} now"]
+    jumps = RECORD["intersect jumps"]
+    tables = dict(jumps["tables"], **{"exposures.csv": "0" * 64})
+    assert len(_differences(jumps, {"summary": jumps["summary"], "tables": tables})) == 1
