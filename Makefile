@@ -15,10 +15,14 @@ $(STAMP): setup.cfg pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-# pytest exits 5 when it collected no tests: that is a failure of the suite.
+# The layers contract (setup.cfg [importlinter], docs/index.md; a second),
+# then the suite: either failing fails the target. pytest exits 5 when it
+# collected no tests: that is a failure of the suite.
 test: $(STAMP)
-	@$(PY) -m pytest -q; rc=$$?; \
+	@$(VENV)/bin/lint-imports; lint=$$?; \
+	$(PY) -m pytest -q; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests"; exit 1; fi; \
+	if [ $$lint -ne 0 ]; then echo "make test: the layers contract is broken (lint-imports)"; exit 1; fi; \
 	exit $$rc
 
 demo: $(STAMP)

@@ -40,7 +40,8 @@ from scipy.sparse import lil_matrix
 
 from photogram.adjust import kernels
 from photogram.geometry import rodrigues_to_matrix
-from photogram.io.bal import (bal_cost, behind_camera, build_bal_problem, read_bal, solve_bal)
+from photogram.bundle.bal import build_bal_problem, solve_bal
+from photogram.io.bal import bal_cost, behind_camera, read_bal
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bal"
 PROBLEMS = ("49-7776", "21-11315", "16-22106")

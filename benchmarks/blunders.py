@@ -59,7 +59,7 @@ RATES = (0.01, 0.03, 0.05)
 
 def load_network(name):
     """(base problem with approximate values, solver options, label)."""
-    from photogram.commands.bundle import approximate_if_needed
+    from photogram.bundle import approximate_if_needed
     from photogram.project import read_project
     if name == "camcal":
         prj = read_project(ROOT / "projects" / "camcal" / "camcal.prj")

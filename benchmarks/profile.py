@@ -69,7 +69,8 @@ def wall_problem(n_obs):
 
 
 def bal_problem(key):
-    from photogram.io.bal import build_bal_problem, read_bal
+    from photogram.bundle.bal import build_bal_problem
+    from photogram.io.bal import read_bal
     built = build_bal_problem(read_bal(DATA / f"problem-{key}-pre.txt.bz2"))
     return built.problem, built.bal.n_observations, 1e-4    # trust region: always damped
 

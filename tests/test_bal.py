@@ -13,9 +13,10 @@ from photogram.adjust import kernels
 from photogram.adjust.datum import check_datum, inner_constraints
 from photogram.adjust.solver import SolverOptions, solve
 from photogram.errors import GeometryError, InputError
-from photogram.io.bal import (BALProblem, bal_cofactors, bal_cost, bal_from_state, bal_options,
-                              bal_residuals, behind_camera, build_bal_problem, read_bal,
-                              solve_bal, write_bal)
+from photogram.bundle.bal import (bal_cofactors, bal_from_state, bal_options, build_bal_problem,
+                                  solve_bal)
+from photogram.io.bal import (BALProblem, bal_cost, bal_residuals, behind_camera, read_bal,
+                              write_bal)
 from photogram.stats.covariance import cofactors
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bal"
@@ -285,15 +286,18 @@ def test_indexed_evaluation_equals_the_generic_model(kernel_path):
     st = p.state
     io = np.stack(st.io)
     m = camera_model("bal")
-    r, (JX, JS, JI) = m.residuals_indexed(blk.xy, st.points, st.R, st.X0, io, blk.point,
-                                          blk.station, blk.camera)
+    # the engine's path: the block passes the compiled kernel when it is in use
+    r, (JX, JS, JI) = blk.evaluate(st)
     r_ref, jac = m.residuals_rotation(blk.xy, st.points[blk.point], st.R[blk.station],
                                       st.X0[blk.station], io[blk.camera])
     np.testing.assert_allclose(r, r_ref, rtol=0, atol=1e-9)
     for J, ref in ((JX, jac["X"]), (JS, np.concatenate([jac["X0"], jac["rotation"]], axis=2)),
                    (JI, jac["io"])):
         np.testing.assert_allclose(J, ref, rtol=1e-10, atol=1e-10 * np.abs(ref).max())
-    r_only, none = m.residuals_indexed(blk.xy, st.points, st.R, st.X0, io, blk.point,
-                                       blk.station, blk.camera, jacobians=False)
+    r_only, none = blk.evaluate(st, jacobians=False)
     assert none is None
     np.testing.assert_array_equal(r_only, r)
+    # the model alone (no kernel given): its numpy rows, the same values
+    r_np, _ = m.residuals_indexed(blk.xy, st.points, st.R, st.X0, io, blk.point,
+                                  blk.station, blk.camera)
+    np.testing.assert_allclose(r_np, r, rtol=0, atol=1e-9)

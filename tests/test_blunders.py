@@ -113,7 +113,7 @@ def test_tukey_is_a_known_loss():
 
 @pytest.mark.skipif(not CAMCAL.is_dir(), reason="CAMCAL data not found beside the repository")
 def test_camcal_1_percent_blunders():
-    from photogram.commands.bundle import approximate_if_needed
+    from photogram.bundle import approximate_if_needed
     from photogram.project import read_project
     prj = approximate_if_needed(read_project(ROOT / "projects" / "camcal" / "camcal.prj"), {})
     opts = SolverOptions(max_iterations=prj.adjustment.max_iterations,

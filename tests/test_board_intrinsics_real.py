@@ -21,7 +21,7 @@ import pytest
 
 cv2 = pytest.importorskip("cv2")
 
-from photogram.commands.bundle import adjust                       # noqa: E402
+from photogram.bundle import adjust                                 # noqa: E402
 from photogram.io.targets import detect_folder, images_project, parse_target  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "pose2sim-demo"

@@ -5,7 +5,7 @@ named; they used to end "converged" above the true minimum of the cost."""
 import numpy as np
 import pytest
 
-from photogram.commands.bundle import adjust
+from photogram.bundle import adjust
 from photogram.errors import GeometryError
 from photogram.simulation.network import observe, ring_stations, to_project
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from photogram.commands.bundle import adjust
+from photogram.bundle import adjust
 from photogram.geometry import camera_model, rescale_parameters
 from photogram.project import read_project, read_results
 from photogram_cli.main import main

@@ -248,7 +248,7 @@ def test_datum_defect_names_what_is_missing(tmp_path, capsys):
     prj.points.kind[:] = "tie"
     with pytest.raises(GeometryError, match="datum defect 7: no control, no distance, "
                                             "no inner constraints"):
-        from photogram.commands.bundle import adjust
+        from photogram.bundle import adjust
         adjust(prj)
     code, err, folder = run(capsys, tmp_path, prj, "calibrate")
     assert code == 2

@@ -151,7 +151,8 @@ def test_camera_to_world_station_sigmas_are_propagated_not_copied(tmp_path):
 
     import pandas as pd
 
-    from photogram.commands.bundle import calibrate, orient, read_orientation_covariance
+    from photogram.commands.bundle import calibrate, orient
+    from photogram.project.results_read import read_orientation_covariance
     from photogram.geometry import from_radians, to_radians
     from photogram.project import invert_opk
     from photogram.project.tables import format_angle

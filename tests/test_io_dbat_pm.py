@@ -65,7 +65,7 @@ def test_imported_sxb_adjusts_like_dbat(tmp_path):
     1261 (dbat-report.txt); CAMCAL's import equals projects/camcal, whose
     reproduction of DBAT is tests/test_dbat_reference.py."""
     need_dbat()
-    from photogram.commands.bundle import adjust
+    from photogram.bundle import adjust
     prj = import_project("dbat", DBAT / "sxb" / "sxb.xml", tmp_path / "imp")
     s = adjust(read_project(prj)).summary
     assert s["status"] == "converged" and s["redundancy"] == 1261

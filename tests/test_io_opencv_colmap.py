@@ -12,7 +12,8 @@ import pytest
 from photogram.errors import InputError
 from photogram.geometry import camera_model, matrix_to_quaternion, rodrigues_to_matrix
 from photogram.io.colmap import colmap_project, read_colmap
-from photogram.io.exchange import View, load_source
+from photogram.io.exchange import View
+from photogram.io.export_source import load_source
 from photogram.io.formats import export_results, import_project
 from photogram.io.opencv_fs import format_opencv, read_opencv, write_opencv
 from photogram_cli.main import main

@@ -12,7 +12,8 @@ import pytest
 
 from photogram.errors import InputError
 from photogram.geometry import camera_model
-from photogram.io.exchange import load_source, save_calibration, views_of
+from photogram.io.exchange import save_calibration
+from photogram.io.export_source import load_source, views_of
 from photogram.io.formats import export_results, import_project
 from photogram.io.pose2sim import format_pose2sim, pose2sim_project, read_pose2sim
 from photogram.io.trc import read_trc

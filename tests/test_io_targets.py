@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from photogram.commands.bundle import adjust
+from photogram.bundle import adjust
 from photogram.errors import InputError
 from photogram.io.formats import import_project
 from photogram.io.targets import detect, detect_folder, images_project, parse_target

@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 import pytest
 
-from photogram.commands.bundle import adjust
+from photogram.bundle import adjust
 from photogram.project import read_project
 from photogram_cli.main import main
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from lab_stage import LAB, stage_lab
-from photogram.commands.bundle import adjust
+from photogram.bundle import adjust
 from photogram.measure.compare import compare_tables
 from photogram.measure.scenes import _rows, read_truth, render_project
 from photogram.project import read_project

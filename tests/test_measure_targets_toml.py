@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from lab_stage import LAB
-from photogram.commands.bundle import adjust
+from photogram.bundle import adjust
 from photogram.measure.compare import compare_tables
 from photogram.measure.field import read_field
 from photogram.measure.scenes import _rows

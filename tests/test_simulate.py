@@ -23,7 +23,7 @@ def situation_b(tmp_path_factory):
 
 
 def test_situation_b_reads_back_and_adjusts(situation_b):
-    from photogram.commands.bundle import adjust
+    from photogram.bundle import adjust
     folder, prj, project, truth = situation_b
     back = read_project(prj)
     assert len(back.stations) == 3 and len(back.distances) == 4 and len(back.verticals) == 4

@@ -11,7 +11,7 @@ import numpy as np
 from field_copy import field_copy
 from photogram.adjust.build import build_problem
 from photogram.adjust.solver import solve
-from photogram.commands.bundle import adjust
+from photogram.bundle import adjust
 from photogram.project import read_project
 from photogram.stats.reliability import data_snooping, normalized_residuals, redundancy_numbers
 
@@ -49,7 +49,7 @@ def test_control_w_is_residual_over_sigma_sqrt_redundancy(tmp_path):
     """The control coordinates' w-test statistics use their own redundancy
     numbers: w = v / (sigma sqrt(r)); all redundancy numbers add up to the
     redundancy."""
-    from photogram.commands.bundle import approximate_if_needed
+    from photogram.bundle import approximate_if_needed
     project = approximate_if_needed(_project(tmp_path), {})
     p = build_problem(project, fix_interior=True).problem
     solve(p)
@@ -82,7 +82,7 @@ def test_a_blunder_in_a_ray_of_a_control_point_is_still_the_ray(tmp_path):
     ray's 2D statistic (chi-square, 2 degrees of freedom: 8.6 as a one-
     coordinate |w|) explains it better, and the ray is rejected, not P1 Y
     (benchmarks/blunders.py, field, 1 %, seed 11)."""
-    from photogram.commands.bundle import approximate_if_needed
+    from photogram.bundle import approximate_if_needed
     bad = lambda t: t.replace("S2,P1,315.48,174.33", "S2,P1,323.49,168.56")  # noqa: E731
     project = approximate_if_needed(read_project(field_copy(
         tmp_path, **{"field_image_points.csv": bad})), {})

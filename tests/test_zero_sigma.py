@@ -10,7 +10,7 @@ from field_copy import field_copy
 from photogram.adjust.build import build_problem
 from photogram.adjust.datum import check_datum
 from photogram.adjust.solver import solve
-from photogram.commands.bundle import adjust
+from photogram.bundle import adjust
 from photogram.errors import InputError
 from photogram.geometry import opk_to_matrix
 from photogram.project import read_project

@@ -65,7 +65,8 @@ class ImagePointBlock(ResidualBlock):
         if indexed is not None:
             out = indexed(self.xy, state.points, state.R, state.X0,
                           np.stack([state.io[k] for k in self.cameras]),
-                          self.point, self.station, self.camera, jacobians)
+                          self.point, self.station, self.camera, jacobians,
+                          kernel=_compiled_rows(self.model, len(self.point)))
             if out is not None:
                 return out
         io = np.stack([state.io[k] for k in self.cameras])[self.camera]
@@ -78,6 +79,20 @@ class ImagePointBlock(ResidualBlock):
             return e, None
         e, jac = self.model.residuals_rotation(self.xy, X, R, X0, io)
         return e, [jac["X"], np.concatenate([jac["X0"], jac["rotation"]], axis=2), jac["io"]]
+
+
+def _compiled_rows(model, n_rows):
+    """The engine's compiled version of a camera model's row kernel
+    (``model.row_kernel``, the name of a function in
+    :mod:`photogram.adjust._numba_kernels`) when the compiled kernels are in
+    use for ``n_rows`` rows, else None (the model's own numpy rows). The
+    engine chooses; the camera model (geometry, below the engine) only names
+    the kernel."""
+    name = getattr(model, "row_kernel", None)
+    if name is None:
+        return None
+    from photogram.adjust import kernels
+    return getattr(kernels.compiled(), name) if kernels.active(n_rows) else None
 
 
 class PointPriorBlock(ResidualBlock):

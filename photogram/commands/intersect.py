@@ -36,7 +36,7 @@ def _orientation(project):
     empty list is no orientation (image noise only); folders that do not
     cover the exterior orientation of every measuring station are refused
     (:func:`_check_stations_covered`)."""
-    from photogram.commands.bundle import read_orientation_covariance
+    from photogram.project.results_read import read_orientation_covariance
     where = project.intersect.orientation
     if not where:
         return None

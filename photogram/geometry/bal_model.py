@@ -12,7 +12,7 @@ image y down, origin at the image centre):
 
 BAL itself writes ``p = -P / P_z`` with ``P = R X + t`` and y **up**: with
 ``R_bal = R``, ``t_bal = -R X0`` and ``(x, y)_bal = (x, -y)`` it is the same
-projection (:mod:`photogram.io.bal` converts). The residual is
+projection (:mod:`photogram.bundle.bal` converts). The residual is
 ``r = xy_obs - xy`` (Ceres' is ``xy - xy_obs``; same cost).
 
 Parameters: ``f`` (image unit), ``k1``, ``k2`` (dimensionless, the
@@ -35,6 +35,9 @@ class BALModel(CameraModel):
     name = "bal"
     parameter_names = ("f", "k1", "k2")
     parameter_dims = (1, 0, 0)
+    #: the engine's compiled twin of :func:`_bal_rows`
+    #: (photogram.adjust._numba_kernels), passed to :meth:`residuals_indexed`
+    row_kernel = "bal_rows"
 
     def default_parameters(self, principal_distance, image_size=None):
         """f = principal_distance, no distortion (the principal point is the
@@ -109,23 +112,25 @@ class BALModel(CameraModel):
         return xy_obs - xy, {key: -value for key, value in jac.items()}
 
     def residuals_indexed(self, xy_obs, points, R, X0, io, point, station, camera,
-                          jacobians=True):
+                          jacobians=True, kernel=None):
         """Residuals of observations given by indices into the state
         (``points[point]``, ``R[station]``, ``X0[station]``, ``io[camera]``):
         ``(r, [J_X, J_station (X0 and rotation increment, n x 2 x 6), J_io])``
-        (``(r, None)`` without Jacobians). The engine's fast path: the
-        compiled kernel for large problems (numba), else component-wise
-        numpy; same values as :meth:`residuals_rotation`."""
-        from photogram.adjust import kernels
+        (``(r, None)`` without Jacobians). The engine's fast path:
+        component-wise numpy, or ``kernel``, a compiled function with the
+        signature of :func:`_bal_rows` that the engine passes for large
+        problems (its numba ``bal_rows``, named by :attr:`row_kernel`; the
+        camera model does not choose or know the solver's kernels); same
+        values as :meth:`residuals_rotation`."""
         n = len(point)
         r = np.empty((n, 2))
         if jacobians:
             JX, JS, JI = np.empty((n, 2, 3)), np.empty((n, 2, 6)), np.empty((n, 2, 3))
         else:
             JX = JS = JI = np.empty((0, 2, 6))
-        if kernels.active(n):
-            kernels.compiled().bal_rows(xy_obs, points, R, X0, io, point, station, camera,
-                                        r, JX, JS, JI, bool(jacobians))
+        if kernel is not None:
+            kernel(xy_obs, points, R, X0, io, point, station, camera,
+                   r, JX, JS, JI, bool(jacobians))
         else:
             _bal_rows(xy_obs, points, R, X0, io, point, station, camera, r, JX, JS, JI, jacobians)
         return (r, [JX, JS, JI]) if jacobians else (r, None)

@@ -4,18 +4,20 @@ Each format lives in its own module and builds or reads the dataclasses of
 :mod:`photogram.project.model`:
 
 =====================  ==========================================================
-``dbat``               DBAT tables and camera XML (read in place by .prj files)
+``dbat``               DBAT projects -> project (their table parsers: project.dbat_tables)
 ``dbat_script``        DBAT XML scripts -> project
 ``pmexport``           PhotoModeler text exports (DBAT's loadpm layout) -> project
 ``pose2sim``           Pose2Sim / anipose calibration TOML, both ways
 ``opencv_fs``          OpenCV FileStorage calibration (YAML/XML/JSON), both ways
 ``colmap``             COLMAP text models, both ways
-``bal``                BAL problem files and the engine's BAL mode
+``bal``                BAL problem files (the engine's BAL mode: bundle.bal)
 ``bal_import``         BAL problems (read by ``bal``) -> project
 ``ply``                object points with sigmas (PLY)
 ``trc``                OpenSim marker files
 ``trajectories``       TRC, C3D, OpenSim .mot and CSV from intersect results
 ``mocap_results``      the results folder of ``photogram mocap`` as trajectories
+``trajectory_data``    the Trajectories both of them load
+``export_source``      a project or results folder as the source of an export
 ``targets``            chessboard / ChArUco / circle-grid images -> calibration project
 ``exchange``           what they share: OpenCV views, project folders, results
 ``formats``            the registry behind ``photogram import`` / ``photogram export``

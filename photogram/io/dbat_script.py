@@ -90,7 +90,7 @@ def _file(el: ET.Element, base: Path, script: Path) -> Path:
 
 
 def _ids(text: str) -> set[str]:
-    from photogram.io.dbat import _ident
+    from photogram.project.dbat_tables import _ident
     return {_ident(s.strip()) for s in (text or "").split(",") if s.strip()}
 
 

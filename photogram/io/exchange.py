@@ -35,9 +35,8 @@ from photogram.project.model import (Camera, ImagePoints, Parameter, Points, Pro
                                      Stations, Units)
 
 __all__ = ["View", "LineText", "opencv_camera", "cv_to_station", "station_to_cv",
-           "build_project", "save_project", "save_calibration", "load_source", "views_of",
-           "opencv_intrinsics", "write_new_text", "write_new_bytes", "check_new_file",
-           "ExportSource"]
+           "build_project", "save_project", "save_calibration",
+           "opencv_intrinsics", "write_new_text", "write_new_bytes", "check_new_file"]
 
 log = logging.getLogger("photogram")
 
@@ -387,16 +386,3 @@ def write_new_text(path, text: str, force: bool = False) -> Path:
 
 def write_new_bytes(path, data: bytes, force: bool = False) -> Path:
     return atomic_write_bytes(check_new_file(path, force), data)
-
-
-# export sources live in their own module, which imports this one; their names
-# stay importable here, resolved on first use (PEP 562) so that either module
-# can be imported first
-_EXPORT_SOURCE_NAMES = ("ExportSource", "load_source", "views_of")
-
-
-def __getattr__(name: str):
-    if name in _EXPORT_SOURCE_NAMES:
-        from photogram.io import export_source
-        return getattr(export_source, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -124,7 +124,7 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
                   "csv": tr.write_trajectory_csv}[key]
         written = [writer(to, traj, force=force)]
         return written + ([tr.csv_sidecar(to)] if key == "csv" else [])
-    from photogram.io.exchange import load_source, views_of
+    from photogram.io.export_source import load_source, views_of
     src = load_source(source)
     project = src.project
     if key == "ply":

@@ -93,7 +93,7 @@ def load_mocap_trajectories(folder, summary: dict, read_csv):
         No joints3d.csv, missing or malformed columns, repeated or
         decreasing times, no length unit.
     """
-    from photogram.io.trajectories import Trajectories
+    from photogram.io.trajectory_data import Trajectories
     folder = Path(folder)
     path = folder / "joints3d.csv"
     if not path.is_file():

@@ -30,41 +30,18 @@ Conventions (docs/interoperability.md):
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from photogram.errors import InputError
+from photogram.io.trajectory_data import Trajectories
 from photogram.project.model import LENGTH_UNITS
 
 __all__ = ["Trajectories", "load_trajectories", "write_trc_export", "write_c3d", "read_c3d",
            "write_mot", "read_mot", "write_trajectory_csv", "csv_sidecar"]
 
 log = logging.getLogger("photogram")
-
-
-@dataclass
-class Trajectories:
-    """Moving points over exposures, in metres, project axes (Z up)."""
-
-    times: np.ndarray                                  # (n,) s
-    exposures: list[str]
-    markers: dict[str, np.ndarray]                     # name -> (n, 3) m, NaN = gap
-    sigma: dict[str, np.ndarray]                       # name -> (n, 3) m
-    cameras: dict[str, np.ndarray] = field(default_factory=dict)   # name -> (n,) bit mask
-    stations: list[str] = field(default_factory=list)
-    angles: object = None                              # pandas DataFrame or None
-    angle_unit: str = "deg"
-    length_unit: str = "m"                             # of the source (all here is metres)
-    name: str = "photogram"
-    mot: dict | None = None                            # .mot columns (deg, m, m/s) if given
-
-    @property
-    def rate(self) -> float:
-        d = np.diff(self.times)
-        # times are printed with 10 digits: round the rate to 7
-        return float(f"{1.0 / np.median(d):.7g}") if d.size else 1.0
 
 
 def load_trajectories(folder) -> Trajectories:
@@ -280,7 +257,7 @@ def write_mot(path, traj: Trajectories, *, force: bool = False) -> Path:
     value is unknown (exposures.csv of photogram intersect)."""
     from photogram.geometry import ANGLE_FACTORS
     from photogram.io.exchange import write_new_text
-    from photogram.jump.definitions import ANGLE_PARAMETERS
+    from photogram.project.results_schema import ANGLE_PARAMETERS
     table = traj.angles
     if traj.mot is not None:
         cols = dict(traj.mot)

@@ -27,6 +27,9 @@ from __future__ import annotations
 import numpy as np
 
 from photogram.jump import diff as D
+# the results schema (exposures.csv columns) lives in the project layer, so
+# that exporters below jump (photogram.io) can read it
+from photogram.project.results_schema import ANGLE_PARAMETERS, LENGTH_PARAMETERS, PARAMETERS
 
 __all__ = ["POINT_NAMES", "POINT_ROLES", "PARAMETERS", "ANGLE_PARAMETERS",
            "LENGTH_PARAMETERS", "N_INPUTS", "frame", "parameters"]
@@ -34,12 +37,10 @@ __all__ = ["POINT_NAMES", "POINT_ROLES", "PARAMETERS", "ANGLE_PARAMETERS",
 POINT_NAMES = ("P1", "P2", "P3", "P4")
 POINT_ROLES = {"P1": "head", "P2": "hip", "P3": "right binding", "P4": "left binding"}
 
-#: Per-exposure parameters, in the order of the covariance matrices. ``v``
-#: (speed of O) is added by :mod:`photogram.jump.propagate` from neighbouring
-#: exposures and is always last.
-PARAMETERS = ("alpha", "beta", "gamma", "delta_phi", "phi", "heading", "Z0", "v")
-ANGLE_PARAMETERS = ("alpha", "beta", "gamma", "delta_phi", "phi", "heading")
-LENGTH_PARAMETERS = ("Z0",)          # and v in length unit per second
+#: PARAMETERS: per-exposure parameters, in the order of the covariance
+#: matrices (``v``, the speed of O, is added by :mod:`photogram.jump.propagate`
+#: and is always last); ANGLE_PARAMETERS and LENGTH_PARAMETERS (and v in
+#: length unit per second): :mod:`photogram.project.results_schema`.
 
 DESCRIPTIONS = {
     "alpha": "legs O->P2 against X' (signed, in the X'Z' plane, + when P2 above X')",

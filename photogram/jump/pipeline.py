@@ -58,7 +58,7 @@ def intersect_points(project, orientation=None):
         of different exposures are correlated through it)
     summary : dict (status, iterations, sigma0, redundancy)
     """
-    from photogram.commands.bundle import _residual_columns, approximate_if_needed
+    from photogram.bundle import approximate_if_needed, residual_columns
     from photogram.stats.reliability import redundancy_numbers
     summary = {"warnings": []}
     project = approximate_if_needed(project, summary)
@@ -78,8 +78,8 @@ def intersect_points(project, orientation=None):
         cov = cov + joint.reshape(n, 3, n, 3)[idx, :, idx, :]
     out = _copy_with_points(project, built.problem.state.points)
     # one row per image observation (residuals.csv; the COLMAP export takes its tracks)
-    summary["residuals"] = _residual_columns(built.problem,
-                                             redundancy_numbers(built.problem, cof))
+    summary["residuals"] = residual_columns(built.problem,
+                                            redundancy_numbers(built.problem, cof))
     weak = weak_angle_warning(project.points.ids, problem_intersection_angles(built.problem))
     if weak:
         summary["warnings"].append(weak)

@@ -25,6 +25,7 @@ from photogram.project.model import (  # noqa: F401  (also re-exported)
 from photogram.project.model import PERTURBATIONS, TRUTHS, MonteCarloSettings
 from photogram.project.reader_targets import read_targets
 from photogram.project.reader_dbat import _camera_from_dbat, _read_dbat_style, _uses_dbat_features
+from photogram.project.reader_sections import PROJECT_KEYS, _read_output, _read_project_section  # noqa: F401
 from photogram.project.reader_tables import (_read_observations, _read_points, _read_stations,
                                              _source_table)
 from photogram.project.tables import Table, read_table  # noqa: F401
@@ -47,8 +48,6 @@ SECTIONS = ("project", "cameras", "stations", "points", "observations",
 REQUIRED_SECTIONS = ("project", "cameras", "stations", "observations")
 INTERSECT_KEYS = ("fps", "points", "skis", "ski_length", "binding_fraction", "orientation",
                   "swap_skis")
-PROJECT_KEYS = ("name", "length_unit", "angle_unit", "image_unit", "rotation",
-                "rotation_direction")
 MONTECARLO_KEYS = ("orient", "calibrate", "intersect", "perturb", "interior_covariance", "truth",
                    "points", "align", "runs", "seed", "chunk", "workers", "scheduler")
 #: limits of [montecarlo] (and --runs, --workers): refused before anything is
@@ -245,18 +244,6 @@ def _read_montecarlo(sec: Section | None, prj: Path) -> MonteCarloSettings | Non
         workers=sec.integer("workers", out.workers, minimum=1))
 
 
-def _read_project_section(sec: Section, project: Project) -> None:
-    sec.check_keys(PROJECT_KEYS)
-    project.name = sec.ident("name", project.path.stem)
-    project.units = Units(length=sec.string("length_unit", "m", choices=tuple(LENGTH_UNITS)),
-                          angle=sec.string("angle_unit", "deg", choices=ANGLE_UNITS),
-                          image=sec.string("image_unit", "px", choices=IMAGE_UNITS))
-    rotation = sec.string("rotation", "omega-phi-kappa", choices=("omega-phi-kappa", "opk"))
-    project.rotation = "opk" if rotation in ("omega-phi-kappa", "opk") else rotation
-    project.rotation_direction = sec.string("rotation_direction", "world_to_camera",
-                                            choices=ROTATION_DIRECTIONS)
-
-
 def _read_adjustment(sec: Section | None) -> AdjustmentSettings:
     adj = AdjustmentSettings()
     if sec is None:
@@ -300,13 +287,6 @@ def _check_sigma_image(root: Section, project: Project) -> None:
         if missing:
             raise sub.error(None, f"sigma_image gives no sigma for camera(s) {', '.join(missing)}",
                             hint="give every camera a sigma, or one number for all")
-
-
-def _read_output(sec: Section | None) -> OutputSettings:
-    if sec is None:
-        return OutputSettings()
-    sec.check_keys(("folder",))
-    return OutputSettings(folder=sec.string("folder", "results"))
 
 
 def _read_cameras(sec: Section, project: Project) -> None:

@@ -104,7 +104,7 @@ def _read_measured(entry: Section, obs_sec: Section, unit: str, project: Project
         xy = _xy_columns(table)
         return _Measured(entry, path, table.text("station"), table.text("point"), xy, sigma,
                          table.records, unit)
-    from photogram.io.dbat import read_image_points
+    from photogram.project.dbat_tables import read_image_points
     if "unit" in obs_sec and unit != "px":
         raise obs_sec.error("unit", f"DBAT image tables are in pixels, not {unit}",
                             hint="remove unit from [observations]; the image points are "
@@ -152,7 +152,7 @@ def _implied_stations(sec: Section, project: Project, measured: list[_Measured])
 def _dbat_points(sec: Section, project: Project, measured: list[_Measured]) -> Points:
     if sec.string("format", "csv", choices=TABLE_FORMATS) == "csv":
         return _read_points(sec, project)
-    from photogram.io.dbat import read_control_points
+    from photogram.project.dbat_tables import read_control_points
     sec.check_keys(POINTS_KEYS, required=("file",))
     path = _table_path(sec, "file", "control points table", project)
     project.sources["points"] = path
@@ -255,7 +255,7 @@ def _check_measured(station, point, files, lines, project: Project) -> None:
 def _camera_from_dbat(sec: Section, name: str, project: Project):
     """``[cameras.NAME] from_dbat = "camera.xml"``: a DBAT camera (camera
     file or script XML) as a brown camera, everything fixed except ``free``."""
-    from photogram.io.dbat import _brown_camera, read_camera_xml
+    from photogram.project.dbat_tables import _brown_camera, read_camera_xml
     sec.check_keys(DBAT_CAMERA_KEYS)
     ref = sec.string("from_dbat")
     path = project.folder / ref

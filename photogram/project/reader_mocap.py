@@ -224,8 +224,8 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
 
 def read_mocap_project(prj: Path, src: TomlSource, root: Section) -> Project:
     """Read a motion-capture project (module doc)."""
-    from photogram.project.reader import (_read_output, _read_project_section,
-                                          _read_stations)
+    from photogram.project.reader_sections import _read_output, _read_project_section
+    from photogram.project.reader_tables import _read_stations
     for name in _FORBIDDEN:
         if name in root.data:
             raise root.error(name, f"[{name}] has no meaning in a motion-capture project",

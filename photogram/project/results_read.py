@@ -132,7 +132,7 @@ def read_covariance(path) -> dict:
 
 def read_orientation_covariance(folder) -> tuple[list[str], np.ndarray]:
     """``(labels, matrix)`` of a results folder's covariance.npz (see
-    :func:`photogram.commands.bundle.read_orientation_covariance`).
+    :func:`photogram.commands.bundle.run`).
 
     Raises
     ------

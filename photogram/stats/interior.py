@@ -30,7 +30,7 @@ def calibration_covariance(project):
     Returns ``(labels, matrix, folder)`` restricted to parameters with a
     non-zero variance.
     """
-    from photogram.commands.bundle import read_orientation_covariance
+    from photogram.project.results_read import read_orientation_covariance
     folders = {c.source for c in project.cameras.values() if c.source}
     if len(folders) != 1:
         return None

@@ -105,7 +105,7 @@ def _importer_sources(folder: Path) -> None:
     export_results("pose2sim", field_results, folder / "pose2sim" / "Calib.toml")
     export_results("colmap", field_results, folder / "colmap")
     from photogram.io.opencv_fs import format_opencv
-    from photogram.io.exchange import load_source, views_of
+    from photogram.io.export_source import load_source, views_of
     view = views_of(load_source(field_results).project)[0]
     (folder / "opencv").mkdir()
     (folder / "opencv" / "cam.yml").write_text(format_opencv(view, ".yml"), encoding="utf-8")

@@ -1,4 +1,5 @@
-"""Synthetic skis seen by the three field cameras (tests, examples).
+"""Synthetic skis seen by the three field cameras (tests, examples; was
+photogram.lines.synthetic: simulation is above lines).
 
 The views are the true orientations and interior orientations of
 :func:`photogram.simulation.designs.field_design` (hill coordinates in dm:

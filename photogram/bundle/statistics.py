@@ -1,0 +1,130 @@
+"""The statistics of an adjusted bundle: estimates and a-posteriori sigmas
+into a copy of the project, the joint covariance of the orientation (with
+that of a fixed calibrated interior, when known), weak points."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from photogram.bundle.result import BundleResult
+from photogram.geometry import matrix_to_opk
+from photogram.stats.covariance import (
+    camera_covariances, high_correlations, point_covariances, station_covariances)
+
+
+def flag_weak_points(result, problem, summary):
+    """Largest intersection angle per point; points below WEAK_ANGLE_DEG
+    are flagged (points.csv ``est_weak_angle``, a summary warning,
+    ``summary["weak_points"]``)."""
+    from photogram.stats.geometry import (
+        WEAK_ANGLE_DEG, problem_intersection_angles, weak_angle_warning, weak_points)
+    angles = problem_intersection_angles(problem)
+    weak = weak_points(angles)
+    ids = result.project.points.ids
+    result.point_extra = {"est_angle": angles, "est_weak_angle": weak.astype(int)}
+    summary["weak_points"] = {"threshold_deg": WEAK_ANGLE_DEG, "count": int(weak.sum()),
+                              "ids": [ids[i] for i in np.flatnonzero(weak)]}
+    warning = weak_angle_warning(ids, angles)
+    if warning:
+        summary["warnings"].append(warning)
+
+
+def apriori_image_sigma(problem):
+    """RMS of the a-priori sigmas of the image observations (image unit), so
+    that sigma0 x this is the a-posteriori image sigma (DBAT's "Sigma0
+    (pixels)")."""
+    sig = [b.sigma[:, 0] for b in problem.blocks if b.name == "image points"]
+    return float(np.sqrt(np.mean(np.concatenate(sig) ** 2))) if sig else float("nan")
+
+
+def with_calibration_covariance(result, built, s0sq, summary):
+    """With the interior orientation fixed at calibrated values whose
+    covariance is known (covariance.npz beside the cameras file), report the
+    covariance of the stations including that uncertainty, with the
+    interior-exterior cross-covariances (photogram.stats.interior.py)."""
+    from photogram.stats.interior import (
+        calibration_covariance, interior_sensitivity, station_rotation_to_angles)
+    found = calibration_covariance(result.project)
+    if found is None or built is None:
+        return
+    labels, Sio, folder = found
+    D, cof = interior_sensitivity(built.problem, built.camera_names, result.project, labels)
+    T = station_rotation_to_angles(built.problem)
+    D = T @ D                                         # angles instead of rotation increments
+    n_s = len(built.problem.state.X0)
+    lab_st = [f"{st}.{p}" for st in result.project.stations.names
+              for p in ("X0", "Y0", "Z0", "omega", "phi", "kappa")]
+    cols = built.problem.layout.station_cols.ravel()
+    Q_st = cof.Qcc[np.ix_(cols, cols)]
+    S_full = s0sq * T @ Q_st @ T.T + D @ Sio @ D.T
+    cov = np.block([[Sio, Sio @ D.T], [D @ Sio, S_full]])
+    result.station_sigma = np.sqrt(np.clip(np.diag(S_full), 0, None)).reshape(n_s, 6)
+    idx = np.arange(n_s)[:, None] * 6 + np.arange(6)
+    result.covariances["stations"] = S_full[idx[:, :, None], idx[:, None, :]]  # (n_s, 6, 6)
+    result.covariances.update({"orientation_labels": labels + lab_st, "orientation": cov})
+    summary["interior_covariance"] = {
+        "from": str(folder), "parameters": labels,
+        "note": "station sigmas and covariance.npz include the covariance of the fixed "
+                "interior orientation, propagated, with interior-exterior cross-covariances"}
+
+
+def collect(project, built, cof, s0sq, summary):
+    """Estimated values and a-posteriori sigmas into a copy of the project."""
+    problem = built.problem
+    st = problem.state
+    out = copy.deepcopy(project)
+    out.points.xyz = st.points.copy()
+    out.stations.position = st.X0.copy()
+    out.stations.angles = matrix_to_opk(st.R)
+    cams = camera_covariances(cof, s0sq)
+    camera_sigma, corr = {}, {}
+    for k, name in enumerate(built.camera_names):
+        cam = out.cameras[name]
+        for pname, v in zip(cam.parameters, st.io[k]):
+            cam.parameters[pname].value = float(v)
+        sig = np.sqrt(np.clip(np.diag(cams[k]), 0, None))
+        camera_sigma[name] = dict(zip(cam.parameters, sig.tolist()))
+        free = cam.free_mask() & (sig > 0)
+        names = [n for n, f in zip(cam.parameters, free) if f]
+        high = high_correlations(cams[k][np.ix_(free, free)], names)
+        for a, b, r in high:
+            summary["warnings"].append(f"camera {name}: correlation {a}-{b} = {r:+.3f}")
+        corr[name] = high
+    summary["high_correlations"] = {k: v for k, v in corr.items() if v}
+    P = point_covariances(cof, s0sq)
+    S = station_covariances(cof, st.R, s0sq)
+    point_sigma = np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0, None))
+    station_sigma = np.sqrt(np.clip(np.diagonal(S, axis1=1, axis2=2), 0, None))
+    if len(built.check):
+        d = st.points[built.check] - project.points.xyz[built.check]
+        summary["check_points"] = {
+            "ids": [project.points.ids[i] for i in built.check],
+            "differences": d.tolist(),
+            "rmse": np.sqrt(np.mean(d ** 2, axis=0)).tolist()}
+    labels, cov = orientation_covariance(cof, problem, project, built.camera_names, s0sq)
+    return BundleResult(out, summary, camera_sigma, station_sigma, point_sigma, {},
+                        {"points": P, "stations": S, "cameras": cams,
+                         "orientation_labels": labels, "orientation": cov})
+
+
+def orientation_covariance(cof, problem, project, camera_names, s0sq):
+    """Joint covariance of all interior parameters and exterior orientations
+    (X0 Y0 Z0 in length units, omega phi kappa in radians), with the
+    cross-covariances between stations, for propagation by later commands.
+    """
+    lay = problem.layout
+    cols = np.concatenate([c for c in lay.camera_cols] + [lay.station_cols.ravel()])
+    Q = cof.Qcc[np.ix_(cols, cols)]
+    n_io = sum(len(c) for c in lay.camera_cols)
+    T = np.eye(len(cols))
+    from photogram.geometry import angle_increment_map
+    _, E = angle_increment_map(problem.state.R)
+    for s in range(len(E)):
+        i = n_io + 6 * s + 3
+        T[i:i + 3, i:i + 3] = E[s]
+    labels = [f"{n}.{p}" for n in camera_names for p in project.cameras[n].parameters]
+    labels += [f"{st}.{p}" for st in project.stations.names
+               for p in ("X0", "Y0", "Z0", "omega", "phi", "kappa")]
+    return labels, s0sq * T @ Q @ T.T
