@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from photogram.geometry.aiming import look_at
 from photogram.mocap.cameras import MocapCameras
 from photogram.mocap.solvers import solve_gauss_newton
-from photogram.simulation.network import look_at
 
 __all__ = ["aim_cameras", "athlete_directions", "bootstrap_poses", "apparent_size",
            "size_trilateration", "chain_rotations", "procrustes_cameras",

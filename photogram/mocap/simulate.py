@@ -40,11 +40,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from photogram.geometry.aiming import look_at
 from photogram.mocap.anthropometry import centre_of_mass
 from photogram.mocap.cameras import MocapCameras
 from photogram.mocap.skeleton import SKI24
 from photogram.mocap.skier import SkierBody, pose_skier
-from photogram.simulation.network import look_at
 
 __all__ = ["SkiSimulation", "simulate_session", "IMAGE_SIZE"]
 
