@@ -1,6 +1,6 @@
 """Markerless ski motion capture with known camera rotations (issue 8, part 1).
 
-SIMULATED data (photogram.mocap.simulate, seed 8): six giant-slalom runs of
+SIMULATED data (photogram.simulation.ski.simulate, seed 8): six giant-slalom runs of
 three turns, 279 frames each (1674 frames at 50 fps), a 24-joint skier
 with skis and poles at 15.5-19.5 m/s, six pan-tilt-zoom cameras on a circle
 of 40 m radius that follow the athlete (known rotations and zoom per
@@ -14,7 +14,7 @@ against the truth, the energy reached and the time of each; the goals are
 global MPJPE <= 0.05 m, knee-flexion MAE <= 3 deg and <= 30 s.
 
 With ``--rotation estimate`` (issue 9, part 2) the rotations are unknown:
-every camera's images are rendered (photogram.mocap.render, 960 x 540), the
+every camera's images are rendered (photogram.simulation.ski.render, 960 x 540), the
 rotation differences measured from them (ORB + RANSAC, median 7 + Gaussian
 3; photogram.mocap.homography, one process per camera, OpenCV single
 threaded so that the speed is per core), and poses and rotations estimated
@@ -39,7 +39,7 @@ import numpy as np
 
 from photogram.mocap.metrics import accuracy_3d, biomechanics
 from photogram.mocap.reconstruct import ReconstructionSettings, reconstruct
-from photogram.mocap.simulate import simulate_session
+from photogram.simulation.ski.simulate import simulate_session
 from photogram.mocap.skeleton import SKI24
 
 
@@ -69,7 +69,7 @@ def measure_differences(sim, source):
     from photogram.geometry.rotations import rodrigues_to_matrix
     from photogram.mocap.rotation_series import (filter_rotation_differences,
                                                  rotation_difference_errors)
-    from photogram.mocap.simimages import simulated_differences
+    from photogram.simulation.ski.simimages import simulated_differences
     F, C = sim.observations.shape[:2]
     R = sim.cameras.R
     true = R[1:] @ np.swapaxes(R[:-1], -1, -2)

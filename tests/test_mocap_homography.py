@@ -10,13 +10,13 @@ from photogram.errors import GeometryError, InputError
 from photogram.geometry import rodrigues_to_matrix
 from photogram.mocap.homography import (HomographySettings, RotationDifferences,
                                         rotation_differences)
-from photogram.mocap.render import build_scene, render_camera, write_video
+from photogram.simulation.ski.render import build_scene, render_camera, write_video
 from photogram.mocap.rotation_series import (check_rotation_differences,
                                              filter_rotation_differences,
                                              read_rotation_differences,
                                              rotation_difference_errors,
                                              write_rotation_differences)
-from photogram.mocap.simulate import simulate_session
+from photogram.simulation.ski.simulate import simulate_session
 from photogram.mocap.video import count_frames, read_frames
 
 FRAMES = list(range(100, 130))          # 30 frames

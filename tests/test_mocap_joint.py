@@ -16,7 +16,7 @@ from photogram.mocap.dct import dct_basis
 from photogram.mocap.estimate import estimate_poses_and_rotations, estimate_settings
 from photogram.mocap.joint import JointBatch
 from photogram.mocap.reconstruct import _batches
-from photogram.mocap.simulate import simulate_session
+from photogram.simulation.ski.simulate import simulate_session
 from photogram.mocap.skeleton import SKI24
 
 

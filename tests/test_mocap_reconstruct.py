@@ -6,7 +6,7 @@ import pytest
 
 import photogram.mocap.reconstruct as R
 from photogram.mocap.metrics import accuracy_3d, biomechanics
-from photogram.mocap.simulate import simulate_session
+from photogram.simulation.ski.simulate import simulate_session
 from photogram.mocap.skeleton import SKI24
 from photogram.mocap.solvers import _inv3, _pcg
 

@@ -143,8 +143,8 @@ def test_opencv_export_station_names_stay_in_the_folder(tmp_path, name):
 def test_simulated_mocap_project_name_stays_in_its_folder(tmp_path):
     """The simulator's project name (generate.py --name, a library argument)
     becomes <name>.prj and <name>-estimate.prj inside the folder."""
-    from photogram.mocap.simproject import write_estimate_project, write_simulated_project
-    from photogram.mocap.simulate import simulate_session
+    from photogram.simulation.ski.simproject import write_estimate_project, write_simulated_project
+    from photogram.simulation.ski.simulate import simulate_session
     sim = simulate_session(seed=5, n_runs=1, frames_per_run=10)
     folder = tmp_path / "a" / "b" / "project"
     written = write_simulated_project(sim, folder, name="../../ski")

@@ -226,7 +226,7 @@ def rotation_differences(images, model: str, io, image_scale: float = 0.5, boxes
     ----------
     images : iterable of ndarray
         The frames (BGR or grey uint8), e.g. :func:`photogram.mocap.video.read_frames`
-        or :func:`photogram.mocap.render.render_camera`; read once, in order.
+        or :func:`photogram.simulation.ski.render.render_camera`; read once, in order.
     model : str
         Camera model name (``camera_model``).
     io : array_like, (F, p) or (p,)

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import photogram  # noqa: F401  (one BLAS thread before numpy)
 from photogram.mocap.rotation_series import write_rotation_differences
-from photogram.mocap.simimages import simulated_differences
-from photogram.mocap.simproject import write_estimate_project, write_simulated_project
-from photogram.mocap.simulate import simulate_session
+from photogram.simulation.ski.simimages import simulated_differences
+from photogram.simulation.ski.simproject import write_estimate_project, write_simulated_project
+from photogram.simulation.ski.simulate import simulate_session
 
 SEED = 8
 HERE = Path(__file__).resolve().parent
@@ -44,9 +44,9 @@ def main(argv=None) -> None:
         per, _ = simulated_differences(sim, n_jobs=2)
         print(write_rotation_differences(
             args.out / "rotation_differences.csv", per, comment=(
-                f"SIMULATED data (photogram.mocap.simulate, seed {SEED}): not measured.\n"
+                f"SIMULATED data (photogram.simulation.ski.simulate, seed {SEED}): not measured.\n"
                 "Written by projects/ski-ptz/generate.py: the camera images rendered by "
-                "photogram.mocap.render (960 x 540),\nthe rotation differences measured on "
+                "photogram.simulation.ski.render (960 x 540),\nthe rotation differences measured on "
                 "them by photogram.mocap.homography (raw; photogram filters them).")))
         print(write_estimate_project(sim, args.out))
 

@@ -1,7 +1,7 @@
 """Rotation differences measured on the simulator's rendered images.
 
-THE IMAGES ARE SIMULATED (:mod:`photogram.mocap.render`): every camera of a
-:class:`photogram.mocap.simulate.SkiSimulation` is rendered at 960 x 540
+THE IMAGES ARE SIMULATED (:mod:`photogram.simulation.ski.render`): every camera of a
+:class:`photogram.simulation.ski.simulate.SkiSimulation` is rendered at 960 x 540
 and its frame-to-frame rotations measured by
 :func:`photogram.mocap.homography.rotation_differences`, outside the
 athlete's box (the box of its detections), one process per camera. Used by
@@ -33,8 +33,8 @@ def _one_camera(sim, c, textured, settings):
     import cv2
 
     from photogram.mocap.homography import rotation_differences
-    from photogram.mocap.render import render_camera
-    from photogram.mocap.scene import build_scene
+    from photogram.simulation.ski.render import render_camera
+    from photogram.simulation.ski.scene import build_scene
     cv2.setNumThreads(1)
     t0 = time.process_time()
     scene = build_scene(sim, seed=0, texture=textured)
