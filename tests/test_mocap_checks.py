@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from photogram.errors import InputError
-from photogram.mocap.checks import POOR_FIT, check_angle_unit, check_coverage, check_fit
+from photogram.mocap.evaluation.checks import POOR_FIT, check_angle_unit, check_coverage, check_fit
 from photogram_cli.main import main
 
 

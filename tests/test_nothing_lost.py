@@ -77,7 +77,7 @@ def test_calibrate_twice_needs_force_and_inputs_stay(tmp_path, capsys):
 def test_interrupted_mocap_resumes_with_the_next_camera(tmp_path, monkeypatch):
     """An interrupted `photogram mocap` with images keeps every camera's
     rotation differences measured so far and resumes with the next one."""
-    from photogram.mocap import homography
+    from photogram.mocap.motion import homography
     from photogram.simulation.ski.render import render_camera, write_video
     from photogram.simulation.ski.scene import build_scene
     from photogram.simulation.ski.simproject import write_estimate_project, write_simulated_project

@@ -60,10 +60,10 @@ def test_mocap_partial_files_stay_in_the_partial_folder(tmp_path, monkeypatch):
     per camera in .partial/rotation_differences: hostile camera names must
     not put them anywhere else (today's main wrote
     ``.partial/rotation_differences/../../../../x.npz``)."""
-    from photogram.mocap import homography, video
-    from photogram.mocap.cameras import MocapCameras
-    from photogram.mocap.homography import HomographySettings, RotationDifferences
-    from photogram.mocap.unknown_rotations import _from_images
+    from photogram.mocap.motion import homography, video
+    from photogram.mocap.motion.homography import HomographySettings, RotationDifferences
+    from photogram.mocap.motion.unknown_rotations import _from_images
+    from photogram.mocap.reconstruction.cameras import MocapCameras
 
     base = tmp_path / "a" / "b" / "c" / "d" / "e" / "f"        # ../../../../x stays in tmp_path
     cache = base / "results" / ".partial" / "rotation_differences"

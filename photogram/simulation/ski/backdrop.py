@@ -1,7 +1,7 @@
 """The background of a rendered frame: snow on the slope plane and sky.
 
 SIMULATED IMAGES (see :mod:`photogram.simulation.ski.render`). For every pixel of a
-frame (exact lens model, :mod:`photogram.mocap.lens`):
+frame (exact lens model, :mod:`photogram.mocap.motion.lens`):
 
 * the undistortion correction ``offset (r_u / r_d - 1)`` is computed exactly
   on a grid of 8 x 8 px cells (one cell beyond each border) and bilinearly
@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.lens import check_radial, scaled_parameters, undistort_radius
+from photogram.mocap.motion.lens import check_radial, scaled_parameters, undistort_radius
 from photogram.simulation.ski.scene import SlopeScene
 from photogram.simulation.ski.simulate import SkiSimulation
 

@@ -5,13 +5,13 @@ THE IMAGES ARE SIMULATED: every frame of a pan-tilt-zoom camera of
 of :mod:`photogram.simulation.ski.scene` (textured slope, gates, fences, trees, sky)
 with the camera's true rotation and interior orientation of that frame, and
 the skier is drawn in from the truth joints, so that real feature tracking
-(:mod:`photogram.mocap.homography`) runs on them.
+(:mod:`photogram.mocap.motion.homography`) runs on them.
 
 How a frame is made (``size`` = (W, H), scale ``s = W / W_full``; pixel
 centres scale as ``x_small = s (x_full + 0.5) - 0.5``, OpenCV's resize
 convention, so ``fx_s = s fx``, ``cx_s = s (cx + 0.5) - 0.5``):
 
-1. **exact lens model** (:mod:`photogram.mocap.lens`): distorted
+1. **exact lens model** (:mod:`photogram.mocap.motion.lens`): distorted
    normalised coordinates ``d = (p - c) / f`` are undistorted radially,
    ``r_u (1 + k1 r_u^2 + k2 r_u^4 + k3 r_u^6) = r_d`` by Newton's method
    (:func:`undistort_radius`); tangential distortion (p1, p2) is not
@@ -48,8 +48,8 @@ import cv2
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.lens import distort, pixel_rays, scaled_parameters, undistort_radius
-from photogram.mocap.skeleton import SKI24
+from photogram.mocap.body.skeleton import SKI24
+from photogram.mocap.motion.lens import distort, pixel_rays, scaled_parameters, undistort_radius
 from photogram.project.atomic import give_file_mode
 from photogram.simulation.ski.backdrop import FrameGeometry, background, ideal_offsets
 from photogram.simulation.ski.scene import SlopeScene, build_scene

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from photogram.geometry import matrix_to_opk
+from photogram.mocap.body.skeleton import SKI24
 from photogram.mocap.files import write_joints
-from photogram.mocap.skeleton import SKI24
 from photogram.project.atomic import atomic_write_text
 from photogram.simulation.ski.simulate import SkiSimulation
 

@@ -41,9 +41,9 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from photogram.geometry.aiming import look_at
-from photogram.mocap.anthropometry import centre_of_mass
-from photogram.mocap.cameras import MocapCameras
-from photogram.mocap.skeleton import SKI24
+from photogram.mocap.body.anthropometry import centre_of_mass
+from photogram.mocap.body.skeleton import SKI24
+from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.simulation.ski.skier import SkierBody, pose_skier
 
 __all__ = ["SkiSimulation", "simulate_session", "IMAGE_SIZE"]
