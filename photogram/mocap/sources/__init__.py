@@ -11,6 +11,11 @@ kind           what                                             module
 
 :func:`open_source` builds one from ``[mocap.source]``; every source gives,
 per camera, the tracked athlete (:meth:`ObservationSource.track`).
+
+May import :mod:`photogram.mocap.tracking` (the candidate detections, the
+tracking) and :mod:`photogram.mocap.body`; never the reconstruction, the
+motion, the evaluation or the project glue (docs/mocap.md, "Package
+layout").
 """
 
 from __future__ import annotations
