@@ -1,11 +1,11 @@
 """Camera rotation differences from rendered images (issue 8, part 2).
 
-SIMULATED data: photogram.mocap.simulate (seed 8; one run of 279 frames by
+SIMULATED data: photogram.simulation.ski.simulate (seed 8; one run of 279 frames by
 default, ``--runs`` for more) filmed by six pan-tilt-zoom cameras; every
-frame of every camera is rendered at 960 x 540 (photogram.mocap.render:
+frame of every camera is rendered at 960 x 540 (photogram.simulation.ski.render:
 textured slope, gates, fences, trees, sky, the skier from the truth joints,
 exact lens model) and the frame-to-frame rotations are estimated from the
-images (photogram.mocap.homography: ORB outside the athlete's box, guided
+images (photogram.mocap.motion.homography: ORB outside the athlete's box, guided
 matching, RANSAC homography, rotation refit on the inliers), one OpenCV
 thread, runs processed separately. The athlete boxes are the truth joints'
 image boxes (a tracker's boxes in practice).
@@ -29,13 +29,13 @@ import photogram  # noqa: F401  (one BLAS thread before numpy)
 import cv2
 import numpy as np
 
-from photogram.mocap.homography import HomographySettings, rotation_differences
-from photogram.mocap.render import build_scene, render_camera, write_video
-from photogram.mocap.rotation_series import (check_rotation_differences,
-                                             filter_rotation_differences,
-                                             rotation_difference_errors)
-from photogram.mocap.simulate import simulate_session
 from photogram.errors import GeometryError
+from photogram.mocap.motion.homography import HomographySettings, rotation_differences
+from photogram.mocap.motion.rotation_series import (check_rotation_differences,
+                                                    filter_rotation_differences,
+                                                    rotation_difference_errors)
+from photogram.simulation.ski.render import build_scene, render_camera, write_video
+from photogram.simulation.ski.simulate import simulate_session
 
 
 class Timed:

@@ -1,6 +1,6 @@
 """Markerless ski motion capture with known camera rotations (issue 8, part 1).
 
-SIMULATED data (photogram.mocap.simulate, seed 8): six giant-slalom runs of
+SIMULATED data (photogram.simulation.ski.simulate, seed 8): six giant-slalom runs of
 three turns, 279 frames each (1674 frames at 50 fps), a 24-joint skier
 with skis and poles at 15.5-19.5 m/s, six pan-tilt-zoom cameras on a circle
 of 40 m radius that follow the athlete (known rotations and zoom per
@@ -8,17 +8,17 @@ frame), noisy detections with 5 % outliers and left/right swaps. The runs
 are independent segments (windows never cross them).
 
 Reconstructs all 1674 frames x 6 cameras x 24 joints with the default
-solver (Gauss-Newton/IRLS with PCG, photogram.mocap.solvers) and with the
+solver (Gauss-Newton/IRLS with PCG, photogram.mocap.reconstruction.solvers) and with the
 paper's L-BFGS (same energy, same continuation), and prints accuracy
 against the truth, the energy reached and the time of each; the goals are
 global MPJPE <= 0.05 m, knee-flexion MAE <= 3 deg and <= 30 s.
 
 With ``--rotation estimate`` (issue 9, part 2) the rotations are unknown:
-every camera's images are rendered (photogram.mocap.render, 960 x 540), the
+every camera's images are rendered (photogram.simulation.ski.render, 960 x 540), the
 rotation differences measured from them (ORB + RANSAC, median 7 + Gaussian
-3; photogram.mocap.homography, one process per camera, OpenCV single
+3; photogram.mocap.motion.homography, one process per camera, OpenCV single
 threaded so that the speed is per core), and poses and rotations estimated
-together (photogram.mocap.estimate: bootstrap, joint optimisation with
+together (photogram.mocap.reconstruction.estimate: bootstrap, joint optimisation with
 E_rot). Also run: the same without E_rot (rotations optimised freely) on all
 frames, and the paper's ablations Ours-A (free points) and Ours-B (free
 points, no E_rot) on the first ``--ablation-frames`` frames (their dense
@@ -37,10 +37,10 @@ import time
 import photogram  # noqa: F401  (one BLAS thread before numpy)
 import numpy as np
 
-from photogram.mocap.metrics import accuracy_3d, biomechanics
-from photogram.mocap.reconstruct import ReconstructionSettings, reconstruct
-from photogram.mocap.simulate import simulate_session
-from photogram.mocap.skeleton import SKI24
+from photogram.mocap.body.skeleton import SKI24
+from photogram.mocap.evaluation.metrics import accuracy_3d, biomechanics
+from photogram.mocap.reconstruction.reconstruct import ReconstructionSettings, reconstruct
+from photogram.simulation.ski.simulate import simulate_session
 
 
 def evaluate(rec, sim):
@@ -67,9 +67,9 @@ def run(sim, solver):
 
 def measure_differences(sim, source):
     from photogram.geometry.rotations import rodrigues_to_matrix
-    from photogram.mocap.rotation_series import (filter_rotation_differences,
-                                                 rotation_difference_errors)
-    from photogram.mocap.simimages import simulated_differences
+    from photogram.mocap.motion.rotation_series import (filter_rotation_differences,
+                                                        rotation_difference_errors)
+    from photogram.simulation.ski.simimages import simulated_differences
     F, C = sim.observations.shape[:2]
     R = sim.cameras.R
     true = R[1:] @ np.swapaxes(R[:-1], -1, -2)
@@ -101,13 +101,13 @@ def measure_differences(sim, source):
 
 
 def _rot_err(R, R_true):
-    from photogram.mocap.unknown_rotations import rotation_errors
+    from photogram.mocap.motion.unknown_rotations import rotation_errors
     return rotation_errors(R, R_true, ["all"])["all"]
 
 
 def main_estimate(args):
-    from photogram.mocap.estimate import (ABLATIONS, estimate_poses_and_rotations,
-                                          estimate_settings)
+    from photogram.mocap.reconstruction.estimate import (ABLATIONS, estimate_poses_and_rotations,
+                                                         estimate_settings)
     sim = simulate_session(seed=8, n_runs=args.runs)
     F, C, J, _ = sim.observations.shape
     print(f"simulated: {F} frames x {C} cameras x {J} joints, {args.runs} runs; rotations "

@@ -49,9 +49,9 @@ def test_result_files_get_the_umask_mode_not_0600(tmp_path, umask, mask):
 
 def test_mocap_videos_and_rotation_differences_get_the_umask_mode(tmp_path, umask):
     """The two writers of mocap that call mkstemp themselves."""
-    from photogram.mocap.homography import RotationDifferences
-    from photogram.mocap.render import write_video
-    from photogram.mocap.rotation_series import write_rotation_differences
+    from photogram.mocap.motion.homography import RotationDifferences
+    from photogram.mocap.motion.rotation_series import write_rotation_differences
+    from photogram.simulation.ski.render import write_video
     umask(0o027)
     write_video(tmp_path / "c1.avi", [np.zeros((32, 48, 3), np.uint8)] * 3, 25)
     rd = RotationDifferences(dR=np.tile(np.eye(3), (2, 1, 1)), inliers=np.array([9, 9]),

@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 
 from photogram.errors import InputError
-from photogram.mocap.checks import POOR_FIT, check_angle_unit, check_coverage, check_fit
+from photogram.mocap.evaluation.checks import POOR_FIT, check_angle_unit, check_coverage, check_fit
 from photogram_cli.main import main
 
 
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):
-    from photogram.mocap.simproject import write_simulated_project
-    from photogram.mocap.simulate import simulate_session
+    from photogram.simulation.ski.simproject import write_simulated_project
+    from photogram.simulation.ski.simulate import simulate_session
     folder = tmp_path_factory.mktemp("ski-base")
     sim = simulate_session(seed=5, n_runs=1, frames_per_run=20)
     write_simulated_project(sim, folder, name="ski")

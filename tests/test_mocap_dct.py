@@ -5,7 +5,7 @@ import pytest
 from scipy.fft import idct
 
 from photogram.errors import InputError
-from photogram.mocap.dct import blend_weights, dct_basis, plan_windows
+from photogram.mocap.reconstruction.dct import blend_weights, dct_basis, plan_windows
 
 
 def test_basis_is_the_orthonormal_inverse_dct():

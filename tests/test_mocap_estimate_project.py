@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from photogram.mocap.render import render_camera, write_video
-from photogram.mocap.rotation_series import read_rotation_differences
-from photogram.mocap.scene import build_scene
-from photogram.mocap.simproject import write_estimate_project, write_simulated_project
-from photogram.mocap.simulate import simulate_session
+from photogram.mocap.motion.rotation_series import read_rotation_differences
+from photogram.simulation.ski.render import render_camera, write_video
+from photogram.simulation.ski.scene import build_scene
+from photogram.simulation.ski.simproject import write_estimate_project, write_simulated_project
+from photogram.simulation.ski.simulate import simulate_session
 from photogram_cli.main import main
 
 FEATURELESS = 1          # camera C2 films uniform snow and sky
@@ -110,9 +110,9 @@ def test_example_rotation_differences_are_what_photogram_measures():
     """projects/ski-ptz/rotation_differences.csv: re-measured on the first 30
     rendered frames of C1, and close to the true differences."""
     from photogram.geometry.rotations import matrix_to_rodrigues
-    from photogram.mocap.homography import rotation_differences
-    from photogram.mocap.rotation_series import rotation_difference_errors
-    from photogram.mocap.simimages import detection_boxes
+    from photogram.mocap.motion.homography import rotation_differences
+    from photogram.mocap.motion.rotation_series import rotation_difference_errors
+    from photogram.simulation.ski.simimages import detection_boxes
     root = Path(__file__).resolve().parents[1] / "projects" / "ski-ptz"
     sim = simulate_session(seed=8, n_runs=1)
     per = read_rotation_differences(root / "rotation_differences.csv", sim.cameras.names, 279)

@@ -1,6 +1,6 @@
-"""Camera rotation differences from images (photogram.mocap.homography and
+"""Camera rotation differences from images (photogram.mocap.motion.homography and
 rotation_series) on rendered simulated frames, filtering, checks, files and
-video input (photogram.mocap.video)."""
+video input (photogram.mocap.motion.video)."""
 
 import cv2
 import numpy as np
@@ -8,16 +8,16 @@ import pytest
 
 from photogram.errors import GeometryError, InputError
 from photogram.geometry import rodrigues_to_matrix
-from photogram.mocap.homography import (HomographySettings, RotationDifferences,
-                                        rotation_differences)
-from photogram.mocap.render import build_scene, render_camera, write_video
-from photogram.mocap.rotation_series import (check_rotation_differences,
-                                             filter_rotation_differences,
-                                             read_rotation_differences,
-                                             rotation_difference_errors,
-                                             write_rotation_differences)
-from photogram.mocap.simulate import simulate_session
-from photogram.mocap.video import count_frames, read_frames
+from photogram.mocap.motion.homography import (HomographySettings, RotationDifferences,
+                                               rotation_differences)
+from photogram.mocap.motion.rotation_series import (check_rotation_differences,
+                                                    filter_rotation_differences,
+                                                    read_rotation_differences,
+                                                    rotation_difference_errors,
+                                                    write_rotation_differences)
+from photogram.mocap.motion.video import count_frames, read_frames
+from photogram.simulation.ski.render import build_scene, render_camera, write_video
+from photogram.simulation.ski.simulate import simulate_session
 
 FRAMES = list(range(100, 130))          # 30 frames
 WIDE, ZOOMED = 2, 0                     # C3 (f ~ 4000 px) and C1 (f ~ 13000 px)

@@ -7,17 +7,17 @@ import pytest
 
 import photogram  # noqa: F401
 from photogram.geometry.rotations import rodrigues_to_matrix
-from photogram.mocap.bearings import bearing_adjustment
-from photogram.mocap.bootstrap import (aim_cameras, chain_rotations, procrustes_cameras,
-                                       size_trilateration)
-from photogram.mocap.camera_motion import (euler_from_matrices, euler_matrices,
-                                           rotation_residuals)
-from photogram.mocap.dct import dct_basis
-from photogram.mocap.estimate import estimate_poses_and_rotations, estimate_settings
-from photogram.mocap.joint import JointBatch
-from photogram.mocap.reconstruct import _batches
-from photogram.mocap.simulate import simulate_session
-from photogram.mocap.skeleton import SKI24
+from photogram.mocap.body.skeleton import SKI24
+from photogram.mocap.motion.camera_motion import (euler_from_matrices, euler_matrices,
+                                                  rotation_residuals)
+from photogram.mocap.reconstruction.bearings import bearing_adjustment
+from photogram.mocap.reconstruction.bootstrap import (aim_cameras, chain_rotations,
+                                                      procrustes_cameras, size_trilateration)
+from photogram.mocap.reconstruction.dct import dct_basis
+from photogram.mocap.reconstruction.estimate import estimate_poses_and_rotations, estimate_settings
+from photogram.mocap.reconstruction.joint import JointBatch
+from photogram.mocap.reconstruction.reconstruct import _batches
+from photogram.simulation.ski.simulate import simulate_session
 
 
 def _angle_deg(A, B):

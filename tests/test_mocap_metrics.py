@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from photogram.mocap.metrics import (accuracy_3d, biomechanics, bone_lengths, centre_of_mass,
-                                     fore_aft, knee_flexion, lean_angle, mpjpe_2d, pck, speed,
-                                     ski_joints)
-from photogram.mocap.skeleton import BODY25B, SKI24
+from photogram.mocap.body.skeleton import BODY25B, SKI24
+from photogram.mocap.evaluation.metrics import (accuracy_3d, biomechanics, bone_lengths,
+                                                centre_of_mass, fore_aft, knee_flexion, lean_angle,
+                                                mpjpe_2d, pck, speed, ski_joints)
 
 
 def _pose(knee_r=0.0, lean=0.0):

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from photogram.io.trc import read_trc
+from photogram.mocap.body.skeleton import SKI24
 from photogram.mocap.files import read_joints
-from photogram.mocap.simproject import write_simulated_project
-from photogram.mocap.simulate import simulate_session
-from photogram.mocap.skeleton import SKI24
 from photogram.project import read_project
+from photogram.simulation.ski.simproject import write_simulated_project
+from photogram.simulation.ski.simulate import simulate_session
 from photogram_cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -4,11 +4,11 @@ small simulated run (SIMULATED data)."""
 import numpy as np
 import pytest
 
-import photogram.mocap.reconstruct as R
-from photogram.mocap.metrics import accuracy_3d, biomechanics
-from photogram.mocap.simulate import simulate_session
-from photogram.mocap.skeleton import SKI24
-from photogram.mocap.solvers import _inv3, _pcg
+import photogram.mocap.reconstruction.reconstruct as R
+from photogram.mocap.body.skeleton import SKI24
+from photogram.mocap.evaluation.metrics import accuracy_3d, biomechanics
+from photogram.mocap.reconstruction.solvers import _inv3, _pcg
+from photogram.simulation.ski.simulate import simulate_session
 
 
 @pytest.fixture(scope="module")

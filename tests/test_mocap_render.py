@@ -1,4 +1,4 @@
-"""Rendered images of the simulated ski runs (photogram.mocap.render):
+"""Rendered images of the simulated ski runs (photogram.simulation.ski.render):
 determinism, the skier where the camera model puts it, the background of
 consecutive frames related by the true rotation homography, the exact lens
 inversion."""
@@ -9,10 +9,10 @@ import pytest
 
 from photogram.errors import InputError
 from photogram.geometry import camera_model
-from photogram.mocap.lens import pixel_rays, scaled_parameters, undistort_radius
-from photogram.mocap.render import build_scene, ideal_offsets, render_frame
-from photogram.mocap.simulate import simulate_session
-from photogram.mocap.skeleton import SKI24
+from photogram.mocap.body.skeleton import SKI24
+from photogram.mocap.motion.lens import pixel_rays, scaled_parameters, undistort_radius
+from photogram.simulation.ski.render import build_scene, ideal_offsets, render_frame
+from photogram.simulation.ski.simulate import simulate_session
 
 SIZE = (960, 540)
 FLIP = np.diag([1.0, -1.0, -1.0])

@@ -104,8 +104,8 @@ def test_mocap_errors_are_one_line_in_a_real_process(tmp_path):
     comes from the pipeline (today's main printed ``photogram mocap ...``
     first), also over an earlier run with --force (``replacing the earlier
     run ...``); a successful run still shows its progress."""
-    from photogram.mocap.simproject import write_simulated_project
-    from photogram.mocap.simulate import simulate_session
+    from photogram.simulation.ski.simproject import write_simulated_project
+    from photogram.simulation.ski.simulate import simulate_session
     sim = simulate_session(seed=5, n_runs=1, frames_per_run=20)
     write_simulated_project(sim, tmp_path / "p", name="ski")
     prj = tmp_path / "p" / "ski.prj"

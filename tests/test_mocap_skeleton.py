@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from photogram.errors import InputError
-from photogram.mocap.anthropometry import DE_LEVA_MALE, centre_of_mass
-from photogram.mocap.skeleton import (BODY14, BODY25B, COCO17, MEDIAPIPE33, SKELETONS, SKI24,
-                                      get_skeleton, map_joints)
+from photogram.mocap.body.anthropometry import DE_LEVA_MALE, centre_of_mass
+from photogram.mocap.body.skeleton import (BODY14, BODY25B, COCO17, MEDIAPIPE33, SKELETONS, SKI24,
+                                           get_skeleton, map_joints)
 from photogram.mocap.sources.mediapipe import landmarks_to_joints
 
 

@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 
 from photogram.errors import InputError
-from photogram.mocap.skeleton import BODY25B, COCO17, SKI24
-from photogram.mocap.sources.base import CameraDetections
+from photogram.mocap.body.skeleton import BODY25B, COCO17, SKI24
 from photogram.mocap.sources.csv import CsvSource
 from photogram.mocap.sources.openpose import read_openpose_folder
 from photogram.mocap.sources.plugin import PluginDetector, load_function
-from photogram.mocap.tracking import (TrackingSettings, clean_boxes, crop_image, crop_to_full,
-                                      gaussian_smooth, select_person, track_detections,
-                                      track_images)
+from photogram.mocap.tracking.athlete import (TrackingSettings, clean_boxes, crop_image,
+                                              crop_to_full, gaussian_smooth, select_person,
+                                              track_detections, track_images)
+from photogram.mocap.tracking.detections import CameraDetections
 
 
 def _person(cx, cy, h, conf, J=17):

@@ -77,11 +77,11 @@ def test_calibrate_twice_needs_force_and_inputs_stay(tmp_path, capsys):
 def test_interrupted_mocap_resumes_with_the_next_camera(tmp_path, monkeypatch):
     """An interrupted `photogram mocap` with images keeps every camera's
     rotation differences measured so far and resumes with the next one."""
-    from photogram.mocap import homography
-    from photogram.mocap.render import render_camera, write_video
-    from photogram.mocap.scene import build_scene
-    from photogram.mocap.simproject import write_estimate_project, write_simulated_project
-    from photogram.mocap.simulate import simulate_session
+    from photogram.mocap.motion import homography
+    from photogram.simulation.ski.render import render_camera, write_video
+    from photogram.simulation.ski.scene import build_scene
+    from photogram.simulation.ski.simproject import write_estimate_project, write_simulated_project
+    from photogram.simulation.ski.simulate import simulate_session
     sim = simulate_session(seed=5, n_runs=1, frames_per_run=30)
     write_simulated_project(sim, tmp_path, name="ski")
     prj = write_estimate_project(sim, tmp_path, name="ski")

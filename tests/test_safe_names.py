@@ -60,10 +60,10 @@ def test_mocap_partial_files_stay_in_the_partial_folder(tmp_path, monkeypatch):
     per camera in .partial/rotation_differences: hostile camera names must
     not put them anywhere else (today's main wrote
     ``.partial/rotation_differences/../../../../x.npz``)."""
-    from photogram.mocap import homography, video
-    from photogram.mocap.cameras import MocapCameras
-    from photogram.mocap.homography import HomographySettings, RotationDifferences
-    from photogram.mocap.unknown_rotations import _from_images
+    from photogram.mocap.motion import homography, video
+    from photogram.mocap.motion.homography import HomographySettings, RotationDifferences
+    from photogram.mocap.motion.unknown_rotations import _from_images
+    from photogram.mocap.reconstruction.cameras import MocapCameras
 
     base = tmp_path / "a" / "b" / "c" / "d" / "e" / "f"        # ../../../../x stays in tmp_path
     cache = base / "results" / ".partial" / "rotation_differences"
@@ -143,8 +143,8 @@ def test_opencv_export_station_names_stay_in_the_folder(tmp_path, name):
 def test_simulated_mocap_project_name_stays_in_its_folder(tmp_path):
     """The simulator's project name (generate.py --name, a library argument)
     becomes <name>.prj and <name>-estimate.prj inside the folder."""
-    from photogram.mocap.simproject import write_estimate_project, write_simulated_project
-    from photogram.mocap.simulate import simulate_session
+    from photogram.simulation.ski.simproject import write_estimate_project, write_simulated_project
+    from photogram.simulation.ski.simulate import simulate_session
     sim = simulate_session(seed=5, n_runs=1, frames_per_run=10)
     folder = tmp_path / "a" / "b" / "project"
     written = write_simulated_project(sim, folder, name="../../ski")

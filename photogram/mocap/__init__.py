@@ -1,27 +1,26 @@
 """Markerless multi-camera motion capture (alpine skiing; docs/mocap.md).
 
 After Bachmann et al., "Motion Capture from Pan-Tilt Cameras with Unknown
-Orientation" (part 1: known camera rotations; part 2: unknown rotations):
+Orientation" (part 1: known camera rotations; part 2: unknown rotations).
+Subpackages by concern and three modules of project glue; each part
+imports only the parts its row names (docs/mocap.md, "Package layout",
+checked by tests/test_mocap_layout.py):
 
-| module | concern |
-|---|---|
-| ``skeleton`` | the 24-joint ski skeleton, detector skeletons, mappings |
-| ``anthropometry`` | de Leva (1996) segment masses and centres of mass |
-| ``sources`` | observation sources: OpenPose/Pose2Sim JSON, CSV, mediapipe, plugin |
-| ``tracking`` | athlete tracking and crops (section 4.1), main-person selection |
-| ``cameras`` | fixed and pan-tilt-zoom cameras (rotations per frame) |
-| ``dct`` | DCT trajectories and windows (eq. (1)) |
-| ``energy`` | robust reprojection energy and limb prior (eqs. (7)-(10)) |
-| ``solvers`` | Gauss-Newton/IRLS with PCG (default) and L-BFGS |
-| ``reconstruct`` | the reconstruction of a sequence (sections 4.3-4.4) |
-| ``metrics`` | PCK, MPJPE, CoM, speed, joint angles, lean, fore/aft (appendix C) |
-| ``camera_motion`` | camera rotations as Euler-angle DCTs, E_rot (eq. (14)) |
-| ``joint``, ``joint_solver`` | the joint pose and rotation energy, dense per-window LM |
-| ``bootstrap``, ``bearings`` | the start with unknown rotations (paper's rounds, the athlete's path) |
-| ``estimate``, ``unknown_rotations`` | poses and rotations together; project glue |
-| ``homography``, ``rotation_series`` | rotation differences from images (eqs. (12)-(13)), filter, files |
-| ``video`` | video files and image folders (OpenCV) |
-| ``render``, ``scene``, ``texture``, ``lens``, ``backdrop``, ``simimages`` | rendered camera images of the simulator |
-| ``simulate``, ``skier``, ``simproject`` | the simulated giant-slalom runs |
-| ``files``, ``pipeline``, ``outputs`` | project tables, the pipeline, the results folder |
+| part | concern | may import (of mocap) |
+|---|---|---|
+| ``pipeline`` | the run of ``photogram mocap``: project -> results | all below |
+| ``outputs`` | the results folder | ``files``, subpackages |
+| ``files`` | the project's tables: cameras, camera_frames, limbs, joints | subpackages |
+| ``evaluation`` | metrics (appendix C), checks of a run | ``body`` |
+| ``reconstruction`` | cameras per frame, DCT, energy, solvers; known and | ``body``, ``motion`` |
+| | unknown rotations (bootstrap, joint optimisation) | |
+| ``sources`` | observation sources: JSON, CSV, mediapipe, plugin | ``tracking``, ``body`` |
+| ``tracking`` | a camera's candidate detections, athlete tracking (4.1) | ``body`` |
+| ``motion`` | camera rotations: differences from images, filter, files, E_rot | -- |
+| ``body`` | skeletons and their mappings, segment masses (de Leva) | -- |
+
+The simulated giant-slalom runs and their rendered images are
+:mod:`photogram.simulation.ski` (above this package: it may import
+photogram.mocap, never the reverse). Nothing here imports
+photogram.simulation, commands, report, montecarlo, jump or measure.
 """

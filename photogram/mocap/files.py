@@ -30,8 +30,8 @@ import numpy as np
 
 from photogram.errors import InputError
 from photogram.geometry import camera_model, opk_to_matrix
-from photogram.mocap.cameras import MocapCameras
-from photogram.mocap.skeleton import Skeleton
+from photogram.mocap.body.skeleton import Skeleton
+from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.project.atomic import atomic_write_text
 from photogram.project.camera_schema import invert_opk
 from photogram.project.tables import _delimiter, format_table, read_table, suggest
@@ -97,7 +97,7 @@ def cameras_from_project(project) -> MocapCameras:
                          file=project.sources.get("stations"),
                          hint="give every camera one station (its position and angles)")
     from photogram.geometry.rotations import from_radians
-    from photogram.mocap.checks import check_angle_unit
+    from photogram.mocap.evaluation.checks import check_angle_unit
     note = check_angle_unit(from_radians(np.array(angles).reshape(-1, 3), project.units.angle),
                             project.units.angle, "the stations table",
                             project.sources.get("stations"), st.record)
@@ -127,7 +127,7 @@ def read_camera_frames(path: Path, cameras: MocapCameras, project, first_frame: 
     cams = table.text("camera")
     unit = project.units.angle
     if rotations:
-        from photogram.mocap.checks import check_angle_unit
+        from photogram.mocap.evaluation.checks import check_angle_unit
         note = check_angle_unit(np.stack([table.floats(k) for k in angle_cols], -1), unit,
                                 f"{Path(path).name} (omega, phi, kappa)", path, table.records)
         if note and note not in project.warnings:

@@ -161,7 +161,7 @@ def write_outputs(result, project, folder: Path, log_text: str = "") -> list[Pat
                     "of camera_frames: usable as rotation = \"known\")"))
         per = result.info.get("differences") or {}
         if per:
-            from photogram.mocap.rotation_series import write_rotation_differences
+            from photogram.mocap.motion.rotation_series import write_rotation_differences
             written.append(write_rotation_differences(folder / "rotation_differences.csv",
                                                       per, first_frame=int(result.frames[0])))
     written += _plots(result, folder)

@@ -7,8 +7,8 @@ Pose2Sim calibration; rotations per frame from ``camera_frames``); open the
 source and track the athlete in every camera; map the detections onto the
 reconstruction skeleton (``skeleton`` of ``[mocap]``; default: the source's,
 a generic skeleton); cut the frame range; reconstruct
-(:mod:`photogram.mocap.reconstruct`); compute the per-frame quantities
-(:mod:`photogram.mocap.metrics`), the reprojection errors per camera and the
+(:mod:`photogram.mocap.reconstruction.reconstruct`); compute the per-frame quantities
+(:mod:`photogram.mocap.evaluation.metrics`), the reprojection errors per camera and the
 bone-length variation; compare with ``truth`` (a joints table) and with
 ``reference_trc`` (e.g. Pose2Sim's triangulation: its points projected with
 the same cameras against the same detections).
@@ -23,14 +23,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.cameras import MocapCameras
+from photogram.mocap.body.skeleton import Skeleton, get_skeleton, map_joints
+from photogram.mocap.evaluation.metrics import (accuracy_3d, biomechanics, bone_lengths, mpjpe_2d,
+                                                pck)
 from photogram.mocap.files import (cameras_from_project, read_camera_frames, read_joints,
                                    read_limb_lengths)
-from photogram.mocap.metrics import (accuracy_3d, biomechanics, bone_lengths, mpjpe_2d, pck)
-from photogram.mocap.reconstruct import Reconstruction, ReconstructionSettings, reconstruct
-from photogram.mocap.skeleton import Skeleton, get_skeleton, map_joints
+from photogram.mocap.reconstruction.cameras import MocapCameras
+from photogram.mocap.reconstruction.reconstruct import (Reconstruction, ReconstructionSettings,
+                                                        reconstruct)
 from photogram.mocap.sources import open_source
-from photogram.mocap.tracking import TrackingSettings
+from photogram.mocap.tracking.athlete import TrackingSettings
 
 __all__ = ["MocapResult", "run_mocap", "reprojection_errors", "REFERENCE_CONFIDENCE"]
 
@@ -158,7 +160,7 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
                for t in tracked]
     breaks = [r - frames[0] for r in ms.runs if frames[0] < r <= frames[-1]]
     rs = dict(ms.reconstruction)
-    from photogram.mocap.checks import check_coverage
+    from photogram.mocap.evaluation.checks import check_coverage
     for note in check_coverage(obs, cameras.names, skeleton.joints, frames,
                                rs.get("min_confidence", 0.0),
                                file=ms.source.path or project.path):
@@ -170,8 +172,9 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     rs.setdefault("limb_unit", 0.01 / LENGTH_UNITS[project.units.length])   # 1 cm
     rotation_info = {}
     if estimate:
-        from photogram.mocap.estimate import estimate_poses_and_rotations, estimate_settings
-        from photogram.mocap.unknown_rotations import measure_differences
+        from photogram.mocap.motion.unknown_rotations import measure_differences
+        from photogram.mocap.reconstruction.estimate import (estimate_poses_and_rotations,
+                                                             estimate_settings)
         t1 = time.perf_counter()
         from photogram.project.output_policy import PARTIAL
         dR, weights, per_camera = measure_differences(
@@ -195,19 +198,19 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
         bones=bone_lengths(rec.joints, skeleton), breaks=breaks,
         info={"source": source.describe(), "timings": timings, "rotation": ms.rotation,
               **rotation_info})
-    from photogram.mocap.checks import check_fit
+    from photogram.mocap.evaluation.checks import check_fit
     for note in check_fit(result.reprojection, cameras.image_size[:, 0]):
         log.warning("warning: %s", note)
         project.warnings.append(note)
     if estimate and ms.truth_rotations is not None:
-        from photogram.mocap.unknown_rotations import rotation_errors
+        from photogram.mocap.motion.unknown_rotations import rotation_errors
         truth = read_camera_frames(ms.truth_rotations, cameras, project, first,
                                    lo + len(frames)).select_frames(np.arange(lo, hi))
         result.info["rotation_errors"] = rotation_errors(rec.R, truth.rotations(len(frames)),
                                                          cameras.names)
         result.info["rotation_errors_bootstrap"] = rotation_errors(
             rec.R_bootstrap, truth.rotations(len(frames)), cameras.names)["all"]
-        from photogram.mocap.rotation_series import rotation_difference_errors
+        from photogram.mocap.motion.rotation_series import rotation_difference_errors
         Rt = truth.rotations(len(frames))
         result.info["difference_errors_deg"] = {
             name: rotation_difference_errors(rd.dR, Rt[:, cameras.index(name)])

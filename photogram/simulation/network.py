@@ -1,8 +1,9 @@
 """Synthetic camera networks with known truth.
 
 Small building blocks: a look-at rotation in the photogrammetric camera
-frame, a frame of target points, ring-shaped station layouts, and exact
-image observations (optionally with Gaussian noise) from a camera model.
+frame (:func:`photogram.geometry.aiming.look_at`), a frame of target
+points, ring-shaped station layouts, and exact image observations
+(optionally with Gaussian noise) from a camera model.
 """
 
 from __future__ import annotations
@@ -12,25 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from photogram.geometry import camera_model, matrix_to_opk
-
-
-def look_at(X0, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
-    """World-to-camera R of cameras at ``X0`` (n,3) looking at ``target``.
-
-    The photogrammetric camera looks along its -z axis with y up, so the
-    rows of R are the camera axes in world coordinates: z = -(viewing
-    direction), x = up x z normalised... chosen so that world "up" appears
-    up in the image (y up in the camera, i.e. toward smaller row numbers).
-    """
-    X0 = np.atleast_2d(np.asarray(X0, dtype=float))
-    target = np.broadcast_to(np.asarray(target, dtype=float), X0.shape)
-    up = np.broadcast_to(np.asarray(up, dtype=float), X0.shape)
-    view = target - X0
-    z = -view / np.linalg.norm(view, axis=1, keepdims=True)
-    x = np.cross(up, z)
-    x /= np.linalg.norm(x, axis=1, keepdims=True)
-    y = np.cross(z, x)
-    return np.stack([x, y, z], axis=1)
+from photogram.geometry.aiming import look_at   # used here and by the designs
 
 
 @dataclass

@@ -7,7 +7,7 @@ and zoom per frame), noisy 2D detections with confidences, 5 % outliers and
 occasional left/right swaps; the truth in truth/; the camera images are
 rendered and the rotation differences measured on them for the project
 with unknown rotations (ski-ptz-estimate.prj). The scene is described in
-photogram/mocap/simulate.py, the files in photogram/mocap/simproject.py.
+photogram/simulation/ski/simulate.py, the files in photogram/simulation/ski/simproject.py.
 
 Run:  .venv/bin/python projects/ski-ptz/generate.py [--out DIR] [--runs N]
 
@@ -21,10 +21,10 @@ import argparse
 from pathlib import Path
 
 import photogram  # noqa: F401  (one BLAS thread before numpy)
-from photogram.mocap.rotation_series import write_rotation_differences
-from photogram.mocap.simimages import simulated_differences
-from photogram.mocap.simproject import write_estimate_project, write_simulated_project
-from photogram.mocap.simulate import simulate_session
+from photogram.mocap.motion.rotation_series import write_rotation_differences
+from photogram.simulation.ski.simimages import simulated_differences
+from photogram.simulation.ski.simproject import write_estimate_project, write_simulated_project
+from photogram.simulation.ski.simulate import simulate_session
 
 SEED = 8
 HERE = Path(__file__).resolve().parent
@@ -44,10 +44,10 @@ def main(argv=None) -> None:
         per, _ = simulated_differences(sim, n_jobs=2)
         print(write_rotation_differences(
             args.out / "rotation_differences.csv", per, comment=(
-                f"SIMULATED data (photogram.mocap.simulate, seed {SEED}): not measured.\n"
+                f"SIMULATED data (photogram.simulation.ski.simulate, seed {SEED}): not measured.\n"
                 "Written by projects/ski-ptz/generate.py: the camera images rendered by "
-                "photogram.mocap.render (960 x 540),\nthe rotation differences measured on "
-                "them by photogram.mocap.homography (raw; photogram filters them).")))
+                "photogram.simulation.ski.render (960 x 540),\nthe rotation differences measured on "
+                "them by photogram.mocap.motion.homography (raw; photogram filters them).")))
         print(write_estimate_project(sim, args.out))
 
 

@@ -11,6 +11,11 @@ kind           what                                             module
 
 :func:`open_source` builds one from ``[mocap.source]``; every source gives,
 per camera, the tracked athlete (:meth:`ObservationSource.track`).
+
+May import :mod:`photogram.mocap.tracking` (the candidate detections, the
+tracking) and :mod:`photogram.mocap.body`; never the reconstruction, the
+motion, the evaluation or the project glue (docs/mocap.md, "Package
+layout").
 """
 
 from __future__ import annotations
@@ -18,12 +23,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from photogram.errors import InputError
-from photogram.mocap.skeleton import SKELETONS, get_skeleton
-from photogram.mocap.sources.base import (CameraDetections, ImageDetector, ObservationSource,
-                                          boxes_from_joints)
+from photogram.mocap.body.skeleton import SKELETONS, get_skeleton
+from photogram.mocap.sources.base import ImageDetector, ObservationSource
 
-__all__ = ["CameraDetections", "ObservationSource", "ImageDetector", "ImageSource",
-           "boxes_from_joints", "open_source"]
+__all__ = ["ObservationSource", "ImageDetector", "ImageSource", "open_source"]
 
 
 class ImageSource(ObservationSource):
@@ -37,7 +40,7 @@ class ImageSource(ObservationSource):
         self.cameras = list(images)
 
     def track(self, camera, settings=None, wide=False):
-        from photogram.mocap.tracking import track_images
+        from photogram.mocap.tracking.athlete import track_images
         return track_images(self.images[camera], self.detector, camera, settings, wide)
 
 

@@ -20,8 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.sources.base import CameraDetections, ObservationSource
-from photogram.mocap.skeleton import Skeleton
+from photogram.mocap.body.skeleton import Skeleton
+from photogram.mocap.sources.base import ObservationSource
+from photogram.mocap.tracking.detections import CameraDetections
 from photogram.project.tables import read_table, suggest
 
 __all__ = ["CsvSource", "COLUMNS"]

@@ -8,7 +8,7 @@ landmarks with a visibility, which is used as the confidence. The
 landmarks are reconstructed as the generic ``mediapipe33`` skeleton or
 mapped onto SKI24 (head: mean of the ears, neck: mean of the shoulders,
 hands: wrists, toes: foot index; no poles, no skis), see
-:mod:`photogram.mocap.skeleton`.
+:mod:`photogram.mocap.body.skeleton`.
 
 The package is imported only when a detector is created; without it the
 error is one line.
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.skeleton import MEDIAPIPE33
+from photogram.mocap.body.skeleton import MEDIAPIPE33
 from photogram.mocap.sources.base import ImageDetector
 
 __all__ = ["MediapipeDetector", "landmarks_to_joints"]

@@ -15,8 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.sources.base import CameraDetections, ObservationSource
-from photogram.mocap.skeleton import Skeleton
+from photogram.mocap.body.skeleton import Skeleton
+from photogram.mocap.sources.base import ObservationSource
+from photogram.mocap.tracking.detections import CameraDetections
 
 __all__ = ["OpenPoseSource", "read_openpose_folder"]
 

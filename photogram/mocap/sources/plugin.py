@@ -3,7 +3,7 @@
 The function is called with one RGB crop (H, W, 3) uint8 and returns the
 joints of one person as an array (J, 3) of x, y (pixels of the crop) and
 confidence, or None. ``skeleton`` in ``[mocap.source]`` names the joints (a
-skeleton of :mod:`photogram.mocap.skeleton`). The module is imported from
+skeleton of :mod:`photogram.mocap.body.skeleton`). The module is imported from
 the project folder (searched first) or ``sys.path``.
 
 Importing a module runs its code, so a project file alone never does it:
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.skeleton import Skeleton
+from photogram.mocap.body.skeleton import Skeleton
 from photogram.mocap.sources.base import ImageDetector
 
 __all__ = ["PluginDetector", "load_function", "ALLOW_OPTION", "refuse_plugin"]

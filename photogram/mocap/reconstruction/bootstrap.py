@@ -10,7 +10,7 @@ Pose only, repeated ``iterations`` (25) times:
    in its image: the rotation is turned so that the ray through the median
    of the athlete's detections passes through ``P(t)``;
 2. the pose is reconstructed with these cameras held fixed (the solver of
-   part 1, :func:`photogram.mocap.solvers.solve_gauss_newton`, a few
+   part 1, :func:`photogram.mocap.reconstruction.solvers.solve_gauss_newton`, a few
    iterations per round, warm-started), the robust scale continued from
    ``gnc_start`` down to ``sigma2`` over the first four fifths of the
    rounds;
@@ -20,7 +20,7 @@ Step 1 makes every camera's ray through the athlete pass through ``P``, so
 what moves ``P`` is the athlete's apparent size: a skeleton of one size must
 appear as large as it does in every camera, which only fits at the right
 distances from the known projection centres. The rounds converge slowly
-(hence 25); the joint optimisation (:mod:`photogram.mocap.estimate`) refines
+(hence 25); the joint optimisation (:mod:`photogram.mocap.reconstruction.estimate`) refines
 everything.
 """
 
@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.mocap.cameras import MocapCameras
-from photogram.mocap.solvers import solve_gauss_newton
-from photogram.simulation.network import look_at
+from photogram.geometry.aiming import look_at
+from photogram.mocap.reconstruction.cameras import MocapCameras
+from photogram.mocap.reconstruction.solvers import solve_gauss_newton
 
 __all__ = ["aim_cameras", "athlete_directions", "bootstrap_poses", "apparent_size",
            "size_trilateration", "chain_rotations", "procrustes_cameras",
@@ -113,7 +113,7 @@ def size_trilateration(X0: np.ndarray, size: np.ndarray, extent: float = 2.0,
 
     The cost is flat along some directions (near one end of a ring of
     cameras a point 10 m off costs a variance of 1e-5), so this is only a
-    start for :func:`photogram.mocap.bearings.bearing_adjustment`, which
+    start for :func:`photogram.mocap.reconstruction.bearings.bearing_adjustment`, which
     fixes the path from the bearings of a whole segment."""
     from scipy.ndimage import median_filter
     F, C = size.shape
@@ -264,7 +264,7 @@ def bootstrap_poses(batches, blend, cameras: MocapCameras, t_obs, conf, settings
     Parameters
     ----------
     batches : list of (windows, frame index (nw, T), WindowBatch)
-        From :func:`photogram.mocap.reconstruct._batches`; their rotations
+        From :func:`photogram.mocap.reconstruction.reconstruct._batches`; their rotations
         are overwritten.
     blend : callable(coefficients) -> (F, J, 3)
         Blends window coefficients into a sequence.
@@ -276,7 +276,7 @@ def bootstrap_poses(batches, blend, cameras: MocapCameras, t_obs, conf, settings
         Measured rotation differences. Without them every round aims the
         cameras at the pose (:func:`aim_cameras`, the paper's bootstrap);
         with them the cameras are ``Q(t) R0`` and ``R0`` is fitted to the
-        athlete's path first (:func:`photogram.mocap.bearings.bearing_adjustment`
+        athlete's path first (:func:`photogram.mocap.reconstruction.bearings.bearing_adjustment`
         from :func:`size_trilateration`) and to the reconstructed joints in
         every round (:func:`procrustes_joints`).
 
@@ -288,7 +288,7 @@ def bootstrap_poses(batches, blend, cameras: MocapCameras, t_obs, conf, settings
     history : list of float
         Mean displacement of the pose centre per round (m), for the log.
     """
-    from photogram.mocap.bearings import bearing_adjustment
+    from photogram.mocap.reconstruction.bearings import bearing_adjustment
     directions = athlete_directions(t_obs, conf)
     F = directions.shape[0]
     X0 = cameras.X0

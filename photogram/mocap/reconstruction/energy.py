@@ -2,10 +2,10 @@
 Gauss-Newton (IRLS) linearisation.
 
 For a window of T frames the unknowns are the DCT coefficients ``a`` (J, 3,
-K) of every joint coordinate (:mod:`photogram.mocap.dct`), ``X(t) = B a``.
+K) of every joint coordinate (:mod:`photogram.mocap.reconstruction.dct`), ``X(t) = B a``.
 With the ideal image coordinates ``t_obs`` of a detection of joint j in
 camera c at frame t, its confidence ``w`` and the camera's pixel scale ``s``
-(:mod:`photogram.mocap.cameras`), the reprojection residual in pixels is
+(:mod:`photogram.mocap.reconstruction.cameras`), the reprojection residual in pixels is
 
     r = s * (t_obs - pi_c(X_j(t))),     e2 = |r|^2,
     pi_c(X) = (-Xc_x / Xc_z, Xc_y / Xc_z),   Xc = R_c(t) (X - X0_c)

@@ -4,7 +4,7 @@ rotation differences, their check, and the comparison with true rotations.
 The differences come either from a table (``rotation_differences`` in
 ``[mocap]``, written by an earlier run as ``rotation_differences.csv``) or
 from the camera images (``[mocap.images]``: a video file or a folder of
-images per camera), measured by :mod:`photogram.mocap.homography` outside
+images per camera), measured by :mod:`photogram.mocap.motion.homography` outside
 the tracked athlete's box. A camera whose pairs mostly failed (too few
 background features) is reported: a warning in the log and summary.json,
 and its differences get weight 0 (its rotations are then estimated without
@@ -49,7 +49,7 @@ def _cache_key(path, c, cameras, frame_range, boxes, settings) -> str:
 
 
 def _load_cached(file: Path, key: str):
-    from photogram.mocap.homography import RotationDifferences
+    from photogram.mocap.motion.homography import RotationDifferences
     try:
         with np.load(file, allow_pickle=False) as z:
             if str(z["key"]) != key:
@@ -75,8 +75,8 @@ def _save_cached(file: Path, key: str, rd) -> None:
 def _from_images(ms, cameras, tracked, frame_range, settings, cache=None):
     import itertools
 
-    from photogram.mocap.homography import rotation_differences
-    from photogram.mocap.video import read_frames
+    from photogram.mocap.motion.homography import rotation_differences
+    from photogram.mocap.motion.video import read_frames
     from photogram.project.safe_names import safe_names
     lo, hi = frame_range
     out = {}
@@ -127,10 +127,10 @@ def measure_differences(ms, cameras, tracked, frame_range, first_frame: int, war
     camera's measurement from images is saved there as soon as it is done
     and reused by a later run with the same images and settings: an
     interrupted run resumes with the next camera."""
-    from photogram.mocap.homography import HomographySettings
-    from photogram.mocap.rotation_series import (check_rotation_differences,
-                                                 filter_rotation_differences,
-                                                 read_rotation_differences)
+    from photogram.mocap.motion.homography import HomographySettings
+    from photogram.mocap.motion.rotation_series import (check_rotation_differences,
+                                                        filter_rotation_differences,
+                                                        read_rotation_differences)
     settings = HomographySettings(**ms.homography)
     lo, hi = frame_range
     F, C = hi - lo, cameras.n_cameras

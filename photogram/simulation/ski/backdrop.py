@@ -1,7 +1,7 @@
 """The background of a rendered frame: snow on the slope plane and sky.
 
-SIMULATED IMAGES (see :mod:`photogram.mocap.render`). For every pixel of a
-frame (exact lens model, :mod:`photogram.mocap.lens`):
+SIMULATED IMAGES (see :mod:`photogram.simulation.ski.render`). For every pixel of a
+frame (exact lens model, :mod:`photogram.mocap.motion.lens`):
 
 * the undistortion correction ``offset (r_u / r_d - 1)`` is computed exactly
   on a grid of 8 x 8 px cells (one cell beyond each border) and bilinearly
@@ -11,7 +11,7 @@ frame (exact lens model, :mod:`photogram.mocap.lens`):
   homography (``cv2.perspectiveTransform``) giving plane coordinates
   relative to the camera's foot point;
 * the snow is sampled from the camera's clipmap
-  (:mod:`photogram.mocap.texture`) at a level of detail
+  (:mod:`photogram.simulation.ski.texture`) at a level of detail
   ``lambda = log2(1.5 F / texel)`` from the ground footprint
   ``F = h |d| / (f (n.d)^2)`` (the long axis of a pixel's footprint, ``h``
   the camera height over the plane, ``d`` the ray): two levels blended, no
@@ -29,9 +29,9 @@ import cv2
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.lens import check_radial, scaled_parameters, undistort_radius
-from photogram.mocap.scene import SlopeScene
-from photogram.mocap.simulate import SkiSimulation
+from photogram.mocap.motion.lens import check_radial, scaled_parameters, undistort_radius
+from photogram.simulation.ski.scene import SlopeScene
+from photogram.simulation.ski.simulate import SkiSimulation
 
 __all__ = ["FrameGeometry", "background", "ideal_offsets"]
 

@@ -12,10 +12,10 @@ at the window's middle frame) and ``Rx, Ry, Rz`` rotations about the world
 axes (applied to world coordinates before ``R_ref``): a small-angle-free
 parametrisation whose only singularity, ``g_1 = +-90 deg``, is far from any
 pan-tilt motion within a window. ``B_Gamma`` is the orthonormal DCT basis
-of :mod:`photogram.mocap.dct` (or the identity: rotations free per frame).
+of :mod:`photogram.mocap.reconstruction.dct` (or the identity: rotations free per frame).
 
 Rotation prior (eq. (14), our reading): the measured rotation differences
-``dR_c(t)`` (from background homographies, :mod:`photogram.mocap.homography`;
+``dR_c(t)`` (from background homographies, :mod:`photogram.mocap.motion.homography`;
 ``R_c(t+1) = dR_c(t) R_c(t)``) should equal those of the trajectory:
 
     E_rot = lambda_rot sum_{c,t} |r_c(t)|^2,

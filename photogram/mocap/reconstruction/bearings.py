@@ -1,7 +1,7 @@
 """The athlete's path and the cameras' constant rotations from bearings.
 
 With the rotation differences measured (``Q(t)``: the chained differences,
-:func:`photogram.mocap.bootstrap.chain_rotations`), a pan-tilt camera's
+:func:`photogram.mocap.reconstruction.bootstrap.chain_rotations`), a pan-tilt camera's
 rotation is ``R(t) = Q(t) R0`` with one unknown ``R0`` per camera and
 segment. The athlete's image centre (the median of its detections) in every
 camera and frame is a bearing; the path ``P(t)`` and the ``R0`` follow from

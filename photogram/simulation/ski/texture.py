@@ -4,7 +4,7 @@ THE TEXTURE IS SIMULATED. Value noise on the slope plane: octave ``k`` has
 uniform random values (an integer hash of the lattice node, the octave and
 the seed) on a world lattice of ``texel * 2**k`` m, bilinearly
 interpolated, times the octave's amplitude; plus ski tracks and spots
-(:class:`photogram.mocap.scene.SlopeScene`), rasterised per level with
+(:class:`photogram.simulation.ski.scene.SlopeScene`), rasterised per level with
 anti-aliasing (band-limited: lines thinner than a node are drawn one node
 wide with proportionally less contrast).
 

@@ -1,9 +1,9 @@
 """Rotation differences measured on the simulator's rendered images.
 
-THE IMAGES ARE SIMULATED (:mod:`photogram.mocap.render`): every camera of a
-:class:`photogram.mocap.simulate.SkiSimulation` is rendered at 960 x 540
+THE IMAGES ARE SIMULATED (:mod:`photogram.simulation.ski.render`): every camera of a
+:class:`photogram.simulation.ski.simulate.SkiSimulation` is rendered at 960 x 540
 and its frame-to-frame rotations measured by
-:func:`photogram.mocap.homography.rotation_differences`, outside the
+:func:`photogram.mocap.motion.homography.rotation_differences`, outside the
 athlete's box (the box of its detections), one process per camera. Used by
 ``projects/ski-ptz/generate.py``, ``benchmarks/ski_ptz.py`` and the tests.
 """
@@ -32,9 +32,9 @@ def detection_boxes(observations: np.ndarray, camera: int) -> np.ndarray:
 def _one_camera(sim, c, textured, settings):
     import cv2
 
-    from photogram.mocap.homography import rotation_differences
-    from photogram.mocap.render import render_camera
-    from photogram.mocap.scene import build_scene
+    from photogram.mocap.motion.homography import rotation_differences
+    from photogram.simulation.ski.render import render_camera
+    from photogram.simulation.ski.scene import build_scene
     cv2.setNumThreads(1)
     t0 = time.process_time()
     scene = build_scene(sim, seed=0, texture=textured)
@@ -64,7 +64,7 @@ def simulated_differences(sim, cameras=None, featureless=(), n_jobs: int = 1, se
     Returns
     -------
     per_camera : dict
-        camera name -> :class:`photogram.mocap.homography.RotationDifferences`.
+        camera name -> :class:`photogram.mocap.motion.homography.RotationDifferences`.
     render_seconds : float
         CPU seconds spent rendering (all cameras): the cameras' CPU time
         minus the measurement's own (``RotationDifferences.seconds``).

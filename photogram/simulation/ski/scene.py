@@ -1,7 +1,7 @@
 """The scenery of the simulated giant-slalom slope, for rendering camera images.
 
 THE SCENE IS SIMULATED (no real images are involved). Built deterministically
-from a seed and a :class:`~photogram.mocap.simulate.SkiSimulation`:
+from a seed and a :class:`~photogram.simulation.ski.simulate.SkiSimulation`:
 
 * **slope**: the simulator's plane ``Z = -tan(alpha) X`` (infinite), with the
   plane axes ``e_fall`` (downhill) and ``e_lat`` and the normal ``n``; plane
@@ -11,8 +11,8 @@ from a seed and a :class:`~photogram.mocap.simulate.SkiSimulation`:
   120 m by default), darker ski tracks of earlier racers near the racing
   line (pairs of grooves 0.17 m apart, about 7 cm wide) and of free skiers
   across the slope, and dark spots (dye, dirt); stored per camera as a
-  clipmap (:mod:`photogram.mocap.texture`), sampled per pixel at the level
-  of detail of the ground footprint (:mod:`photogram.mocap.backdrop`);
+  clipmap (:mod:`photogram.simulation.ski.texture`), sampled per pixel at the level
+  of detail of the ground footprint (:mod:`photogram.simulation.ski.backdrop`);
 * **objects** (vertical polygons, drawn with the full camera model):
   giant-slalom gates at the apexes of the racing line (inner and outer gate,
   red and blue alternating per turn, each two poles with a panel), fences
@@ -35,8 +35,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from photogram.mocap.simulate import SkiSimulation
-from photogram.mocap.texture import EXTRA_OCTAVES, Clipmap, build_clipmap
+from photogram.simulation.ski.simulate import SkiSimulation
+from photogram.simulation.ski.texture import EXTRA_OCTAVES, Clipmap, build_clipmap
 
 __all__ = ["SlopeScene", "CameraObjects", "build_scene"]
 

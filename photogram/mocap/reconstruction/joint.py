@@ -2,8 +2,8 @@
 windows, and its dense Gauss-Newton model.
 
 Unknowns per window: the pose coefficients ``a`` (J, 3, K_Pi) of
-:mod:`photogram.mocap.energy` (``X(t) = B_Pi a``) and the camera angle
-coefficients ``g`` (C, 3, K_Gamma) of :mod:`photogram.mocap.camera_motion`
+:mod:`photogram.mocap.reconstruction.energy` (``X(t) = B_Pi a``) and the camera angle
+coefficients ``g`` (C, 3, K_Gamma) of :mod:`photogram.mocap.motion.camera_motion`
 (``R_c(t) = R_ref,c E(B_Gamma g_c)``). The energy
 
     E = lambda_rep sum w rho(e^2) + lambda_limbs sum ((|X_a - X_b| - L)/u)^2
@@ -15,7 +15,7 @@ model is formed densely per window (pose and camera coefficients together,
 about 1000 unknowns with the paper's N_Pi = N_Gamma = 11): every detection
 contributes the 6x6 block of its joint (3) and camera (3) angles,
 ``W J^T J - wc (J^T r)(J^T r)^T`` with the IRLS weight W and Triggs'
-correction ``wc`` (as in :mod:`photogram.mocap.energy`), expanded to the
+correction ``wc`` (as in :mod:`photogram.mocap.reconstruction.energy`), expanded to the
 coefficients by Kronecker products with the bases, all vectorised over
 windows, cameras, joints and frames.
 
@@ -23,7 +23,7 @@ Derivatives (checked against finite differences in
 tests/test_mocap_joint.py): ``dr/dX = g R`` with the rows
 ``g0 = s_x/z (1, 0, u)``, ``g1 = -s_y/z (0, 1, -v)`` of ``dr/dXc``, and
 ``dr/dgamma_a = g (G_a Xc)`` with the generators ``G_a`` of
-:func:`photogram.mocap.camera_motion.generators`.
+:func:`photogram.mocap.motion.camera_motion.generators`.
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from photogram.mocap.camera_motion import euler_matrices, generators, rotation_residuals
-from photogram.mocap.energy import WindowBatch
+from photogram.mocap.motion.camera_motion import euler_matrices, generators, rotation_residuals
+from photogram.mocap.reconstruction.energy import WindowBatch
 
 __all__ = ["JointBatch"]
 

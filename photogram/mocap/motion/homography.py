@@ -11,7 +11,7 @@ so ``dR_cv = K_{t+1}^{-1} H K_t``. Per camera and pair of consecutive frames:
    full-resolution px, NaN: no box);
 2. keypoints back to full-resolution px (``x_full = (x + 0.5) / s - 0.5``),
    undistorted with the camera model (``image_to_ray``; the radial OpenCV
-   model by :func:`photogram.mocap.lens.undistort_radius`) and put on an
+   model by :func:`photogram.mocap.motion.lens.undistort_radius`) and put on an
    ideal pinhole image of the same resolution (``K_t``: the model's scale
    and principal point at the image centre, times ``s``);
 3. Hamming matching, guided by the previous pair's rotation (features within
@@ -32,7 +32,7 @@ so ``dR_cv = K_{t+1}^{-1} H K_t``. Per camera and pair of consecutive frames:
 
 Filtering (median 7 and Gaussian sigma 3 of the rotation vectors, as in the
 paper), errors against the truth, the check of a camera and the CSV files
-are in :mod:`photogram.mocap.rotation_series`.
+are in :mod:`photogram.mocap.motion.rotation_series`.
 
 Assumed: the camera does not translate (pan-tilt head turning about the
 projection centre), the background is static and far enough from the
@@ -50,7 +50,7 @@ import numpy as np
 
 from photogram.errors import InputError
 from photogram.geometry import camera_model
-from photogram.mocap.lens import undistort_radius
+from photogram.mocap.motion.lens import undistort_radius
 
 __all__ = ["HomographySettings", "RotationDifferences", "rotation_differences",
            "rotation_from_homography", "rotation_from_rays", "pinhole_matrices",
@@ -225,8 +225,8 @@ def rotation_differences(images, model: str, io, image_scale: float = 0.5, boxes
     Parameters
     ----------
     images : iterable of ndarray
-        The frames (BGR or grey uint8), e.g. :func:`photogram.mocap.video.read_frames`
-        or :func:`photogram.mocap.render.render_camera`; read once, in order.
+        The frames (BGR or grey uint8), e.g. :func:`photogram.mocap.motion.video.read_frames`
+        or :func:`photogram.simulation.ski.render.render_camera`; read once, in order.
     model : str
         Camera model name (``camera_model``).
     io : array_like, (F, p) or (p,)

@@ -1,11 +1,11 @@
 """Levenberg-Marquardt on the joint pose and rotation energy
-(:class:`photogram.mocap.joint.JointBatch`), all windows of a batch at once.
+(:class:`photogram.mocap.reconstruction.joint.JointBatch`), all windows of a batch at once.
 
 Every iteration forms the dense Gauss-Newton model of each window (about
 1000 unknowns with N_Pi = N_Gamma = 11) and solves the damped system
 ``(H + mu diag(H)) delta = rhs`` by Cholesky (one factorisation per window
 and trial: a loop over windows, never over observations). As in
-:mod:`photogram.mocap.solvers`, the first ``irls_first`` iterations use the
+:mod:`photogram.mocap.reconstruction.solvers`, the first ``irls_first`` iterations use the
 plain IRLS model (a majoriser of the robust term) and the later ones Triggs'
 second-order correction; a step is accepted only if it lowers the window's
 energy (mu / 3 after a success, x 10 after a failure); a window stops when
@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
-from photogram.mocap.joint import JointBatch
-from photogram.mocap.solvers import damping_update, moved_positions
+from photogram.mocap.reconstruction.joint import JointBatch
+from photogram.mocap.reconstruction.solvers import damping_update, moved_positions
 
 __all__ = ["solve_joint", "solve_joint_lbfgs"]
 

@@ -2,11 +2,11 @@
 4.3-4.4 of the paper, with known camera rotations).
 
 Every joint coordinate is an inverse DCT of ``n_dct`` coefficients per
-window (:mod:`photogram.mocap.dct`); the coefficients minimise the energy of
-:mod:`photogram.mocap.energy` (robust confidence-weighted reprojection term,
+window (:mod:`photogram.mocap.reconstruction.dct`); the coefficients minimise the energy of
+:mod:`photogram.mocap.reconstruction.energy` (robust confidence-weighted reprojection term,
 lambda_rep = 80, sigma^2 = 100 px^2; limb-length prior, lambda_limbs = 1).
 All joints start at the centre of the cameras (the mean projection centre),
-as in the paper. The solvers are in :mod:`photogram.mocap.solvers`:
+as in the paper. The solvers are in :mod:`photogram.mocap.reconstruction.solvers`:
 ``"gauss-newton"`` (default; IRLS Gauss-Newton / Levenberg-Marquardt with
 preconditioned conjugate gradients) and ``"lbfgs"`` (the paper's L-BFGS).
 
@@ -43,11 +43,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.cameras import MocapCameras
-from photogram.mocap.dct import blend_weights, dct_basis, plan_windows
-from photogram.mocap.energy import WindowBatch
-from photogram.mocap.solvers import solve_gauss_newton, solve_lbfgs
-from photogram.mocap.skeleton import Skeleton
+from photogram.mocap.body.skeleton import Skeleton
+from photogram.mocap.reconstruction.cameras import MocapCameras
+from photogram.mocap.reconstruction.dct import blend_weights, dct_basis, plan_windows
+from photogram.mocap.reconstruction.energy import WindowBatch
+from photogram.mocap.reconstruction.solvers import solve_gauss_newton, solve_lbfgs
 
 __all__ = ["ReconstructionSettings", "Reconstruction", "reconstruct", "limb_lengths",
            "SOLVERS"]
@@ -77,7 +77,7 @@ class ReconstructionSettings:
     min_confidence: float = 0.0
     support_frames: int = 5         # report a joint only with 2 detections within +-5 frames
     step_tol: float = 1e-5          # converged when no determined position moves more (m)
-    # unknown camera rotations (photogram.mocap.estimate; estimate_settings())
+    # unknown camera rotations (photogram.mocap.reconstruction.estimate; estimate_settings())
     rotation: str = "known"         # or "estimate"
     n_rotation_dct: int = 11        # N_Gamma: DCT coefficients per camera and angle
     lambda_rot: float = 1e4         # weight of E_rot, eq. (14) (residuals in degrees)

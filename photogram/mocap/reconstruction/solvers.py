@@ -2,7 +2,7 @@
 
 ``solve_gauss_newton`` (the default)
     Gauss-Newton with IRLS weights and Triggs' second-order correction of
-    the robust function (:meth:`photogram.mocap.energy.WindowBatch.linearize`).
+    the robust function (:meth:`photogram.mocap.reconstruction.energy.WindowBatch.linearize`).
     The continuation stages use the plain IRLS model (a majoriser: far from
     the solution the corrected model takes too long steps); the last stage
     starts with 5 IRLS iterations, which settle which detections are
@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.mocap.energy import Linearization, WindowBatch
+from photogram.mocap.reconstruction.energy import Linearization, WindowBatch
 
 __all__ = ["solve_gauss_newton", "solve_lbfgs", "damping_update", "moved_positions"]
 

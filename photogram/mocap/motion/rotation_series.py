@@ -1,6 +1,6 @@
 """Filtering, evaluation, checks and files of frame-to-frame camera rotations.
 
-The rotation differences of :mod:`photogram.mocap.homography` (estimated
+The rotation differences of :mod:`photogram.mocap.motion.homography` (estimated
 from SIMULATED or real images) are filtered as in the paper (median filter
 of 7 pairs and Gaussian smoothing with sigma 3 of the rotation vectors, per
 axis, failed pairs interpolated first), compared with the truth
@@ -22,7 +22,7 @@ from scipy.ndimage import gaussian_filter1d, median_filter
 
 from photogram.errors import GeometryError, InputError
 from photogram.geometry import matrix_to_rodrigues, rodrigues_to_matrix
-from photogram.mocap.homography import HomographySettings, RotationDifferences
+from photogram.mocap.motion.homography import HomographySettings, RotationDifferences
 from photogram.project.atomic import give_file_mode
 
 __all__ = ["filter_rotation_differences", "rotation_difference_errors",

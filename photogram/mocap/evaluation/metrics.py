@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from photogram.mocap.anthropometry import segment_endpoints
-from photogram.mocap.skeleton import BODY14, SKI24, Skeleton, mapping_to
+from photogram.mocap.body.anthropometry import segment_endpoints
+from photogram.mocap.body.skeleton import BODY14, SKI24, Skeleton, mapping_to
 
 __all__ = ["ski_joints", "centre_of_mass", "speed", "knee_flexion", "hip_flexion",
            "lean_angle", "fore_aft", "biomechanics", "mpjpe", "pck", "mpjpe_2d",
@@ -48,7 +48,7 @@ def _angle(u, v):
 
 def centre_of_mass(J: dict) -> np.ndarray:
     """Whole-body CoM (F, 3) with de Leva's segments
-    (:mod:`photogram.mocap.anthropometry`); a segment with a missing end
+    (:mod:`photogram.mocap.body.anthropometry`); a segment with a missing end
     point is left out and the others' masses renormalised (NaN only when
     the trunk is missing)."""
     acc, total = 0.0, 0.0

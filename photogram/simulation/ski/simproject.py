@@ -1,4 +1,4 @@
-"""Write a simulated skiing session (:mod:`photogram.mocap.simulate`) as a
+"""Write a simulated skiing session (:mod:`photogram.simulation.ski.simulate`) as a
 motion-capture project folder, byte for byte reproducibly.
 
 Files: ``<name>.prj`` (cameras inline, opencv model, nominal principal
@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from photogram.geometry import matrix_to_opk
+from photogram.mocap.body.skeleton import SKI24
 from photogram.mocap.files import write_joints
-from photogram.mocap.simulate import SkiSimulation
-from photogram.mocap.skeleton import SKI24
 from photogram.project.atomic import atomic_write_text
+from photogram.simulation.ski.simulate import SkiSimulation
 
 __all__ = ["write_simulated_project", "write_estimate_project"]
 
@@ -42,7 +42,7 @@ def write_simulated_project(sim: SkiSimulation, folder: Path, name: str = "ski-p
     cams = sim.cameras
     F, C, J, _ = sim.observations.shape
     seed = sim.info["seed"]
-    head = [f"SIMULATED data (photogram.mocap.simulate, seed {seed}): not measured.",
+    head = [f"SIMULATED data (photogram.simulation.ski.simulate, seed {seed}): not measured.",
             f"Written by {command}; do not edit by hand: change the generator and run it "
             f"again."]
     angles = np.degrees(matrix_to_opk(cams.R.reshape(-1, 3, 3))).reshape(F, C, 3)

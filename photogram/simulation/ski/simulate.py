@@ -11,7 +11,7 @@ Z up, X horizontal downhill, Y to the left):
   rising from about 15.5 to 19 m/s and dropping by 0.5 m/s in each turn;
   lean angle from the centripetal acceleration, ``tan(phi) = v^2 kappa /
   (g cos alpha)``, smoothed; pelvis lower at the turn apex; the skier of
-  :mod:`photogram.mocap.skier` (24 joints, skis and poles) with a random
+  :mod:`photogram.simulation.ski.skier` (24 joints, skis and poles) with a random
   height of 1.80 m +- 3 %;
 * **cameras**: six pan-tilt-zoom cameras on a circle of 40 m radius around
   the middle of the course (neighbours 34-46 m apart), 1.6 m above the
@@ -40,11 +40,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from photogram.mocap.anthropometry import centre_of_mass
-from photogram.mocap.cameras import MocapCameras
-from photogram.mocap.skeleton import SKI24
-from photogram.mocap.skier import SkierBody, pose_skier
-from photogram.simulation.network import look_at
+from photogram.geometry.aiming import look_at
+from photogram.mocap.body.anthropometry import centre_of_mass
+from photogram.mocap.body.skeleton import SKI24
+from photogram.mocap.reconstruction.cameras import MocapCameras
+from photogram.simulation.ski.skier import SkierBody, pose_skier
 
 __all__ = ["SkiSimulation", "simulate_session", "IMAGE_SIZE"]
 

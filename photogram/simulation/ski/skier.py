@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from photogram.mocap.skeleton import SKI24
+from photogram.mocap.body.skeleton import SKI24
 
 __all__ = ["SkierBody", "pose_skier"]
 

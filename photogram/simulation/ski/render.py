@@ -1,28 +1,28 @@
 """Camera images of the simulated giant-slalom runs (rendered, not real).
 
 THE IMAGES ARE SIMULATED: every frame of a pan-tilt-zoom camera of
-:func:`photogram.mocap.simulate.simulate_session` is rendered from the scene
-of :mod:`photogram.mocap.scene` (textured slope, gates, fences, trees, sky)
+:func:`photogram.simulation.ski.simulate.simulate_session` is rendered from the scene
+of :mod:`photogram.simulation.ski.scene` (textured slope, gates, fences, trees, sky)
 with the camera's true rotation and interior orientation of that frame, and
 the skier is drawn in from the truth joints, so that real feature tracking
-(:mod:`photogram.mocap.homography`) runs on them.
+(:mod:`photogram.mocap.motion.homography`) runs on them.
 
 How a frame is made (``size`` = (W, H), scale ``s = W / W_full``; pixel
 centres scale as ``x_small = s (x_full + 0.5) - 0.5``, OpenCV's resize
 convention, so ``fx_s = s fx``, ``cx_s = s (cx + 0.5) - 0.5``):
 
-1. **exact lens model** (:mod:`photogram.mocap.lens`): distorted
+1. **exact lens model** (:mod:`photogram.mocap.motion.lens`): distorted
    normalised coordinates ``d = (p - c) / f`` are undistorted radially,
    ``r_u (1 + k1 r_u^2 + k2 r_u^4 + k3 r_u^6) = r_d`` by Newton's method
    (:func:`undistort_radius`); tangential distortion (p1, p2) is not
    supported (InputError);
-2. **slope and sky** (:mod:`photogram.mocap.backdrop`): the undistorted
+2. **slope and sky** (:mod:`photogram.simulation.ski.backdrop`): the undistorted
    ray of every pixel meets the slope plane (one homography); the snow is
-   sampled from the camera's clipmap (:mod:`photogram.mocap.texture`) with
+   sampled from the camera's clipmap (:mod:`photogram.simulation.ski.texture`) with
    a per-pixel level of detail from the ground footprint (no texel shorter
    than about 1.5 px: no aliasing flicker); beyond the plane's horizon
    (anti-aliased) a smooth, nearly featureless sky gradient;
-3. **objects** (gates, fences and banners, trees; :mod:`photogram.mocap.scene`):
+3. **objects** (gates, fences and banners, trees; :mod:`photogram.simulation.ski.scene`):
    polygons projected with the full camera model (edges subdivided where
    the distortion would bend them by more than 0.02 px), clipped at the
    near plane, filled with anti-aliasing at 1/16 px, far to near;
@@ -48,12 +48,12 @@ import cv2
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.backdrop import FrameGeometry, background, ideal_offsets
-from photogram.mocap.lens import distort, pixel_rays, scaled_parameters, undistort_radius
-from photogram.mocap.scene import SlopeScene, build_scene
-from photogram.mocap.simulate import SkiSimulation
-from photogram.mocap.skeleton import SKI24
+from photogram.mocap.body.skeleton import SKI24
+from photogram.mocap.motion.lens import distort, pixel_rays, scaled_parameters, undistort_radius
 from photogram.project.atomic import give_file_mode
+from photogram.simulation.ski.backdrop import FrameGeometry, background, ideal_offsets
+from photogram.simulation.ski.scene import SlopeScene, build_scene
+from photogram.simulation.ski.simulate import SkiSimulation
 
 __all__ = ["build_scene", "undistort_radius", "scaled_parameters", "pixel_rays", "ideal_offsets",
            "render_frame", "render_camera", "write_video", "RENDER_SIZE"]

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from photogram.mocap.sources.base import CameraDetections, boxes_from_joints
+from photogram.mocap.tracking.detections import CameraDetections, boxes_from_joints
 
 __all__ = ["TrackingSettings", "TrackedCamera", "gaussian_smooth", "select_person",
            "clean_boxes", "smooth_boxes", "track_detections", "track_images",

@@ -3,13 +3,13 @@ with unknown orientation (section 4.5 of the paper).
 
 Known: the cameras' projection centres and interior orientation (zoom per
 frame); unknown: their rotations. Measured from the images: the rotation
-differences between consecutive frames (:mod:`photogram.mocap.homography`,
+differences between consecutive frames (:mod:`photogram.mocap.motion.homography`,
 eqs. (12)-(13)). Steps:
 
-1. **bootstrap** (:mod:`photogram.mocap.bootstrap`): 25 rounds of pose-only
+1. **bootstrap** (:mod:`photogram.mocap.reconstruction.bootstrap`): 25 rounds of pose-only
    reconstruction with cameras aimed at the pose;
-2. **joint optimisation** (:mod:`photogram.mocap.joint`,
-   :mod:`photogram.mocap.joint_solver`): pose coefficients (N_Pi = 11) and
+2. **joint optimisation** (:mod:`photogram.mocap.reconstruction.joint`,
+   :mod:`photogram.mocap.reconstruction.joint_solver`): pose coefficients (N_Pi = 11) and
    camera Euler angles as inverse DCTs (N_Gamma = 11 per camera and axis)
    over windows, the energy of part 1 plus E_rot of eq. (14) with
    lambda_rep = 500, lambda_limbs = 1, lambda_rot = 10000 (the paper's
@@ -34,15 +34,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.mocap.bootstrap import bootstrap_poses
-from photogram.mocap.camera_motion import euler_from_matrices
-from photogram.mocap.cameras import MocapCameras
-from photogram.mocap.dct import blend_weights, dct_basis
-from photogram.mocap.joint import JointBatch
-from photogram.mocap.joint_solver import solve_joint, solve_joint_lbfgs
-from photogram.mocap.reconstruct import (Reconstruction, ReconstructionSettings, _batches,
-                                         _blend, _given_lengths, _support, limb_lengths)
-from photogram.mocap.skeleton import Skeleton
+from photogram.mocap.body.skeleton import Skeleton
+from photogram.mocap.motion.camera_motion import euler_from_matrices
+from photogram.mocap.reconstruction.bootstrap import bootstrap_poses
+from photogram.mocap.reconstruction.cameras import MocapCameras
+from photogram.mocap.reconstruction.dct import blend_weights, dct_basis
+from photogram.mocap.reconstruction.joint import JointBatch
+from photogram.mocap.reconstruction.joint_solver import solve_joint, solve_joint_lbfgs
+from photogram.mocap.reconstruction.reconstruct import (Reconstruction, ReconstructionSettings,
+                                                        _batches, _blend, _given_lengths, _support,
+                                                        limb_lengths)
 
 __all__ = ["ESTIMATE_DEFAULTS", "ABLATIONS", "estimate_settings", "EstimatedRotations",
            "estimate_poses_and_rotations"]
@@ -124,7 +125,7 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
     Parameters
     ----------
     observations : (F, C, J, 3)
-        As for :func:`photogram.mocap.reconstruct.reconstruct`.
+        As for :func:`photogram.mocap.reconstruction.reconstruct.reconstruct`.
     cameras : MocapCameras
         Projection centres and interior orientation (per frame); their
         rotations are not used.
