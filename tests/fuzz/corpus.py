@@ -104,8 +104,8 @@ def _importer_sources(folder: Path) -> None:
     (folder / "pose2sim").mkdir()
     export_results("pose2sim", field_results, folder / "pose2sim" / "Calib.toml")
     export_results("colmap", field_results, folder / "colmap")
-    from photogram.io.opencv_fs import format_opencv
     from photogram.io.export_source import load_source, views_of
+    from photogram.io.opencv_fs import format_opencv
     view = views_of(load_source(field_results).project)[0]
     (folder / "opencv").mkdir()
     (folder / "opencv" / "cam.yml").write_text(format_opencv(view, ".yml"), encoding="utf-8")
@@ -668,8 +668,8 @@ def run_mocap_read(args: list[str]) -> Outcome:
 
 def mocap_read(prj: Path):
     from photogram.mocap.files import cameras_from_project, read_camera_frames, read_joints
+    from photogram.mocap.motion.rotation_series import read_rotation_differences
     from photogram.mocap.pipeline import _observations
-    from photogram.mocap.rotation_series import read_rotation_differences
     from photogram.project import read_project
     project = read_project(prj)
     ms = project.mocap
