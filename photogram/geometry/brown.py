@@ -146,19 +146,32 @@ class BrownModel(CameraModel):
         X, angles, X0, io, Xc, R, d = self._prepare(X, angles, X0, io)
         return self._residuals(xy_obs, X, angles, io, Xc, R, d, jacobians)
 
-    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True):
+    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True, correction=None):
         """:meth:`residuals` with world-to-camera matrices R (n,3,3) instead
-        of angles; the Jacobian dict has no ``"angles"``."""
+        of angles; the Jacobian dict has no ``"angles"``. ``correction``:
+        the :meth:`correction_terms` of ``(xy_obs, io)`` if already known
+        (they depend on the observations and the interior orientation only:
+        the engine keeps them while both stay the same)."""
         X, R, X0, io, Xc, d = rotation_observations(X, R, X0, io, self.n_params)
-        return self._residuals(xy_obs, X, None, io, Xc, R, d, jacobians)
+        return self._residuals(xy_obs, X, None, io, Xc, R, d, jacobians, correction)
 
-    def _residuals(self, xy_obs, X, angles, io, Xc, R, d, jacobians):
+    def correction_terms(self, xy_obs, io):
+        """``(C, dC/dio)`` of measured coordinates (n, 2) and per-row io."""
+        C, _, dC_dio = self._correct_full(np.asarray(xy_obs, dtype=float), io)
+        return C, dC_dio
+
+    def _residuals(self, xy_obs, X, angles, io, Xc, R, d, jacobians, correction=None):
         xy_obs = np.asarray(xy_obs, dtype=float).reshape(len(X), 2)
         if not jacobians:
+            if correction is not None:
+                return correction[0] - ideal_projection(Xc, io[:, 0])
             C, _, _ = self._core(xy_obs[:, 0] - io[:, 1], xy_obs[:, 1] - io[:, 2], io,
                                  partials=False)
             return C - ideal_projection(Xc, io[:, 0])
-        C, _, dC_dio = self._correct_full(xy_obs, io)
+        if correction is not None:
+            C, dC_dio = correction[0], correction[1].copy()
+        else:
+            C, _, dC_dio = self._correct_full(xy_obs, io)
         ideal, J_xc, J_c = ideal_projection(Xc, io[:, 0], jacobians=True)
         jac = pose_jacobians(-J_xc, R, d, angles, Xc)
         dC_dio[:, :, 0] -= J_c

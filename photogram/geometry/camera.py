@@ -158,9 +158,14 @@ def pose_jacobians(J_xc, R, d, angles, Xc):
     rotation-matrix path of the engine, which only needs ``"rotation"``).
     """
     JX = J_xc @ R
-    out = {"X": JX, "X0": -JX,
-           # -J [Xc]x: row i is Xc x J_i
-           "rotation": np.cross(Xc[:, None, :], J_xc)}
+    # -J [Xc]x: row i is Xc x J_i (written out: np.cross is slow on small
+    # arrays, same products and differences)
+    a, b = Xc[:, None, :], J_xc
+    rot = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    rot[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    rot[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    rot[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    out = {"X": JX, "X0": -JX, "rotation": rot}
     if angles is not None:
         dRd = np.einsum("nijk,nj->nik", opk_derivatives(angles), d)
         out["angles"] = J_xc @ dRd

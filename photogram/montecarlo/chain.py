@@ -42,7 +42,7 @@ from photogram.geometry import matrix_to_opk, small_rotation
 from photogram.jump.definitions import ANGLE_PARAMETERS, PARAMETERS
 from photogram.jump.stick import ANGLE_FACTORS
 from photogram.geometry import angle_increment_map
-from photogram.montecarlo.bundle import LeanBundle
+from photogram.montecarlo.adjustment import EngineBundle
 from photogram.montecarlo.intersect import LeanIntersect, local_basis_batch
 from photogram.montecarlo.manifest import project_files
 
@@ -105,7 +105,9 @@ def _interior_covariance(settings, project, camera_names, parameter_names, files
         raise InputError("no covariance.npz of the interior orientation", file=folder,
                          hint="run photogram calibrate on the lab project first") from None
     index = {lab: i for i, lab in enumerate(labels)}
-    want = [f"{c}.{p}" for c in camera_names for p in parameter_names]
+    p_max = max((len(p) for p in parameter_names), default=0)
+    want = [f"{c}.{names[j]}" if j < len(names) else None
+            for c, names in zip(camera_names, parameter_names) for j in range(p_max)]
     sel = np.array([index.get(w, -1) for w in want])
     C = np.zeros((len(want), len(want)))
     ok = sel >= 0
@@ -137,26 +139,11 @@ class Chain:
         else:
             result1 = adjusted_result(prj1, fix_interior=self.fix_interior)
             truth1 = result1.project
-        b = LeanBundle(truth1, fix_interior=self.fix_interior)
+        b = EngineBundle(truth1, fix_interior=self.fix_interior)
         self.bundle = b
         K, p = b.start.io.shape
         self.shape_io = (K, p)
-        st = b.start
-        inp = b.inputs
-        inp.xy = project_points(st.io, matrix_to_opk(st.R), st.X0, st.X, b.station_camera,
-                                b.obs_station, b.obs_point)
-        if b.n_ref:
-            inp.reference = st.X[b.control].copy()
-        if len(b.prior_stations):
-            s = b.prior_stations
-            inp.station_prior = np.hstack([st.X0[s], matrix_to_opk(st.R[s])])
-        if len(b.ip_k):
-            inp.interior_prior = st.io[b.ip_k, b.ip_j].copy()
-        if len(b.d_a):
-            inp.distances = np.linalg.norm(st.X[b.d_a] - st.X[b.d_b], axis=1)
-        if len(b.v_t):
-            d = st.X[b.v_t] - st.X[b.v_b]
-            inp.verticals = d[:, :2] / d[:, 2:3]
+        # the exact observations of the truth (EngineBundle.exact_inputs)
         self.sig1 = b.input_sigmas()
         # interior orientation drawn from the calibration's covariance
         self.io_cov = np.zeros((K * p, K * p))
@@ -246,11 +233,12 @@ class Chain:
             out.add([f"{s}.{q}" for q in _STATION], "station",
                     [u.length] * 3 + [u.angle] * 3, [False] * 3 + [True] * 3,
                     [1.0] * 3 + [fa] * 3)
-        dims = dict(zip(b.parameter_names, (1, 1, 1, -2, -4, -6, -1, -1, 0, 0)))
         K, p = self.shape_io
         for i in self.io_random:
-            cam, par = b.camera_names[i // p], b.parameter_names[i % p]
-            dim = dims.get(par, 1)
+            k = i // p
+            cam, par = b.camera_names[k], b.parameter_names[k][i % p]
+            dims = getattr(b.models[k], "parameter_dims", ()) or ()
+            dim = dims[i % p] if len(dims) > i % p else 1
             unit = u.image if dim == 1 else ("1" if dim == 0 else f"{u.image}^{dim}")
             out.add([f"{cam}.{par}"], "interior", unit)
         for i in self.collect:
