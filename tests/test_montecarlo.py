@@ -1,4 +1,4 @@
-"""photogram montecarlo: the lean kernels against the library, seeding and
+"""photogram montecarlo: the engine steps against the commands, seeding and
 engines (1 and 2 local workers, Dask), resume after an interruption, the
 agreement of Monte-Carlo and propagated sigmas, bad input.
 
@@ -72,50 +72,78 @@ def _samples(folder):
 # ---------------------------------------------------------------------------
 # kernels
 
-def test_lean_bundle_reproduces_the_engine(net):
+def test_engine_bundle_reproduces_the_command(net):
+    """The Monte-Carlo adjustment step is the engine's problem re-solved
+    with new observations: from a perturbed start it reaches what
+    ``photogram orient`` reaches, and its cofactors are the engine's."""
     from photogram.commands.bundle import adjust
-    from photogram.montecarlo.bundle import LeanBundle
+    from photogram.montecarlo.adjustment import EngineBundle
     from photogram.stats.covariance import cofactors, station_covariances
     from photogram.adjust.build import build_problem
     project = read_project(net / "net.prj")
     result = adjust(project, fix_interior=True)
-    lean = LeanBundle(result.project, fix_interior=True)
-    inputs = lean.inputs.copy()
-    inputs.reference = project.points.xyz[lean.control]     # the given reference values
-    start = lean.start.copy()
+    eb = EngineBundle(result.project, fix_interior=True)
+    inputs = eb.inputs.copy()
+    inputs.xy = project.image_points.xy.copy()             # the measured values
+    inputs.reference = project.points.xyz[eb.control]      # the given reference values
+    start = eb.start.copy()
     start.X0 += 0.01
-    state, _ = lean.solve(inputs, start=start)
+    state, _ = eb.solve(inputs, start=start)
     assert np.abs(state.X0 - result.project.stations.position).max() < 2e-6   # engine tol
-    assert np.abs(state.X[lean.free_points]
-                  - result.project.points.xyz[lean.free_points]).max() < 2e-6
-    _, Q, _ = lean.linearize(state, inputs)
+    assert np.abs(state.X[eb.free_points]
+                  - result.project.points.xyz[eb.free_points]).max() < 2e-6
+    _, Q, _ = eb.linearize(state, inputs)
     built = build_problem(result.project, fix_interior=True)
     S = station_covariances(cofactors(built.problem), built.problem.state.R)
-    sig = np.sqrt(np.diag(Q))[lean.station_cols[:, :3]]
+    sig = np.sqrt(np.diag(Q))[eb.station_cols[:, :3]]
     assert np.allclose(sig, np.sqrt(np.diagonal(S, axis1=1, axis2=2))[:, :3], rtol=1e-4)
 
 
-def test_lean_intersect_reproduces_the_pipeline():
+def test_exact_inputs_give_back_the_truth(net):
+    from photogram.commands.bundle import adjust
+    from photogram.montecarlo.adjustment import EngineBundle
+    result = adjust(read_project(net / "net.prj"), fix_interior=True)
+    eb = EngineBundle(result.project, fix_interior=True)
+    state, it = eb.solve(eb.inputs)
+    assert it <= 2
+    assert np.abs(state.X0 - eb.start.X0).max() < 1e-9
+    assert np.abs(state.X[eb.free_points] - eb.start.X[eb.free_points]).max() < 1e-9
+
+
+def _orientation_of(project):
+    from types import SimpleNamespace
+    from photogram.geometry import camera_model, opk_to_matrix
+    models = [camera_model(c.model) for c in project.cameras.values()]
+    p = max(m.n_params for m in models)
+    io = np.zeros((len(models), p))
+    for k, c in enumerate(project.cameras.values()):
+        io[k, :len(c.values())] = c.values()
+    R, X0 = opk_to_matrix(project.stations.angles), project.stations.position
+    start = SimpleNamespace(io=io, R=R, X0=X0)
+    return SimpleNamespace(camera_names=list(project.cameras), models=models,
+                           station_names=list(project.stations.names), start=start), io, R, X0
+
+
+def test_intersect_step_reproduces_the_pipeline():
+    """Points by the engine problem of photogram intersect, lines by the
+    batch line code, against the command's functions."""
     from photogram.jump.pipeline import intersect_points
     from photogram.lines import cameras_from_project, intersect_line_from_points
-    from photogram.montecarlo.intersect import LeanIntersect
-    from photogram.geometry import opk_to_matrix
+    from photogram.montecarlo.intersect import IntersectStep
     from photogram.simulation.jump import jump_project
     project, _ = jump_project(n_exposures=4)
-    lean = LeanIntersect(project, list(project.cameras), list(project.stations.names))
-    io = np.array([c.values() for c in project.cameras.values()])
-    R, X0 = opk_to_matrix(project.stations.angles), project.stations.position
+    orientation, io, R, X0 = _orientation_of(project)
+    step = IntersectStep(project, orientation)
     adjusted, cov, _, _ = intersect_points(project)
-    X, covX = lean.intersect_points(io, R, X0, lean.inputs_points,
-                                    lean.triangulate(io, R, X0, lean.inputs_points),
+    X, covX = step.intersect_points(io, R, X0, step.inputs_points, step.start_points,
                                     covariance=True)
     assert np.abs(X - adjusted.points.xyz).max() < 1e-6
     assert np.allclose(covX, cov, rtol=1e-6)
-    P, D, C, chi2 = lean.intersect_lines(io, R, X0, lean.inputs_lines, covariance=True)
+    P, D, C, chi2 = step.intersect_lines(io, R, X0, step.inputs_lines, covariance=True)
     cams = cameras_from_project(project)
     il = project.image_lines
     for n in (0, 5):                            # L1@001, L2@003
-        ski, e = ("L1", "L2")[n % 2], lean.exposures[n // 2]
+        ski, e = ("L1", "L2")[n % 2], step.exposures[n // 2]
         rows = il.line == f"{ski}@{e}"
         pts = {project.stations.names[s]: il.xy[rows & (il.station == s)]
                for s in np.unique(il.station[rows])}

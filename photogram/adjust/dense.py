@@ -36,7 +36,8 @@ import scipy.linalg as la
 from photogram.errors import GeometryError
 
 __all__ = ["DenseStructure", "dense_structure", "dense_jacobian", "dense_normal",
-           "solve_dense", "gauss_newton", "dense_cofactors"]
+           "solve_dense", "gauss_newton", "dense_cofactors", "PointwiseStructure",
+           "pointwise_structure", "point_normals"]
 
 
 class DenseStructure:
@@ -46,26 +47,32 @@ class DenseStructure:
         lay = problem.layout
         self.free = np.flatnonzero(lay.free)
         self.n = len(self.free)
-        col_of = np.full(lay.n_columns, self.n)           # fixed -> dummy column n
+        col_of = np.full(lay.n_columns, -1)                # fixed: -1
         col_of[self.free] = np.arange(self.n)
         self.col_of = col_of
         self.row_start = []
-        m = 0
-        self.flat = []                  # per block, per slot: flat indices (N*d*s,)
-        self.flat_all = []              # the same into (m, n_columns + 0)
+        m = sum(len(b) * b.dim for b in problem.blocks)
+        self.m = m
+        trash = m * self.n             # one spare entry takes the fixed columns' values
+        row = 0
+        self.flat = []                  # per block, per slot: flat indices (N*d*s,) or None
+        self.flat_all = []              # the same into (m, n_columns)
         for b in problem.blocks:
             N, d = len(b), b.dim
-            rows = m + np.arange(N * d).reshape(N, d)
-            self.row_start.append(m)
+            rows = row + np.arange(N * d).reshape(N, d)
+            self.row_start.append(row)
             per, per_all = [], []
             for cols in b.slot_cols:
                 cols = np.asarray(cols).reshape(N, -1)
-                per.append((rows[:, :, None] * (self.n + 1) + col_of[cols][:, None, :]).ravel())
+                c = col_of[cols][:, None, :]
+                if np.all(c < 0):
+                    per.append(None)            # every column fixed: nothing to write
+                else:
+                    per.append(np.where(c >= 0, rows[:, :, None] * self.n + c, trash).ravel())
                 per_all.append((rows[:, :, None] * lay.n_columns + cols[:, None, :]).ravel())
             self.flat.append(per)
             self.flat_all.append(per_all)
-            m += N * d
-        self.m = m
+            row += N * d
         self.block_rows = [(s, s + len(b) * b.dim) for s, b in zip(self.row_start, problem.blocks)]
         self.G = None if problem.G is None else np.asarray(problem.G)[self.free]
 
@@ -92,7 +99,7 @@ def dense_jacobian(problem, state, *, all_columns=False, residuals_only=False, w
         # entries, the others stay zero (the buffer is reused: J is valid
         # until the next call)
         if getattr(st, "_buffer", None) is None:
-            st._buffer = np.zeros(st.m * (st.n + 1))
+            st._buffer = np.zeros(st.m * st.n + 1)
         J = st._buffer
     Jall = np.zeros(st.m * problem.layout.n_columns) if all_columns else None
     for k, b in enumerate(problem.blocks):
@@ -103,16 +110,127 @@ def dense_jacobian(problem, state, *, all_columns=False, residuals_only=False, w
         if residuals_only:
             continue
         for j, Jj in enumerate(Js):
+            flat = st.flat[k][j]
+            if flat is None and not all_columns:
+                continue
             vals = (Jj * w[:, :, None]).ravel()
-            J[st.flat[k][j]] = vals
+            if flat is not None:
+                J[flat] = vals
             if all_columns:
                 Jall[st.flat_all[k][j]] = vals
     if residuals_only:
         return r
-    J = J.reshape(st.m, st.n + 1)[:, :st.n]
+    J = J[:st.m * st.n].reshape(st.m, st.n)
     if all_columns:
         return r, J, Jall.reshape(st.m, -1)
     return r, J
+
+
+class PointwiseStructure:
+    """A problem whose free columns are all eliminated points (the
+    orientation held fixed: ``photogram intersect``): every point is its own
+    3x3 least-squares problem. Per block the slot of its point and the
+    order that sums the rows per point (computed once)."""
+
+    def __init__(self, problem):
+        lay = problem.layout
+        self.ok = problem.G is None and not lay.free[:lay.n_reduced].any()
+        self.slots = []
+        keys = []
+        for b in problem.blocks:
+            slot = None
+            for j, cols in enumerate(b.slot_cols):
+                cols = np.asarray(cols)
+                if cols.ndim == 2 and cols.shape[1] == 3 and np.all(cols >= lay.n_reduced):
+                    slot = j
+            if slot is None:
+                if any(lay.free[np.asarray(c)].any() for c in b.slot_cols):
+                    self.ok = False
+                self.slots.append(None)
+                continue
+            cols = np.asarray(b.slot_cols[slot])
+            self.slots.append(slot)
+            keys.append(_point_of(lay, cols[:, 0]))
+        self.point = np.concatenate(keys) if keys else np.zeros(0, dtype=int)
+        self.order = np.argsort(self.point, kind="stable")
+        p = self.point[self.order]
+        self.starts = np.flatnonzero(np.r_[True, p[1:] != p[:-1]]) if len(p) else \
+            np.zeros(0, dtype=int)
+        self.points = p[self.starts] if len(p) else np.zeros(0, dtype=int)
+        free = lay.free[lay.point_cols[self.points]]                  # (n, 3)
+        self.free = free
+        self.cols = lay.point_cols[self.points]
+
+
+def _point_of(layout, first_col):
+    """Point index of the first column of an eliminated point."""
+    inv = np.full(layout.n_columns, -1)
+    inv[layout.point_cols[:, 0]] = np.arange(len(layout.point_cols))
+    return inv[first_col]
+
+
+def pointwise_structure(problem):
+    st = getattr(problem, "_pointwise", None)
+    if st is None:
+        st = problem._pointwise = PointwiseStructure(problem)
+    return st
+
+
+def point_normals(problem, state, weights=None):
+    """Per observed point the 3x3 normal matrix ``A`` and gradient ``b`` of a
+    pointwise problem (fixed coordinates: unit rows and columns), with the
+    point indices: ``(points, A, b)``."""
+    ps = pointwise_structure(problem)
+    As, bs = [], []
+    for k, b in enumerate(problem.blocks):
+        j = ps.slots[k]
+        if j is None:
+            continue
+        e, Js = b.evaluate(state, True)
+        w = problem.weights(k) if weights is None else weights[k]
+        r = np.where(w > 0, e, 0.0) * w
+        Jp = Js[j] * w[:, :, None]
+        Jt = np.swapaxes(Jp, 1, 2)
+        As.append(Jt @ Jp)
+        bs.append((Jt @ r[..., None])[..., 0])
+    A = np.add.reduceat(np.concatenate(As)[ps.order], ps.starts, axis=0)
+    g = np.add.reduceat(np.concatenate(bs)[ps.order], ps.starts, axis=0)
+    fixed = ~ps.free
+    if fixed.any():
+        A = A * ps.free[:, :, None] * ps.free[:, None, :]
+        g = g * ps.free
+        i, q = np.nonzero(fixed)
+        A[i, q, q] = 1.0
+    return ps.points, A, g
+
+
+def _gauss_newton_points(problem, tolerance, max_iterations, scale):
+    ps = pointwise_structure(problem)
+    lay = problem.layout
+    weights = [problem.weights(k) for k in range(len(problem.blocks))]
+    s = scale[dense_structure(problem).col_of[ps.cols]] if scale is not None else None
+    # (scale: per free column, as gauss_newton's)
+    state = problem.state
+    for it in range(1, max_iterations + 1):
+        _, A, g = point_normals(problem, state, weights)
+        try:
+            step = -np.linalg.solve(A, g[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            raise GeometryError("singular normal equations of a point (rays nearly parallel?)",
+                                hint="check the geometry of the intersection") from None
+        if not np.all(np.isfinite(step)):
+            raise GeometryError("the adjustment diverged (non-finite step)")
+        new = state.copy()                  # only points move (State.updated, cheaper)
+        new.points[ps.points] += step
+        problem.state = state = new
+        if s is None:
+            size = 1.0 + float(np.nanmax(np.abs(problem.state.points[ps.points]), initial=0.0))
+            done = np.max(np.abs(step), initial=0.0) <= tolerance * size
+        else:
+            done = np.max(np.abs(step) / s, initial=0.0) < tolerance
+        if done:
+            return it
+    raise GeometryError(f"the adjustment did not converge in {max_iterations} iterations")
 
 
 def dense_normal(J, r=None):
@@ -162,12 +280,17 @@ def gauss_newton(problem, *, tolerance=1e-10, max_iterations=30, scale=None):
     """Undamped Gauss-Newton on ``problem.state`` (in place) until the largest
     step relative to the parameter scale (:func:`solver._parameter_scale`,
     taken at the start) is below ``tolerance``; returns the iterations.
+    A problem whose free unknowns are all eliminated points (fixed
+    orientation) is solved point by point (3x3 normal equations each,
+    :func:`point_normals`; the step relative to the largest coordinate).
 
     Raises
     ------
     GeometryError
         Non-finite step or no convergence within ``max_iterations``.
     """
+    if pointwise_structure(problem).ok:
+        return _gauss_newton_points(problem, tolerance, max_iterations, scale)
     st = dense_structure(problem)
     state = problem.state
     s = _scale(problem, state) if scale is None else scale

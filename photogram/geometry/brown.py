@@ -63,7 +63,8 @@ class BrownModel(CameraModel):
     def _core(self, xbar, ybar, io, partials=True):
         """Corrected coordinates C = (U, -V) of (xbar, ybar) (steps 2-3)
         with dC/d(xbar, ybar) (n,2,2) and dC/d io (n,2,p) (c, x0, y0 zero);
-        with ``partials=False`` only C (and None, None)."""
+        with ``partials=False`` only C (and None, None), with ``"xy"`` C and
+        dC/d(xbar, ybar) (and None)."""
         n = len(xbar)
         K1, K2, K3, P1, P2, B1, B2 = (io[:, i] for i in range(3, 10))
         u = (1.0 + B1) * xbar - B2 * ybar
@@ -87,6 +88,8 @@ class BrownModel(CameraModel):
         A[:, 0, 1] = -B2
         A[:, 1, 1] = -1.0
         dxy = FJ @ A
+        if partials == "xy":
+            return np.stack([U, -V], -1), dxy, None
         dio = np.zeros((n, 2, self.n_params))
         for col, (gu, gv) in zip((3, 4, 5), ((u * r2, v * r2), (u * r2 ** 2, v * r2 ** 2),
                                              (u * r2 ** 3, v * r2 ** 3))):
@@ -109,10 +112,15 @@ class BrownModel(CameraModel):
 
         Returns the corrected coordinates relative to the principal point,
         y down, which satisfy ``(-c Xc_x/Xc_z, c Xc_y/Xc_z)``; with
-        ``jacobians=True`` also ``{"xy": (n,2,2), "io": (n,2,p)}``.
+        ``jacobians=True`` also ``{"xy": (n,2,2), "io": (n,2,p)}``, with
+        ``jacobians="xy"`` only ``{"xy": (n,2,2)}``.
         """
         xy_obs = np.atleast_2d(np.asarray(xy_obs, dtype=float))
         io = np.broadcast_to(np.asarray(io, dtype=float), (len(xy_obs), self.n_params))
+        if jacobians == "xy":
+            C, dxy, _ = self._core(xy_obs[:, 0] - io[:, 1], xy_obs[:, 1] - io[:, 2], io,
+                                   partials="xy")
+            return C, {"xy": dxy}
         C, dxy, dio = self._correct_full(xy_obs, io)
         return (C, {"xy": dxy, "io": dio}) if jacobians else C
 

@@ -198,15 +198,11 @@ class EngineBundle:
         """The error-free observations of ``state`` (default the truth):
         projected image points, true reference coordinates, priors and
         constraints."""
+        from photogram.montecarlo.truth import project_points
         s = self.start if state is None else state
-        xy = np.zeros((len(self.obs_point), 2))
         angles = matrix_to_opk(s.R)
-        for k, model in enumerate(self.models):
-            rows = np.flatnonzero(self.station_camera[self.obs_station] == k)
-            if len(rows):
-                st, pt = self.obs_station[rows], self.obs_point[rows]
-                xy[rows] = model.project(s.X[pt], angles[st], s.X0[st],
-                                         s.io[k, :self.n_params[k]])
+        xy = project_points(self.models, s.io, angles, s.X0, s.X, self.station_camera,
+                            self.obs_station, self.obs_point)
         d = s.X[self.v_t] - s.X[self.v_b]
         return BundleInputs(
             xy=xy, reference=s.X[self.control].copy(),

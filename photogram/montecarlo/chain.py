@@ -4,7 +4,7 @@ A :class:`Chain` is built once (in the parent process) from the
 ``[montecarlo]`` settings: the truth world (:mod:`photogram.montecarlo.truth`),
 the lean adjustment (:class:`~photogram.montecarlo.bundle.LeanBundle`) and,
 if asked, the lean intersect step
-(:class:`~photogram.montecarlo.intersect.LeanIntersect`). It is small and
+(:class:`~photogram.montecarlo.intersect.IntersectStep`). It is small and
 picklable; :meth:`Chain.trial` runs one simulation from one
 :class:`numpy.random.SeedSequence`:
 
@@ -43,7 +43,7 @@ from photogram.jump.definitions import ANGLE_PARAMETERS, PARAMETERS
 from photogram.jump.stick import ANGLE_FACTORS
 from photogram.geometry import angle_increment_map
 from photogram.montecarlo.adjustment import EngineBundle
-from photogram.montecarlo.intersect import LeanIntersect, local_basis_batch
+from photogram.montecarlo.intersect import IntersectStep, local_basis_batch
 from photogram.montecarlo.manifest import project_files
 
 __all__ = ["Chain", "Outputs"]
@@ -197,7 +197,7 @@ class Chain:
         from photogram.montecarlo.truth import (line_observations, project_points,
                                                 simulation_jump_truth)
         b = self.bundle
-        li = LeanIntersect(prj2, b.camera_names, b.station_names)
+        li = IntersectStep(prj2, b)
         st = b.start
         io, R, X0 = st.io, st.R, st.X0
         E = len(li.exposures)
@@ -210,13 +210,12 @@ class Chain:
                                  "of the truth", file=prj2.path)
             LP, LD = LP.reshape(-1, 3), LD.reshape(-1, 3)
         else:
-            X = li.intersect_points(io, R, X0, li.inputs_points,
-                                    li.triangulate(io, R, X0, li.inputs_points))
+            X = li.intersect_points(io, R, X0, li.inputs_points, li.start_points)
             LP, LD = li.intersect_lines(io, R, X0, li.inputs_lines)
-        xy_p = project_points(io, matrix_to_opk(R), X0, X, li.station_camera, li.p_station,
-                              li.p_point)
-        xy_l = line_observations(io, R, X0, li.station_camera, li.inputs_lines, li.l_station,
-                                 li.l_line, LP, LD)
+        xy_p = project_points(b.models, io, matrix_to_opk(R), X0, X, li.station_camera,
+                              li.p_station, li.p_point)
+        xy_l = line_observations(b.models, io, R, X0, li.station_camera, li.inputs_lines,
+                                 li.l_station, li.l_line, LP, LD)
         li.inputs_points, li.inputs_lines = xy_p, xy_l
         # the exact observations give back the truth (up to the tolerance)
         X = li.intersect_points(io, R, X0, xy_p, X)

@@ -1,9 +1,18 @@
-"""Batch line photogrammetry for Monte-Carlo runs: image lines of many
-groups of points at once (appendix C.2, step A, eq. (C11)) and 3D lines
-from k image lines each, all lines at once (step B, eqs. (C13)-(C14); the
-initial line of appendix C.3). The estimators of
-:func:`photogram.lines.fit_view_line` and :func:`photogram.lines.intersect_line`,
-vectorized over lines (see :mod:`photogram.montecarlo.intersect`).
+"""Line photogrammetry for many lines at once: image lines of many groups
+of points (appendix C.2, step A, eq. (C11)) and 3D lines from k image lines
+each (step B, eqs. (C13)-(C14); the initial line of appendix C.3), all lines
+of a batch in one vectorized evaluation.
+
+The estimators of :func:`photogram.lines.fit_view_line` and
+:func:`photogram.lines.intersect_line`: the image line by the weighted
+orthogonal regression in ideal coordinates with the weights of
+:func:`fit_view_line` (the limit its Gauss-Helmert iteration converges to, in
+closed form); the 3D line by Gauss-Newton in the 4 local parameters of
+:class:`~photogram.lines.SpaceLine` with the weights (C14), the two points per
+view kept during the iteration. Ideal coordinates of any camera model come
+from :func:`photogram.lines.views.ideal_coordinates` (the function
+:meth:`ViewCamera.ideal` uses). Tests check them against the per-line
+functions; Monte Carlo (:mod:`photogram.montecarlo.intersect`) runs them.
 """
 
 from __future__ import annotations
@@ -217,7 +226,7 @@ def intersect_lines_batch(l, cov_l, ends, R, X0, c, start=None, *, max_iteration
         try:
             step = -np.linalg.solve(N, g[..., None])[..., 0]
         except np.linalg.LinAlgError:
-            raise GeometryError("montecarlo: a 3D line has singular normal equations",
+            raise GeometryError("a 3D line has singular normal equations",
                                 hint="the planes of its views (nearly) coincide") from None
         D = D + step[:, 0:1] * u + step[:, 1:2] * v
         D /= np.linalg.norm(D, axis=1, keepdims=True)
