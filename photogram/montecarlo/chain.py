@@ -38,12 +38,11 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.geometry import matrix_to_opk, small_rotation
+from photogram.geometry import matrix_to_opk
 from photogram.jump.definitions import ANGLE_PARAMETERS, PARAMETERS
 from photogram.jump.stick import ANGLE_FACTORS
-from photogram.geometry import angle_increment_map
 from photogram.montecarlo.adjustment import EngineBundle
-from photogram.montecarlo.intersect import IntersectStep, local_basis_batch
+from photogram.montecarlo.intersect import IntersectStep
 from photogram.montecarlo.manifest import project_files
 
 __all__ = ["Chain", "Outputs"]
@@ -120,7 +119,7 @@ class Chain:
 
     def __init__(self, settings, *, project_reader=None):
         from photogram.montecarlo.reported import command_sigmas
-        from photogram.montecarlo.truth import adjusted_result, project_points, simulation_truth
+        from photogram.montecarlo.truth import adjusted_result, simulation_truth
         from photogram.project import read_project
         read = project_reader or read_project
         self.settings = settings
@@ -346,34 +345,3 @@ class Chain:
         """``(sigma_prop, sigma_cmd)`` of every output (internal units)."""
         from photogram.montecarlo.propagation import propagate
         return propagate(self)
-
-
-def station_rows(bundle, Phi, R):
-    """Rows (6 S, M) of X0 and omega-phi-kappa from rows in (dX0, delta)."""
-    _, E = angle_increment_map(R)
-    rows = []
-    for s in range(len(R)):
-        cols = bundle.station_cols[s]
-        rows.append(Phi[cols[:3]])
-        rows.append(E[s] @ Phi[cols[3:]])
-    return np.vstack(rows)
-
-
-def perturb_orientation(io, R, X0, which, h, shape_io):
-    """The orientation with parameter ``which`` moved by ``h``: an interior
-    parameter (flat index) or ("station", s, q) in (dX0, delta)."""
-    io, R, X0 = io.copy(), R.copy(), X0.copy()
-    if isinstance(which, tuple):
-        _, s, q = which
-        if q < 3:
-            X0[s, q] += h
-        else:
-            d = np.zeros(3)
-            d[q - 3] = h
-            R[s] = small_rotation(d) @ R[s]
-    else:
-        io.reshape(-1)[which] += h
-    return io, R, X0
-
-
-__all__ += ["station_rows", "perturb_orientation", "local_basis_batch"]
