@@ -311,3 +311,67 @@ def test_command_line_run_writes_the_results(net, tmp_path, capsys):
     for name in ("summary.csv", "table1.csv", "samples.csv", "log.txt",
                  "samples/chunk-00003.csv"):
         assert (tmp_path / name).is_file()
+
+
+# ---------------------------------------------------------------------------
+# every camera model of the engine (issue 17: Monte Carlo runs the engine)
+
+def _to_opencv(project):
+    """The project's cameras in the opencv model (the exact pinhole part of
+    brown_to_opencv; distortion starts at 0 and is estimated where free)."""
+    from photogram.geometry import brown_to_opencv, camera_model
+    from photogram.project.model import Parameter
+    names = camera_model("opencv").parameter_names
+    for cam in project.cameras.values():
+        if cam.model == "opencv":
+            continue
+        free = [p.free for p in cam.parameters.values()]
+        values = brown_to_opencv(cam.values(), strict=False)
+        cam.model = "opencv"
+        cam.parameters = {n: Parameter(float(v), free=bool(free[min(i, 3)]) if i < 4 else False)
+                          for i, (n, v) in enumerate(zip(names, values))}
+    return project
+
+
+def test_monte_carlo_with_the_opencv_model_agrees_with_propagation(net, tmp_path):
+    """The orient chain of the small network with opencv cameras: the same
+    engine problem, so sigma_mc / sigma_prop is near 1 as with brown."""
+    from photogram.montecarlo import run_montecarlo
+    project = _to_opencv(read_project(net / "net.prj"))
+    folder = tmp_path / "cv"
+    folder.mkdir()
+    write_project(project, folder / "net.prj")
+    assert read_project(folder / "net.prj").cameras[next(iter(project.cameras))].model == "opencv"
+    chain = _chain_project(folder, runs=300, chunk=100)
+    _, summary = run_montecarlo(chain, output=tmp_path / "out", progress=False)
+    import pandas as pd
+    table = pd.read_csv(tmp_path / "out" / "summary.csv")
+    assert summary["failed"] == 0
+    assert len(table) == 4 * 6 + 14 * 3
+    assert np.all(np.abs(table.ratio - 1) < 0.13), table[np.abs(table.ratio - 1) >= 0.13]
+    assert abs(np.median(table.ratio) - 1) < 0.04
+
+
+def test_orient_intersect_chain_with_opencv_cameras(tmp_path):
+    """Field orientation and jump intersection (points by the engine, lines
+    by the batch line code) with opencv cameras."""
+    from photogram.montecarlo import run_montecarlo
+    from photogram.simulation.designs import field_design
+    from photogram.simulation.jump import jump_project
+    field, _ = field_design()
+    write_project(_to_opencv(field), tmp_path / "field.prj")
+    jumps, _ = jump_project(n_exposures=3)
+    write_project(_to_opencv(jumps), tmp_path / "jumps.prj")
+    path = _chain_file(tmp_path, """
+        orient = "field.prj"
+        intersect = "jumps.prj"
+        perturb = ["image", "reference"]
+        runs = 60
+        seed = 3
+        """)
+    folder, summary = run_montecarlo(read_project(path), progress=False)
+    assert summary["failed"] == 0
+    head = summary["headline"]
+    assert set(head) == {"station", "jumper", "stick"}
+    for group in head.values():
+        assert 0.7 < group["ratio"]["median"] < 1.3          # 60 runs: +-18 % at 2 sigma
