@@ -74,7 +74,15 @@ class DenseStructure:
             self.flat_all.append(per_all)
             row += N * d
         self.block_rows = [(s, s + len(b) * b.dim) for s, b in zip(self.row_start, problem.blocks)]
+        # image point blocks whose io columns are all fixed: no io Jacobian
+        self.io_hint = [_plain_image_block(b) and self.flat[k][2] is None
+                        for k, b in enumerate(problem.blocks)]
         self.G = None if problem.G is None else np.asarray(problem.G)[self.free]
+
+
+def _plain_image_block(block) -> bool:
+    from photogram.adjust.residual_blocks import ImagePointBlock
+    return type(block).evaluate is ImagePointBlock.evaluate and len(block.slot_cols) == 3
 
 
 def dense_structure(problem) -> DenseStructure:
@@ -103,7 +111,10 @@ def dense_jacobian(problem, state, *, all_columns=False, residuals_only=False, w
         J = st._buffer
     Jall = np.zeros(st.m * problem.layout.n_columns) if all_columns else None
     for k, b in enumerate(problem.blocks):
-        e, Js = b.evaluate(state, not residuals_only)
+        if st.io_hint[k] and not all_columns:
+            e, Js = b.evaluate(state, not residuals_only, fixed_io=True)
+        else:
+            e, Js = b.evaluate(state, not residuals_only)
         w = problem.weights(k) if weights is None else weights[k]
         a, z = st.block_rows[k]
         r[a:z] = (np.where(w > 0, e, 0.0) * w).ravel()
@@ -111,7 +122,7 @@ def dense_jacobian(problem, state, *, all_columns=False, residuals_only=False, w
             continue
         for j, Jj in enumerate(Js):
             flat = st.flat[k][j]
-            if flat is None and not all_columns:
+            if flat is None and not all_columns or Jj is None:
                 continue
             vals = (Jj * w[:, :, None]).ravel()
             if flat is not None:
@@ -186,7 +197,10 @@ def point_normals(problem, state, weights=None):
         j = ps.slots[k]
         if j is None:
             continue
-        e, Js = b.evaluate(state, True)
+        if _plain_image_block(b):
+            e, Js = b.evaluate(state, True, fixed_io=True)    # the orientation is fixed
+        else:
+            e, Js = b.evaluate(state, True)
         w = problem.weights(k) if weights is None else weights[k]
         r = np.where(w > 0, e, 0.0) * w
         Jp = Js[j] * w[:, :, None]

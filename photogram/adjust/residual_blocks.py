@@ -79,7 +79,11 @@ class ImagePointBlock(ResidualBlock):
                           cam_cols[self.camera]]
         self.labels = labels
 
-    def evaluate(self, state, jacobians=True):
+    def evaluate(self, state, jacobians=True, fixed_io=False):
+        """Residuals and Jacobians (X, station, io). ``fixed_io``: the caller
+        holds every interior parameter of the block fixed and needs no io
+        Jacobian (a correction model then returns None for it and skips
+        dC/dio)."""
         indexed = getattr(self.model, "residuals_indexed", None)
         if indexed is not None:
             out = indexed(self.xy, state.points, state.R, state.X0,
@@ -87,7 +91,8 @@ class ImagePointBlock(ResidualBlock):
                           self.point, self.station, self.camera, jacobians)
             if out is not None:
                 return out
-        io = np.stack([state.io[k] for k in self.cameras])[self.camera]
+        io_cams = np.stack([state.io[k] for k in self.cameras])
+        io = io_cams[self.camera]
         R = state.R[self.station]
         X = state.points[self.point]
         X0 = state.X0[self.station]
@@ -96,11 +101,13 @@ class ImagePointBlock(ResidualBlock):
             # a correction model (brown): C(xy, io) and dC/dio stay while
             # the observations and the interior orientation do (orient,
             # intersect, Monte-Carlo runs): computed once, not per iteration
-            key = (self.xy.tobytes(), io.tobytes())
-            if getattr(self, "_correction_key", None) != key:
-                self._correction = self.model.correction_terms(self.xy, io)
+            key = (self.xy.tobytes(), io_cams.tobytes())
+            need = jacobians and not fixed_io
+            if getattr(self, "_correction_key", None) != key or \
+                    (need and self._correction[1] is None):
+                self._correction = self.model.correction_terms(self.xy, io, io_jacobian=need)
                 self._correction_key = key
-            kw["correction"] = self._correction
+            kw["correction"] = self._correction if need else (self._correction[0], None)
         # the state holds R: the models' rotation-matrix path (no angles)
         if not jacobians:
             e = self.model.residuals_rotation(self.xy, X, R, X0, io, jacobians=False, **kw)

@@ -34,8 +34,6 @@ from photogram.geometry.camera import (CameraModel, ideal_projection, newton_inv
                                        pose_jacobians, register_model,
                                        rotation_observations, solve2)
 
-_FLIP = np.array([1.0, -1.0])
-
 
 @register_model
 class BrownModel(CameraModel):
@@ -77,17 +75,17 @@ class BrownModel(CameraModel):
             return np.stack([U, -V], -1), None, None
         kp = K1 + r2 * (2.0 * K2 + 3.0 * r2 * K3)          # dk/d(r2)
         # d(U, V)/d(u, v)
-        Juv = np.empty((n, 2, 2))
-        Juv[:, 0, 0] = 1 + k + 2 * u * u * kp + 6 * P1 * u + 2 * P2 * v
-        Juv[:, 0, 1] = 2 * u * v * kp + 2 * P1 * v + 2 * P2 * u
-        Juv[:, 1, 0] = 2 * u * v * kp + 2 * P2 * u + 2 * P1 * v
-        Juv[:, 1, 1] = 1 + k + 2 * v * v * kp + 6 * P2 * v + 2 * P1 * u
-        FJ = Juv * _FLIP[None, :, None]                     # d(U,-V)/d(u,v)
-        A = np.zeros((n, 2, 2))                             # d(u,v)/d(xbar,ybar)
-        A[:, 0, 0] = 1.0 + B1
-        A[:, 0, 1] = -B2
-        A[:, 1, 1] = -1.0
-        dxy = FJ @ A
+        a = 1 + k + 2 * u * u * kp + 6 * P1 * u + 2 * P2 * v
+        b = 2 * u * v * kp + 2 * P1 * v + 2 * P2 * u
+        c = 2 * u * v * kp + 2 * P2 * u + 2 * P1 * v
+        d = 1 + k + 2 * v * v * kp + 6 * P2 * v + 2 * P1 * u
+        # d(U,-V)/d(u,v) = [[a, b], [-c, -d]] times d(u,v)/d(xbar,ybar) =
+        # [[1 + B1, -B2], [0, -1]], written out
+        dxy = np.empty((n, 2, 2))
+        dxy[:, 0, 0] = a * (1.0 + B1)
+        dxy[:, 0, 1] = a * -B2 - b
+        dxy[:, 1, 0] = -c * (1.0 + B1)
+        dxy[:, 1, 1] = -c * -B2 + d
         if partials == "xy":
             return np.stack([U, -V], -1), dxy, None
         dio = np.zeros((n, 2, self.n_params))
@@ -96,8 +94,8 @@ class BrownModel(CameraModel):
             dio[:, 0, col], dio[:, 1, col] = gu, -gv
         dio[:, 0, 6], dio[:, 1, 6] = r2 + 2 * u * u, -2 * u * v
         dio[:, 0, 7], dio[:, 1, 7] = 2 * u * v, -(r2 + 2 * v * v)
-        dio[:, :, 8] = FJ[:, :, 0] * xbar[:, None]
-        dio[:, :, 9] = FJ[:, :, 0] * -ybar[:, None]
+        dio[:, 0, 8], dio[:, 1, 8] = a * xbar, -c * xbar
+        dio[:, 0, 9], dio[:, 1, 9] = a * -ybar, -c * -ybar
         return np.stack([U, -V], -1), dxy, dio
 
     def _correct_full(self, xy, io):
@@ -163,9 +161,16 @@ class BrownModel(CameraModel):
         X, R, X0, io, Xc, d = rotation_observations(X, R, X0, io, self.n_params)
         return self._residuals(xy_obs, X, None, io, Xc, R, d, jacobians, correction)
 
-    def correction_terms(self, xy_obs, io):
-        """``(C, dC/dio)`` of measured coordinates (n, 2) and per-row io."""
-        C, _, dC_dio = self._correct_full(np.asarray(xy_obs, dtype=float), io)
+    def correction_terms(self, xy_obs, io, io_jacobian=True):
+        """``(C, dC/dio)`` of measured coordinates (n, 2) and per-row io
+        (``dC/dio`` None without ``io_jacobian``: the residuals then have no
+        ``"io"`` Jacobian, for a fixed interior orientation)."""
+        xy_obs = np.asarray(xy_obs, dtype=float)
+        if not io_jacobian:
+            C, _, _ = self._core(xy_obs[:, 0] - io[:, 1], xy_obs[:, 1] - io[:, 2], io,
+                                 partials=False)
+            return C, None
+        C, _, dC_dio = self._correct_full(xy_obs, io)
         return C, dC_dio
 
     def _residuals(self, xy_obs, X, angles, io, Xc, R, d, jacobians, correction=None):
@@ -177,12 +182,14 @@ class BrownModel(CameraModel):
                                  partials=False)
             return C - ideal_projection(Xc, io[:, 0])
         if correction is not None:
-            C, dC_dio = correction[0], correction[1].copy()
+            C, dC_dio = correction[0], correction[1]
+            dC_dio = None if dC_dio is None else dC_dio.copy()
         else:
             C, _, dC_dio = self._correct_full(xy_obs, io)
         ideal, J_xc, J_c = ideal_projection(Xc, io[:, 0], jacobians=True)
         jac = pose_jacobians(-J_xc, R, d, angles, Xc)
-        dC_dio[:, :, 0] -= J_c
+        if dC_dio is not None:
+            dC_dio[:, :, 0] -= J_c
         jac["io"] = dC_dio
         return C - ideal, jac
 
