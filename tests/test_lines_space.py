@@ -12,7 +12,7 @@ from photogram.lines import (
     initial_line_homogeneous, intersect_line, intersect_line_from_points,
     intersect_line_one_step, line_from_plucker, line_from_points, line_planes, plane_angles,
     point_on_line, project_line)
-from photogram.lines.synthetic import field_cameras, measure_segment
+from lines_synthetic import field_cameras, measure_segment
 from photogram.simulation.network import look_at
 
 CAMS = field_cameras()

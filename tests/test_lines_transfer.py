@@ -8,7 +8,7 @@ from photogram.lines import (
     SpaceLine, check_ski_labels, check_ski_sequence, compare_lines, fit_view_line,
     line_angle, line_planes, plane_angles, point_on_line, project_line, swap_labels, transfer_line,
     transfer_line_trifocal, trifocal_tensor)
-from photogram.lines.synthetic import field_cameras, flight_positions, measure_segment, ski_pair
+from lines_synthetic import field_cameras, flight_positions, measure_segment, ski_pair
 
 CAMS = field_cameras()
 SIGMA = 0.33

@@ -2,9 +2,10 @@
 
 A :class:`Chain` is built once (in the parent process) from the
 ``[montecarlo]`` settings: the truth world (:mod:`photogram.montecarlo.truth`),
-the lean adjustment (:class:`~photogram.montecarlo.bundle.LeanBundle`) and,
-if asked, the lean intersect step
-(:class:`~photogram.montecarlo.intersect.IntersectStep`). It is small and
+the adjustment step on the engine
+(:class:`~photogram.montecarlo.adjustment.EngineBundle`) and, if asked, the
+intersect step (:class:`~photogram.montecarlo.intersect.IntersectStep`:
+points by the engine, lines by :mod:`photogram.lines.batch`). It is small and
 picklable; :meth:`Chain.trial` runs one simulation from one
 :class:`numpy.random.SeedSequence`:
 

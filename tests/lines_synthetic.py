@@ -1,4 +1,6 @@
-"""Synthetic skis seen by the three field cameras (tests, examples).
+"""Synthetic skis seen by the three field cameras (a test helper; it was
+photogram/lines/synthetic.py, but it builds on photogram.simulation, which
+sits above photogram.lines).
 
 The views are the true orientations and interior orientations of
 :func:`photogram.simulation.designs.field_design` (hill coordinates in dm:
