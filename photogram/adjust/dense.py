@@ -170,6 +170,8 @@ class PointwiseStructure:
         self.points = p[self.starts] if len(p) else np.zeros(0, dtype=int)
         free = lay.free[lay.point_cols[self.points]]                  # (n, 3)
         self.free = free
+        self.fixed = np.nonzero(~free)
+        self.any_fixed = bool((~free).any())
         self.cols = lay.point_cols[self.points]
 
 
@@ -202,18 +204,19 @@ def point_normals(problem, state, weights=None):
         else:
             e, Js = b.evaluate(state, True)
         w = problem.weights(k) if weights is None else weights[k]
-        r = np.where(w > 0, e, 0.0) * w
+        r = (np.where(w > 0, e, 0.0) if not w.all() else e) * w
         Jp = Js[j] * w[:, :, None]
         Jt = np.swapaxes(Jp, 1, 2)
         As.append(Jt @ Jp)
         bs.append((Jt @ r[..., None])[..., 0])
-    A = np.add.reduceat(np.concatenate(As)[ps.order], ps.starts, axis=0)
-    g = np.add.reduceat(np.concatenate(bs)[ps.order], ps.starts, axis=0)
-    fixed = ~ps.free
-    if fixed.any():
+    As = As[0] if len(As) == 1 else np.concatenate(As)
+    bs = bs[0] if len(bs) == 1 else np.concatenate(bs)
+    A = np.add.reduceat(As[ps.order], ps.starts, axis=0)
+    g = np.add.reduceat(bs[ps.order], ps.starts, axis=0)
+    if ps.any_fixed:
         A = A * ps.free[:, :, None] * ps.free[:, None, :]
         g = g * ps.free
-        i, q = np.nonzero(fixed)
+        i, q = ps.fixed
         A[i, q, q] = 1.0
     return ps.points, A, g
 
