@@ -200,7 +200,8 @@ def point_normals(problem, state, weights=None):
         if j is None:
             continue
         if _plain_image_block(b):
-            e, Js = b.evaluate(state, True, fixed_io=True)    # the orientation is fixed
+            e, Js = b.evaluate(state, True, fixed_io=True,       # the orientation is fixed
+                               fixed_stations=True)
         else:
             e, Js = b.evaluate(state, True)
         w = problem.weights(k) if weights is None else weights[k]

@@ -79,11 +79,11 @@ class ImagePointBlock(ResidualBlock):
                           cam_cols[self.camera]]
         self.labels = labels
 
-    def evaluate(self, state, jacobians=True, fixed_io=False):
-        """Residuals and Jacobians (X, station, io). ``fixed_io``: the caller
-        holds every interior parameter of the block fixed and needs no io
-        Jacobian (a correction model then returns None for it and skips
-        dC/dio)."""
+    def evaluate(self, state, jacobians=True, fixed_io=False, fixed_stations=False):
+        """Residuals and Jacobians (X, station, io). ``fixed_io`` /
+        ``fixed_stations``: the caller holds every interior parameter /
+        station of the block fixed and needs no Jacobian by them (a
+        correction model then returns None for them and skips dC/dio)."""
         indexed = getattr(self.model, "residuals_indexed", None)
         if indexed is not None:
             out = indexed(self.xy, state.points, state.R, state.X0,
@@ -108,12 +108,16 @@ class ImagePointBlock(ResidualBlock):
                 self._correction = self.model.correction_terms(self.xy, io, io_jacobian=need)
                 self._correction_key = key
             kw["correction"] = self._correction if need else (self._correction[0], None)
+            if fixed_stations:
+                kw["stations"] = False
         # the state holds R: the models' rotation-matrix path (no angles)
         if not jacobians:
             e = self.model.residuals_rotation(self.xy, X, R, X0, io, jacobians=False, **kw)
             return e, None
         e, jac = self.model.residuals_rotation(self.xy, X, R, X0, io, **kw)
-        return e, [jac["X"], np.concatenate([jac["X0"], jac["rotation"]], axis=2), jac["io"]]
+        station = None if jac["X0"] is None else np.concatenate([jac["X0"], jac["rotation"]],
+                                                                 axis=2)
+        return e, [jac["X"], station, jac["io"]]
 
 
 class PointPriorBlock(ResidualBlock):

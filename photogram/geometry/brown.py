@@ -152,14 +152,16 @@ class BrownModel(CameraModel):
         X, angles, X0, io, Xc, R, d = self._prepare(X, angles, X0, io)
         return self._residuals(xy_obs, X, angles, io, Xc, R, d, jacobians)
 
-    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True, correction=None):
+    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True, correction=None,
+                           stations=True):
         """:meth:`residuals` with world-to-camera matrices R (n,3,3) instead
         of angles; the Jacobian dict has no ``"angles"``. ``correction``:
         the :meth:`correction_terms` of ``(xy_obs, io)`` if already known
         (they depend on the observations and the interior orientation only:
-        the engine keeps them while both stay the same)."""
+        the engine keeps them while both stay the same). ``stations=False``:
+        no Jacobians by X0 and the rotation (None; the stations are fixed)."""
         X, R, X0, io, Xc, d = rotation_observations(X, R, X0, io, self.n_params)
-        return self._residuals(xy_obs, X, None, io, Xc, R, d, jacobians, correction)
+        return self._residuals(xy_obs, X, None, io, Xc, R, d, jacobians, correction, stations)
 
     def correction_terms(self, xy_obs, io, io_jacobian=True):
         """``(C, dC/dio)`` of measured coordinates (n, 2) and per-row io
@@ -173,7 +175,8 @@ class BrownModel(CameraModel):
         C, _, dC_dio = self._correct_full(xy_obs, io)
         return C, dC_dio
 
-    def _residuals(self, xy_obs, X, angles, io, Xc, R, d, jacobians, correction=None):
+    def _residuals(self, xy_obs, X, angles, io, Xc, R, d, jacobians, correction=None,
+                   stations=True):
         xy_obs = np.asarray(xy_obs, dtype=float).reshape(len(X), 2)
         if not jacobians:
             if correction is not None:
@@ -187,7 +190,7 @@ class BrownModel(CameraModel):
         else:
             C, _, dC_dio = self._correct_full(xy_obs, io)
         ideal, J_xc, J_c = ideal_projection(Xc, io[:, 0], jacobians=True)
-        jac = pose_jacobians(-J_xc, R, d, angles, Xc)
+        jac = pose_jacobians(-J_xc, R, d, angles, Xc, stations=stations)
         if dC_dio is not None:
             dC_dio[:, :, 0] -= J_c
         jac["io"] = dC_dio

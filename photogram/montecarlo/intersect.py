@@ -232,6 +232,10 @@ class IntersectStep:
     def ideal(self, io, xy, rows_by_model, jacobians=False):
         """Ideal coordinates of image coordinates xy (camera per row) by
         :func:`photogram.lines.views.ideal_coordinates`."""
+        if len(rows_by_model) == 1:                  # one camera model: no scatter
+            model, rows = rows_by_model[0]
+            return ideal_coordinates(model.name, xy, io[self.l_camera, :model.n_params],
+                                     jacobians=jacobians)
         xi = np.zeros((len(xy), 2))
         J = np.zeros((len(xy), 2, 2)) if jacobians else None
         for model, rows in rows_by_model:
