@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as la
 
+from photogram.adjust.state import State
 from photogram.errors import GeometryError
 
 __all__ = ["DenseStructure", "dense_structure", "dense_jacobian", "dense_normal",
@@ -238,9 +239,9 @@ def _gauss_newton_points(problem, tolerance, max_iterations, scale):
                                 hint="check the geometry of the intersection") from None
         if not np.all(np.isfinite(step)):
             raise GeometryError("the adjustment diverged (non-finite step)")
-        new = state.copy()                  # only points move (State.updated, cheaper)
-        new.points[ps.points] += step
-        problem.state = state = new
+        points = state.points.copy()        # only points move: the orientation arrays
+        points[ps.points] += step           # are shared with the new state (not copied)
+        problem.state = state = State(points, state.R, state.X0, state.io)
         if s is None:
             size = 1.0 + float(np.nanmax(np.abs(problem.state.points[ps.points]), initial=0.0))
             done = np.max(np.abs(step), initial=0.0) <= tolerance * size

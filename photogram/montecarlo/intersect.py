@@ -29,6 +29,7 @@ import numpy as np
 from photogram.adjust.build import build_problem, merged_image_blocks
 from photogram.adjust.dense import gauss_newton, point_normals, pointwise_structure
 from photogram.adjust.residual_blocks import ImagePointBlock
+from photogram.adjust.state import State
 from photogram.errors import InputError
 from photogram.geometry import matrix_to_opk
 from photogram.jump.exposures import exposure_order as _exposure_order
@@ -198,6 +199,9 @@ class IntersectStep:
             self.p_sigma[b.rows] = b.sigma[:, 0]
         self.inputs_points = np.asarray(project.image_points.xy, dtype=float).copy()
         self.start_points = pb.state.points.copy()
+        self._n_io = [len(v) for v in pb.state.io]
+        self._in_order = [len(b.rows) == n and np.array_equal(b.rows, np.arange(n))
+                          for b in self._image]
 
     @staticmethod
     def camera_names_index(bundle, name):
@@ -211,14 +215,14 @@ class IntersectStep:
         image points table); with ``covariance`` also the cofactors (n, 3, 3)
         of every point (a-priori image sigmas)."""
         pb = self.problem
-        state = self.state0.copy()
-        state.io = [np.array(io[k, :len(v)], dtype=float)
-                    for k, v in zip(self.camera_global, state.io)]
-        state.R = np.asarray(R, dtype=float)[self.local_to_global].copy()
-        state.X0 = np.asarray(X0, dtype=float)[self.local_to_global].copy()
-        state.points = np.array(start, dtype=float)
-        for b in self._image:
-            b.xy = np.asarray(xy, dtype=float)[b.rows]
+        l2g = self.local_to_global
+        state = State(np.array(start, dtype=float), np.asarray(R, dtype=float)[l2g],
+                      np.asarray(X0, dtype=float)[l2g],
+                      [np.array(io[k, :n], dtype=float)
+                       for k, n in zip(self.camera_global, self._n_io)])
+        xy = np.asarray(xy, dtype=float)
+        for b, in_order in zip(self._image, self._in_order):
+            b.xy = xy.copy() if in_order else xy[b.rows]
         pb.state = state
         gauss_newton(pb, tolerance=tol or self.tolerance, max_iterations=self.max_iterations)
         X = pb.state.points.copy()
