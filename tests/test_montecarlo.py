@@ -333,15 +333,29 @@ def _to_opencv(project):
     return project
 
 
-def test_monte_carlo_with_the_opencv_model_agrees_with_propagation(net, tmp_path):
-    """The orient chain of the small network with opencv cameras: the same
-    engine problem, so sigma_mc / sigma_prop is near 1 as with brown."""
+def _to_bal(project):
+    """The project's cameras in the bal model (f = c, k1 = k2 = 0)."""
+    from photogram.geometry import camera_model
+    from photogram.project.model import Parameter
+    names = camera_model("bal").parameter_names
+    for cam in project.cameras.values():
+        v = cam.values()
+        cam.model = "bal"
+        cam.parameters = {n: Parameter(float(x)) for n, x in zip(names, (v[0], 0.0, 0.0))}
+    return project
+
+
+@pytest.mark.parametrize("model", ["opencv", "bal"])
+def test_monte_carlo_with_other_camera_models_agrees_with_propagation(net, tmp_path, model):
+    """The orient chain of the small network with opencv (bal) cameras: the
+    same engine problem, so sigma_mc / sigma_prop is near 1 as with brown."""
     from photogram.montecarlo import run_montecarlo
-    project = _to_opencv(read_project(net / "net.prj"))
+    convert = {"opencv": _to_opencv, "bal": _to_bal}[model]
+    project = convert(read_project(net / "net.prj"))
     folder = tmp_path / "cv"
     folder.mkdir()
     write_project(project, folder / "net.prj")
-    assert read_project(folder / "net.prj").cameras[next(iter(project.cameras))].model == "opencv"
+    assert read_project(folder / "net.prj").cameras[next(iter(project.cameras))].model == model
     chain = _chain_project(folder, runs=300, chunk=100)
     _, summary = run_montecarlo(chain, output=tmp_path / "out", progress=False)
     import pandas as pd
