@@ -23,6 +23,7 @@ from pathlib import Path
 import photogram  # noqa: F401  (single-threaded BLAS before numpy)
 
 from photogram.commands.bundle import calibrate, orient
+from photogram.commands.montecarlo import write_pdf
 from photogram.montecarlo import run_montecarlo
 from photogram.project import read_project
 
@@ -51,10 +52,12 @@ def main():
         t0 = time.perf_counter()
         _, s1 = run_montecarlo(chain, runs=args.runs1, workers=1, output=Path(tmp) / "w1",
                                progress=False)
+        write_pdf(Path(tmp) / "w1")               # report.pdf, as the command writes it
         t1 = time.perf_counter() - t0
         t0 = time.perf_counter()
         _, s2 = run_montecarlo(chain, runs=args.runs, workers=2, output=Path(tmp) / "w2",
                                progress=False)
+        write_pdf(Path(tmp) / "w2")
         t2 = time.perf_counter() - t0
     e1, e2 = s1["execution"], s2["execution"]
     r1 = e1["runs_per_second"]

@@ -1,4 +1,4 @@
-"""photogram montecarlo: the lean kernels against the library, seeding and
+"""photogram montecarlo: the engine steps against the commands, seeding and
 engines (1 and 2 local workers, Dask), resume after an interruption, the
 agreement of Monte-Carlo and propagated sigmas, bad input.
 
@@ -72,50 +72,78 @@ def _samples(folder):
 # ---------------------------------------------------------------------------
 # kernels
 
-def test_lean_bundle_reproduces_the_engine(net):
+def test_engine_bundle_reproduces_the_command(net):
+    """The Monte-Carlo adjustment step is the engine's problem re-solved
+    with new observations: from a perturbed start it reaches what
+    ``photogram orient`` reaches, and its cofactors are the engine's."""
     from photogram.commands.bundle import adjust
-    from photogram.montecarlo.bundle import LeanBundle
+    from photogram.montecarlo.adjustment import EngineBundle
     from photogram.stats.covariance import cofactors, station_covariances
     from photogram.adjust.build import build_problem
     project = read_project(net / "net.prj")
     result = adjust(project, fix_interior=True)
-    lean = LeanBundle(result.project, fix_interior=True)
-    inputs = lean.inputs.copy()
-    inputs.reference = project.points.xyz[lean.control]     # the given reference values
-    start = lean.start.copy()
+    eb = EngineBundle(result.project, fix_interior=True)
+    inputs = eb.inputs.copy()
+    inputs.xy = project.image_points.xy.copy()             # the measured values
+    inputs.reference = project.points.xyz[eb.control]      # the given reference values
+    start = eb.start.copy()
     start.X0 += 0.01
-    state, _ = lean.solve(inputs, start=start)
+    state, _ = eb.solve(inputs, start=start)
     assert np.abs(state.X0 - result.project.stations.position).max() < 2e-6   # engine tol
-    assert np.abs(state.X[lean.free_points]
-                  - result.project.points.xyz[lean.free_points]).max() < 2e-6
-    _, Q, _ = lean.linearize(state, inputs)
+    assert np.abs(state.X[eb.free_points]
+                  - result.project.points.xyz[eb.free_points]).max() < 2e-6
+    _, Q, _ = eb.linearize(state, inputs)
     built = build_problem(result.project, fix_interior=True)
     S = station_covariances(cofactors(built.problem), built.problem.state.R)
-    sig = np.sqrt(np.diag(Q))[lean.station_cols[:, :3]]
+    sig = np.sqrt(np.diag(Q))[eb.station_cols[:, :3]]
     assert np.allclose(sig, np.sqrt(np.diagonal(S, axis1=1, axis2=2))[:, :3], rtol=1e-4)
 
 
-def test_lean_intersect_reproduces_the_pipeline():
+def test_exact_inputs_give_back_the_truth(net):
+    from photogram.commands.bundle import adjust
+    from photogram.montecarlo.adjustment import EngineBundle
+    result = adjust(read_project(net / "net.prj"), fix_interior=True)
+    eb = EngineBundle(result.project, fix_interior=True)
+    state, it = eb.solve(eb.inputs)
+    assert it <= 2
+    assert np.abs(state.X0 - eb.start.X0).max() < 1e-9
+    assert np.abs(state.X[eb.free_points] - eb.start.X[eb.free_points]).max() < 1e-9
+
+
+def _orientation_of(project):
+    from types import SimpleNamespace
+    from photogram.geometry import camera_model, opk_to_matrix
+    models = [camera_model(c.model) for c in project.cameras.values()]
+    p = max(m.n_params for m in models)
+    io = np.zeros((len(models), p))
+    for k, c in enumerate(project.cameras.values()):
+        io[k, :len(c.values())] = c.values()
+    R, X0 = opk_to_matrix(project.stations.angles), project.stations.position
+    start = SimpleNamespace(io=io, R=R, X0=X0)
+    return SimpleNamespace(camera_names=list(project.cameras), models=models,
+                           station_names=list(project.stations.names), start=start), io, R, X0
+
+
+def test_intersect_step_reproduces_the_pipeline():
+    """Points by the engine problem of photogram intersect, lines by the
+    batch line code, against the command's functions."""
     from photogram.jump.pipeline import intersect_points
     from photogram.lines import cameras_from_project, intersect_line_from_points
-    from photogram.montecarlo.intersect import LeanIntersect
-    from photogram.geometry import opk_to_matrix
+    from photogram.montecarlo.intersect import IntersectStep
     from photogram.simulation.jump import jump_project
     project, _ = jump_project(n_exposures=4)
-    lean = LeanIntersect(project, list(project.cameras), list(project.stations.names))
-    io = np.array([c.values() for c in project.cameras.values()])
-    R, X0 = opk_to_matrix(project.stations.angles), project.stations.position
+    orientation, io, R, X0 = _orientation_of(project)
+    step = IntersectStep(project, orientation)
     adjusted, cov, _, _ = intersect_points(project)
-    X, covX = lean.intersect_points(io, R, X0, lean.inputs_points,
-                                    lean.triangulate(io, R, X0, lean.inputs_points),
+    X, covX = step.intersect_points(io, R, X0, step.inputs_points, step.start_points,
                                     covariance=True)
     assert np.abs(X - adjusted.points.xyz).max() < 1e-6
     assert np.allclose(covX, cov, rtol=1e-6)
-    P, D, C, chi2 = lean.intersect_lines(io, R, X0, lean.inputs_lines, covariance=True)
+    P, D, C, chi2 = step.intersect_lines(io, R, X0, step.inputs_lines, covariance=True)
     cams = cameras_from_project(project)
     il = project.image_lines
     for n in (0, 5):                            # L1@001, L2@003
-        ski, e = ("L1", "L2")[n % 2], lean.exposures[n // 2]
+        ski, e = ("L1", "L2")[n % 2], step.exposures[n // 2]
         rows = il.line == f"{ski}@{e}"
         pts = {project.stations.names[s]: il.xy[rows & (il.station == s)]
                for s in np.unique(il.station[rows])}
@@ -283,3 +311,81 @@ def test_command_line_run_writes_the_results(net, tmp_path, capsys):
     for name in ("summary.csv", "table1.csv", "samples.csv", "log.txt",
                  "samples/chunk-00003.csv"):
         assert (tmp_path / name).is_file()
+
+
+# ---------------------------------------------------------------------------
+# every camera model of the engine (issue 17: Monte Carlo runs the engine)
+
+def _to_opencv(project):
+    """The project's cameras in the opencv model (the exact pinhole part of
+    brown_to_opencv; distortion starts at 0 and is estimated where free)."""
+    from photogram.geometry import brown_to_opencv, camera_model
+    from photogram.project.model import Parameter
+    names = camera_model("opencv").parameter_names
+    for cam in project.cameras.values():
+        if cam.model == "opencv":
+            continue
+        free = [p.free for p in cam.parameters.values()]
+        values = brown_to_opencv(cam.values(), strict=False)
+        cam.model = "opencv"
+        cam.parameters = {n: Parameter(float(v), free=bool(free[min(i, 3)]) if i < 4 else False)
+                          for i, (n, v) in enumerate(zip(names, values))}
+    return project
+
+
+def _to_bal(project):
+    """The project's cameras in the bal model (f = c, k1 = k2 = 0)."""
+    from photogram.geometry import camera_model
+    from photogram.project.model import Parameter
+    names = camera_model("bal").parameter_names
+    for cam in project.cameras.values():
+        v = cam.values()
+        cam.model = "bal"
+        cam.parameters = {n: Parameter(float(x)) for n, x in zip(names, (v[0], 0.0, 0.0))}
+    return project
+
+
+@pytest.mark.parametrize("model", ["opencv", "bal"])
+def test_monte_carlo_with_other_camera_models_agrees_with_propagation(net, tmp_path, model):
+    """The orient chain of the small network with opencv (bal) cameras: the
+    same engine problem, so sigma_mc / sigma_prop is near 1 as with brown."""
+    from photogram.montecarlo import run_montecarlo
+    convert = {"opencv": _to_opencv, "bal": _to_bal}[model]
+    project = convert(read_project(net / "net.prj"))
+    folder = tmp_path / "cv"
+    folder.mkdir()
+    write_project(project, folder / "net.prj")
+    assert read_project(folder / "net.prj").cameras[next(iter(project.cameras))].model == model
+    chain = _chain_project(folder, runs=300, chunk=100)
+    _, summary = run_montecarlo(chain, output=tmp_path / "out", progress=False)
+    import pandas as pd
+    table = pd.read_csv(tmp_path / "out" / "summary.csv")
+    assert summary["failed"] == 0
+    assert len(table) == 4 * 6 + 14 * 3
+    assert np.all(np.abs(table.ratio - 1) < 0.13), table[np.abs(table.ratio - 1) >= 0.13]
+    assert abs(np.median(table.ratio) - 1) < 0.04
+
+
+def test_orient_intersect_chain_with_opencv_cameras(tmp_path):
+    """Field orientation and jump intersection (points by the engine, lines
+    by the batch line code) with opencv cameras."""
+    from photogram.montecarlo import run_montecarlo
+    from photogram.simulation.designs import field_design
+    from photogram.simulation.jump import jump_project
+    field, _ = field_design()
+    write_project(_to_opencv(field), tmp_path / "field.prj")
+    jumps, _ = jump_project(n_exposures=3)
+    write_project(_to_opencv(jumps), tmp_path / "jumps.prj")
+    path = _chain_file(tmp_path, """
+        orient = "field.prj"
+        intersect = "jumps.prj"
+        perturb = ["image", "reference"]
+        runs = 60
+        seed = 3
+        """)
+    folder, summary = run_montecarlo(read_project(path), progress=False)
+    assert summary["failed"] == 0
+    head = summary["headline"]
+    assert set(head) == {"station", "jumper", "stick"}
+    for group in head.values():
+        assert 0.7 < group["ratio"]["median"] < 1.3          # 60 runs: +-18 % at 2 sigma

@@ -1,6 +1,6 @@
 """Issue 16, item 5: an a-priori sigma of 0 means "fixed", as the docs say
 (station sigmas sX0 ... skappa, control sigmas sX sY sZ, sigma_control),
-in the engine and in the Monte-Carlo lean bundle; it used to become weight
+in the engine (which Monte Carlo runs too); it used to become weight
 0 (the parameter free, or "datum defect 7")."""
 
 import numpy as np
@@ -95,12 +95,15 @@ def test_control_sigma_zero_is_the_control_datum(tmp_path, how):
     np.testing.assert_allclose(res.station_sigma, ref.station_sigma, rtol=1e-6)
 
 
-def test_lean_bundle_holds_zero_sigma_stations(tmp_path):
-    from photogram.montecarlo.bundle import FIXED_SIGMA, LeanBundle
+def test_monte_carlo_bundle_holds_zero_sigma_stations(tmp_path):
+    """Monte Carlo runs the engine's problem: a station sigma of 0 fixes
+    the station (no column, no noise), as in photogram orient."""
+    from photogram.montecarlo.adjustment import EngineBundle
     _, prj = _stations_fixed_by_sigma_zero()
-    lean = LeanBundle(prj, fix_interior=True)
-    assert np.all(lean.prior_sigma == FIXED_SIGMA)
-    assert len(lean.prior_stations) == 8
+    eb = EngineBundle(prj, fix_interior=True)
+    assert len(eb.prior_stations) == 8
+    assert np.all(eb.input_sigmas().station_prior == 0)
+    assert not eb.layout.free[eb.station_cols].any()
 
 
 # Issue 16, item 6: with datum = "control" the control sigmas are not used;

@@ -291,3 +291,53 @@ def _ignored_control_sigmas(project, control):
         what += (" and " if what else "") + f"sigma_control = {adj.sigma_control:g}"
     return [f'datum = "control" holds the {len(control)} control points fixed: {what} '
             f'are not used (datum = "weighted" uses them as weighted observations)']
+
+
+def merged_image_blocks(problem) -> Problem:
+    """The same problem with the plain image point blocks of one camera model
+    merged into one block (one vectorized evaluation instead of one per
+    camera and group), for re-solving a small problem many times (Monte
+    Carlo). Only where every merged group has the same variance factor (1
+    after the build): the weights, residuals and Jacobians are the same,
+    the rows are in another order. The merged block keeps ``rows`` (the
+    image point table's rows of its observations) and is in group
+    ``"image"``; the other blocks, the state, layout and datum are shared."""
+    image = [b for b in problem.blocks if type(b) is ImagePointBlock]
+    by_model = {}
+    for b in image:
+        by_model.setdefault(b.model.name, []).append(b)
+    if all(len(v) < 2 for v in by_model.values()):
+        return problem
+    factors = {problem.variance[b.group] for b in image}
+    if len(factors) > 1:
+        raise ValueError("merged_image_blocks: the image groups have different variance factors")
+    lay = problem.layout
+    new_blocks, done = [], set()
+    for b in problem.blocks:
+        if type(b) is not ImagePointBlock:
+            new_blocks.append(b)
+            continue
+        name = b.model.name
+        if name in done:
+            continue
+        done.add(name)
+        parts = by_model[name]
+        cams = sorted({int(k) for p in parts for k in p.cameras})
+        where = {k: i for i, k in enumerate(cams)}
+        camera = np.concatenate([[where[int(k)] for k in p.cameras[p.camera]] for p in parts])
+        labels = None
+        if all(p.labels is not None for p in parts):
+            labels = np.concatenate([np.asarray(p.labels) for p in parts])
+        blk = ImagePointBlock(parts[0].model, cams, camera.astype(int),
+                              np.concatenate([p.station for p in parts]),
+                              np.concatenate([p.point for p in parts]),
+                              np.concatenate([p.xy for p in parts]),
+                              np.concatenate([p.sigma[:, 0] for p in parts]), lay, labels=labels)
+        blk.group = "image"
+        if all(hasattr(p, "rows") for p in parts):
+            blk.rows = np.concatenate([p.rows for p in parts])
+        new_blocks.append(blk)
+    out = Problem(problem.state.copy(), lay, new_blocks, G=problem.G,
+                  point_labels=problem.point_labels)
+    out.variance["image"] = factors.pop()
+    return out

@@ -27,6 +27,24 @@ class ResidualBlock:
     def evaluate(self, state, jacobians=True):  # pragma: no cover - interface
         raise NotImplementedError
 
+    #: the attribute holding the observed values (shape (N, ...)); None: the
+    #: block observes nothing that a re-solve could replace
+    observed = None
+
+    def observations(self):
+        """The observed values (a copy), or None."""
+        return None if self.observed is None else np.array(getattr(self, self.observed))
+
+    def set_observations(self, values):
+        """Replace the observed values (same shape) to solve the problem again
+        with new observations (Monte Carlo); the structure is unchanged."""
+        old = getattr(self, self.observed)
+        values = np.asarray(values, dtype=float)
+        if values.shape != np.shape(old):
+            raise ValueError(f"{self.name}: observations of shape {values.shape}, "
+                             f"not {np.shape(old)}")
+        setattr(self, self.observed, values.copy())
+
 
 class ImagePointBlock(ResidualBlock):
     """Collinearity residuals of image points of cameras sharing one model
@@ -45,6 +63,7 @@ class ImagePointBlock(ResidualBlock):
 
     name = "image points"
     dim = 2
+    observed = "xy"
 
     def __init__(self, model, cameras, camera, station, point, xy, sigma, layout, labels=None):
         self.model = model
@@ -60,7 +79,11 @@ class ImagePointBlock(ResidualBlock):
                           cam_cols[self.camera]]
         self.labels = labels
 
-    def evaluate(self, state, jacobians=True):
+    def evaluate(self, state, jacobians=True, fixed_io=False, fixed_stations=False):
+        """Residuals and Jacobians (X, station, io). ``fixed_io`` /
+        ``fixed_stations``: the caller holds every interior parameter /
+        station of the block fixed and needs no Jacobian by them (a
+        correction model then returns None for them and skips dC/dio)."""
         indexed = getattr(self.model, "residuals_indexed", None)
         if indexed is not None:
             out = indexed(self.xy, state.points, state.R, state.X0,
@@ -69,16 +92,33 @@ class ImagePointBlock(ResidualBlock):
                           kernel=_compiled_rows(self.model, len(self.point)))
             if out is not None:
                 return out
-        io = np.stack([state.io[k] for k in self.cameras])[self.camera]
+        io_cams = np.stack([state.io[k] for k in self.cameras])
+        io = io_cams[self.camera]
         R = state.R[self.station]
         X = state.points[self.point]
         X0 = state.X0[self.station]
+        kw = {}
+        if hasattr(self.model, "correction_terms"):
+            # a correction model (brown): C(xy, io) and dC/dio stay while
+            # the observations and the interior orientation do (orient,
+            # intersect, Monte-Carlo runs): computed once, not per iteration
+            key = (self.xy.tobytes(), io_cams.tobytes())
+            need = jacobians and not fixed_io
+            if getattr(self, "_correction_key", None) != key or \
+                    (need and self._correction[1] is None):
+                self._correction = self.model.correction_terms(self.xy, io, io_jacobian=need)
+                self._correction_key = key
+            kw["correction"] = self._correction if need else (self._correction[0], None)
+            if fixed_stations:
+                kw["stations"] = False
         # the state holds R: the models' rotation-matrix path (no angles)
         if not jacobians:
-            e = self.model.residuals_rotation(self.xy, X, R, X0, io, jacobians=False)
+            e = self.model.residuals_rotation(self.xy, X, R, X0, io, jacobians=False, **kw)
             return e, None
-        e, jac = self.model.residuals_rotation(self.xy, X, R, X0, io)
-        return e, [jac["X"], np.concatenate([jac["X0"], jac["rotation"]], axis=2), jac["io"]]
+        e, jac = self.model.residuals_rotation(self.xy, X, R, X0, io, **kw)
+        station = None if jac["X0"] is None else np.concatenate([jac["X0"], jac["rotation"]],
+                                                                 axis=2)
+        return e, [jac["X"], station, jac["io"]]
 
 
 def _compiled_rows(model, n_rows):
@@ -102,6 +142,7 @@ class PointPriorBlock(ResidualBlock):
     name = "control coordinates"
     dim = 3
     group = "control"
+    observed = "xyz"
 
     def __init__(self, point, xyz, sigma, layout):
         self.point = np.asarray(point)
@@ -131,6 +172,17 @@ class StationPriorBlock(ResidualBlock):
         self.sigma = np.asarray(sigma, dtype=float)   # (N, 6); inf = no prior
         self.slot_cols = [layout.station_cols[self.station]]
 
+    def observations(self):
+        """(N, 6): X0 Y0 Z0 and the angles (radians) observed."""
+        return np.hstack([self.position, self.angles])
+
+    def set_observations(self, values):
+        values = np.asarray(values, dtype=float)
+        if values.shape != (len(self.station), 6):
+            raise ValueError(f"{self.name}: observations of shape {values.shape}, "
+                             f"not {(len(self.station), 6)}")
+        self.position, self.angles = values[:, :3].copy(), values[:, 3:].copy()
+
     def evaluate(self, state, jacobians=True):
         n = len(self.station)
         ang, E = angle_increment_map(state.R[self.station])
@@ -150,6 +202,7 @@ class InteriorPriorBlock(ResidualBlock):
     name = "interior priors"
     dim = 1
     group = "interior priors"
+    observed = "value"
 
     def __init__(self, camera, parameter, value, sigma, layout):
         self.camera = np.asarray(camera)
@@ -172,6 +225,7 @@ class DistanceBlock(ResidualBlock):
     name = "distances"
     dim = 1
     group = "distances"
+    observed = "value"
 
     def __init__(self, a, b, value, sigma, layout):
         self.a, self.b = np.asarray(a), np.asarray(b)
@@ -190,23 +244,28 @@ class VerticalBlock(ResidualBlock):
     """Rod verticality (ski-jump paper, eq. (3)): the horizontal offsets of
     the top from the bottom point per unit height are observed as zero,
     ``e = ((X_t - X_b)/(Z_t - Z_b), (Y_t - Y_b)/(Z_t - Z_b))`` with sigma a
-    slope ratio (1:100 -> 0.01)."""
+    slope ratio (1:100 -> 0.01). The observed slopes ``value`` (N, 2) are
+    zero (a vertical rod) unless replaced (``set_observations``, Monte
+    Carlo): ``e = slope - value``."""
 
     name = "verticality"
     dim = 2
     group = "verticality"
+    observed = "value"
 
-    def __init__(self, top, bottom, sigma, layout):
+    def __init__(self, top, bottom, sigma, layout, value=None):
         self.top, self.bottom = np.asarray(top), np.asarray(bottom)
         self.sigma = np.repeat(np.asarray(sigma, dtype=float)[:, None], 2, axis=1)
         self.slot_cols = [layout.point_cols[self.top], layout.point_cols[self.bottom]]
+        self.value = (np.zeros((len(self.top), 2)) if value is None
+                      else np.asarray(value, dtype=float).reshape(-1, 2))
 
     def evaluate(self, state, jacobians=True):
         d = state.points[self.top] - state.points[self.bottom]
         h = d[:, 2]
-        e = d[:, :2] / h[:, None]
+        slope = d[:, :2] / h[:, None]
         J = np.zeros((len(d), 2, 3))
         J[:, 0, 0] = 1.0 / h
         J[:, 1, 1] = 1.0 / h
-        J[:, :, 2] = -e / h[:, None]
-        return e, [J, -J]
+        J[:, :, 2] = -slope / h[:, None]
+        return slope - self.value, [J, -J]

@@ -162,6 +162,25 @@ class Problem:
         """The (damped) step of assembled normal equations: ``(dx, fact)``."""
         return schur_solve(system, self.layout, damping, self.G, self.point_labels)
 
+    def reset(self, state):
+        """Start again from ``state`` (a copy is taken); the structure, the
+        weights and the cached indices stay (re-solving with new
+        observations: ``block.set_observations``, then :func:`solve` or
+        :func:`photogram.adjust.dense.gauss_newton`)."""
+        self.state = state.copy()
+
+    def observations(self):
+        """The observed values of every block (a list; None where a block
+        observes nothing replaceable)."""
+        return [b.observations() for b in self.blocks]
+
+    def set_observations(self, values):
+        """Replace the observed values of the blocks (a list as
+        :meth:`observations` gives; None leaves a block as it is)."""
+        for b, v in zip(self.blocks, values):
+            if v is not None:
+                b.set_observations(v)
+
     def step(self, state, damping=0.0):
         system = self.linearize(state)
         dx, fact = self.solve_linear(system, damping)

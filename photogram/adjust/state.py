@@ -42,7 +42,11 @@ class State:
             new.io[k] = new.io[k] + dx[cols]
         st = dx[layout.station_cols]
         new.X0 = new.X0 + st[:, :3]
-        new.R = small_rotation(st[:, 3:]) @ new.R
+        turned = np.flatnonzero(np.any(st[:, 3:] != 0.0, axis=1))
+        if len(turned) == len(st):
+            new.R = small_rotation(st[:, 3:]) @ new.R
+        elif len(turned):          # a zero increment leaves R as it is (exactly)
+            new.R[turned] = small_rotation(st[turned, 3:]) @ new.R[turned]
         new.points = new.points + dx[layout.point_cols]
         return new
 

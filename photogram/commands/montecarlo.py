@@ -16,7 +16,15 @@ def montecarlo(project, **options):
     with staged_results(project.output_folder(), command="montecarlo", resumable=True,
                         inputs=project_inputs(project)) as stage:
         _, summary = run_montecarlo(project, output=stage.path, **options)
+        write_pdf(stage.path)
     return stage.final, summary
+
+
+def write_pdf(folder):
+    """report.pdf of the results folder, as every command writes it (the
+    library, photogram.montecarlo, computes; the command writes)."""
+    import photogram.report
+    photogram.report.write_report(folder)
 
 
 def run(project, args=None):

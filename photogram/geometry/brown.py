@@ -34,8 +34,6 @@ from photogram.geometry.camera import (CameraModel, ideal_projection, newton_inv
                                        pose_jacobians, register_model,
                                        rotation_observations, solve2)
 
-_FLIP = np.array([1.0, -1.0])
-
 
 @register_model
 class BrownModel(CameraModel):
@@ -63,7 +61,8 @@ class BrownModel(CameraModel):
     def _core(self, xbar, ybar, io, partials=True):
         """Corrected coordinates C = (U, -V) of (xbar, ybar) (steps 2-3)
         with dC/d(xbar, ybar) (n,2,2) and dC/d io (n,2,p) (c, x0, y0 zero);
-        with ``partials=False`` only C (and None, None)."""
+        with ``partials=False`` only C (and None, None), with ``"xy"`` C and
+        dC/d(xbar, ybar) (and None)."""
         n = len(xbar)
         K1, K2, K3, P1, P2, B1, B2 = (io[:, i] for i in range(3, 10))
         u = (1.0 + B1) * xbar - B2 * ybar
@@ -76,25 +75,27 @@ class BrownModel(CameraModel):
             return np.stack([U, -V], -1), None, None
         kp = K1 + r2 * (2.0 * K2 + 3.0 * r2 * K3)          # dk/d(r2)
         # d(U, V)/d(u, v)
-        Juv = np.empty((n, 2, 2))
-        Juv[:, 0, 0] = 1 + k + 2 * u * u * kp + 6 * P1 * u + 2 * P2 * v
-        Juv[:, 0, 1] = 2 * u * v * kp + 2 * P1 * v + 2 * P2 * u
-        Juv[:, 1, 0] = 2 * u * v * kp + 2 * P2 * u + 2 * P1 * v
-        Juv[:, 1, 1] = 1 + k + 2 * v * v * kp + 6 * P2 * v + 2 * P1 * u
-        FJ = Juv * _FLIP[None, :, None]                     # d(U,-V)/d(u,v)
-        A = np.zeros((n, 2, 2))                             # d(u,v)/d(xbar,ybar)
-        A[:, 0, 0] = 1.0 + B1
-        A[:, 0, 1] = -B2
-        A[:, 1, 1] = -1.0
-        dxy = FJ @ A
+        a = 1 + k + 2 * u * u * kp + 6 * P1 * u + 2 * P2 * v
+        b = 2 * u * v * kp + 2 * P1 * v + 2 * P2 * u
+        c = 2 * u * v * kp + 2 * P2 * u + 2 * P1 * v
+        d = 1 + k + 2 * v * v * kp + 6 * P2 * v + 2 * P1 * u
+        # d(U,-V)/d(u,v) = [[a, b], [-c, -d]] times d(u,v)/d(xbar,ybar) =
+        # [[1 + B1, -B2], [0, -1]], written out
+        dxy = np.empty((n, 2, 2))
+        dxy[:, 0, 0] = a * (1.0 + B1)
+        dxy[:, 0, 1] = a * -B2 - b
+        dxy[:, 1, 0] = -c * (1.0 + B1)
+        dxy[:, 1, 1] = -c * -B2 + d
+        if partials == "xy":
+            return np.stack([U, -V], -1), dxy, None
         dio = np.zeros((n, 2, self.n_params))
         for col, (gu, gv) in zip((3, 4, 5), ((u * r2, v * r2), (u * r2 ** 2, v * r2 ** 2),
                                              (u * r2 ** 3, v * r2 ** 3))):
             dio[:, 0, col], dio[:, 1, col] = gu, -gv
         dio[:, 0, 6], dio[:, 1, 6] = r2 + 2 * u * u, -2 * u * v
         dio[:, 0, 7], dio[:, 1, 7] = 2 * u * v, -(r2 + 2 * v * v)
-        dio[:, :, 8] = FJ[:, :, 0] * xbar[:, None]
-        dio[:, :, 9] = FJ[:, :, 0] * -ybar[:, None]
+        dio[:, 0, 8], dio[:, 1, 8] = a * xbar, -c * xbar
+        dio[:, 0, 9], dio[:, 1, 9] = a * -ybar, -c * -ybar
         return np.stack([U, -V], -1), dxy, dio
 
     def _correct_full(self, xy, io):
@@ -109,10 +110,15 @@ class BrownModel(CameraModel):
 
         Returns the corrected coordinates relative to the principal point,
         y down, which satisfy ``(-c Xc_x/Xc_z, c Xc_y/Xc_z)``; with
-        ``jacobians=True`` also ``{"xy": (n,2,2), "io": (n,2,p)}``.
+        ``jacobians=True`` also ``{"xy": (n,2,2), "io": (n,2,p)}``, with
+        ``jacobians="xy"`` only ``{"xy": (n,2,2)}``.
         """
         xy_obs = np.atleast_2d(np.asarray(xy_obs, dtype=float))
         io = np.broadcast_to(np.asarray(io, dtype=float), (len(xy_obs), self.n_params))
+        if jacobians == "xy":
+            C, dxy, _ = self._core(xy_obs[:, 0] - io[:, 1], xy_obs[:, 1] - io[:, 2], io,
+                                   partials="xy")
+            return C, {"xy": dxy}
         C, dxy, dio = self._correct_full(xy_obs, io)
         return (C, {"xy": dxy, "io": dio}) if jacobians else C
 
@@ -146,22 +152,47 @@ class BrownModel(CameraModel):
         X, angles, X0, io, Xc, R, d = self._prepare(X, angles, X0, io)
         return self._residuals(xy_obs, X, angles, io, Xc, R, d, jacobians)
 
-    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True):
+    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True, correction=None,
+                           stations=True):
         """:meth:`residuals` with world-to-camera matrices R (n,3,3) instead
-        of angles; the Jacobian dict has no ``"angles"``."""
+        of angles; the Jacobian dict has no ``"angles"``. ``correction``:
+        the :meth:`correction_terms` of ``(xy_obs, io)`` if already known
+        (they depend on the observations and the interior orientation only:
+        the engine keeps them while both stay the same). ``stations=False``:
+        no Jacobians by X0 and the rotation (None; the stations are fixed)."""
         X, R, X0, io, Xc, d = rotation_observations(X, R, X0, io, self.n_params)
-        return self._residuals(xy_obs, X, None, io, Xc, R, d, jacobians)
+        return self._residuals(xy_obs, X, None, io, Xc, R, d, jacobians, correction, stations)
 
-    def _residuals(self, xy_obs, X, angles, io, Xc, R, d, jacobians):
+    def correction_terms(self, xy_obs, io, io_jacobian=True):
+        """``(C, dC/dio)`` of measured coordinates (n, 2) and per-row io
+        (``dC/dio`` None without ``io_jacobian``: the residuals then have no
+        ``"io"`` Jacobian, for a fixed interior orientation)."""
+        xy_obs = np.asarray(xy_obs, dtype=float)
+        if not io_jacobian:
+            C, _, _ = self._core(xy_obs[:, 0] - io[:, 1], xy_obs[:, 1] - io[:, 2], io,
+                                 partials=False)
+            return C, None
+        C, _, dC_dio = self._correct_full(xy_obs, io)
+        return C, dC_dio
+
+    def _residuals(self, xy_obs, X, angles, io, Xc, R, d, jacobians, correction=None,
+                   stations=True):
         xy_obs = np.asarray(xy_obs, dtype=float).reshape(len(X), 2)
         if not jacobians:
+            if correction is not None:
+                return correction[0] - ideal_projection(Xc, io[:, 0])
             C, _, _ = self._core(xy_obs[:, 0] - io[:, 1], xy_obs[:, 1] - io[:, 2], io,
                                  partials=False)
             return C - ideal_projection(Xc, io[:, 0])
-        C, _, dC_dio = self._correct_full(xy_obs, io)
+        if correction is not None:
+            C, dC_dio = correction[0], correction[1]
+            dC_dio = None if dC_dio is None else dC_dio.copy()
+        else:
+            C, _, dC_dio = self._correct_full(xy_obs, io)
         ideal, J_xc, J_c = ideal_projection(Xc, io[:, 0], jacobians=True)
-        jac = pose_jacobians(-J_xc, R, d, angles, Xc)
-        dC_dio[:, :, 0] -= J_c
+        jac = pose_jacobians(-J_xc, R, d, angles, Xc, stations=stations)
+        if dC_dio is not None:
+            dC_dio[:, :, 0] -= J_c
         jac["io"] = dC_dio
         return C - ideal, jac
 

@@ -149,18 +149,26 @@ def ideal_projection(Xc, c, jacobians=False):
     return xy, J, t
 
 
-def pose_jacobians(J_xc, R, d, angles, Xc):
+def pose_jacobians(J_xc, R, d, angles, Xc, stations=True):
     """Chain ``d out / d Xc`` (n, 2, 3) to the exterior parameters.
 
     ``dXc/dX = R``, ``dXc/dX0 = -R``, ``dXc/d angle_k = dR/d angle_k (X-X0)``
     and, for ``R = expm([delta]x) R0`` at 0, ``dXc/d delta = -[Xc]x``.
     With ``angles=None`` the omega-phi-kappa partials are not computed (the
-    rotation-matrix path of the engine, which only needs ``"rotation"``).
+    rotation-matrix path of the engine, which only needs ``"rotation"``);
+    with ``stations=False`` only ``"X"`` (the others None).
     """
     JX = J_xc @ R
-    out = {"X": JX, "X0": -JX,
-           # -J [Xc]x: row i is Xc x J_i
-           "rotation": np.cross(Xc[:, None, :], J_xc)}
+    if not stations:          # the caller holds the stations fixed: X only
+        return {"X": JX, "X0": None, "rotation": None}
+    # -J [Xc]x: row i is Xc x J_i (written out: np.cross is slow on small
+    # arrays, same products and differences)
+    a, b = Xc[:, None, :], J_xc
+    rot = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    rot[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    rot[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    rot[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    out = {"X": JX, "X0": -JX, "rotation": rot}
     if angles is not None:
         dRd = np.einsum("nijk,nj->nik", opk_derivatives(angles), d)
         out["angles"] = J_xc @ dRd

@@ -102,7 +102,11 @@ def _skew(a: np.ndarray) -> np.ndarray:
 
 def cross(a: Q, b: Q) -> Q:
     """``a x b``; ``d = [a]x db - [b]x da``."""
-    v = np.cross(a.v, b.v)
+    x, y = a.v, b.v                  # np.cross written out (slow on small arrays)
+    v = np.empty(np.broadcast_shapes(x.shape, y.shape))
+    v[..., 0] = x[..., 1] * y[..., 2] - x[..., 2] * y[..., 1]
+    v[..., 1] = x[..., 2] * y[..., 0] - x[..., 0] * y[..., 2]
+    v[..., 2] = x[..., 0] * y[..., 1] - x[..., 1] * y[..., 0]
     J = _skew(a.v) @ b.J - _skew(b.v) @ a.J
     return Q(v, J)
 

@@ -16,9 +16,9 @@ from photogram.lines.plucker import (
     local_basis, point_on_line, project_line, project_line_batch)
 from photogram.lines.initial import (
     check_plane_geometry, initial_line_homogeneous, line_planes, plane_angles)
-from photogram.lines.space_line import (
-    LineIntersection, intersect_line, intersect_line_from_points)
+from photogram.lines.space_line import LineIntersection, intersect_line
 from photogram.lines.one_step import intersect_line_one_step
+from photogram.lines.from_points import intersect_line_from_points
 from photogram.lines.transfer import (
     LineComparison, TransferredLine, compare_lines, transfer_line, transfer_line_trifocal,
     trifocal_tensor)

@@ -27,7 +27,9 @@ the baseline of two of the three cameras. With two views the solution is
 the exact intersection of the two planes; the covariance is then the
 propagated one and the redundancy ``2 k - 4`` is zero.
 
-The one-step solution, eq. (C15), is in :mod:`photogram.lines.one_step`.
+The one-step solution, eq. (C15), is in :mod:`photogram.lines.one_step`;
+:func:`~photogram.lines.from_points.intersect_line_from_points` runs either
+from measured points.
 """
 
 from __future__ import annotations
@@ -301,23 +303,3 @@ def _check_count(points_by_view, label):
             f"{what} is measured in {k} image{'' if k == 1 else 's'}{where}; "
             f"a 3D line needs at least 2 images",
             hint="measure it in a second (better a third) oriented image")
-
-
-def intersect_line_from_points(points_by_view, cameras, sigma=1.0, *, label: str | None = None,
-                               method: str = "two-step", **kwargs) -> LineIntersection:
-    """Steps A and B (``method="two-step"``: fit each image line with
-    :func:`fit_view_line`, then :func:`intersect_line`) or the one-step
-    solution (``"one-step"``, :func:`intersect_line_one_step`) from measured
-    points ``{station: (n_j, 2)}``."""
-    _check_count(points_by_view, label)
-    if method == "one-step":
-        from photogram.lines.one_step import intersect_line_one_step
-        return intersect_line_one_step(points_by_view, cameras, sigma, label=label, **kwargs)
-    if method != "two-step":
-        raise InputError(f"unknown method {method!r}", hint='use "two-step" or "one-step"')
-    missing = [n for n in points_by_view if n not in cameras]
-    if missing:
-        raise InputError(f"no camera (orientation) for station(s) {', '.join(missing)}")
-    lines = {n: fit_view_line(xy, cameras[n], _sigma_of(sigma, n, len(xy)), label=label)
-             for n, xy in points_by_view.items()}
-    return intersect_line(lines, cameras, label=label, **kwargs)

@@ -27,7 +27,8 @@ from photogram.geometry import camera_model, opk_to_matrix
 from photogram.init.intersection import project_ideal, ray_directions
 from photogram.lines.image_line import ImageLine, fit_image_line
 
-__all__ = ["ViewCamera", "fit_view_line", "cameras_from_project", "lines_from_project"]
+__all__ = ["ViewCamera", "ideal_coordinates", "fit_view_line", "cameras_from_project",
+           "lines_from_project"]
 
 
 @dataclass
@@ -78,22 +79,7 @@ class ViewCamera:
 
         With ``jacobians`` also ``d ideal / d xy`` (n, 2, 2).
         """
-        m = camera_model(self.model)
-        xy = np.atleast_2d(np.asarray(xy, dtype=float))
-        if self.model == "brown":
-            out = m.correct(xy, self.io, jacobians=jacobians)
-            return (out[0], out[1]["xy"]) if jacobians else out
-        t = m.image_to_ray(xy, self.io)
-        if not jacobians:
-            return self.c * t
-        if self.model == "opencv":
-            _, part = m.distortion(t[:, 0], t[:, 1], self.io)
-            dxy_dt = (part["xy"] + np.eye(2)) * self.io[None, :2, None]
-            return self.c * t, self.c * np.linalg.inv(dxy_dt)
-        h = 1e-4
-        J = np.stack([(m.image_to_ray(xy + h * e, self.io) - m.image_to_ray(xy - h * e, self.io))
-                      / (2 * h) for e in np.eye(2)], -1)
-        return self.c * t, self.c * J
+        return ideal_coordinates(self.model, xy, self.io, jacobians=jacobians)
 
     def measured(self, xy_ideal) -> np.ndarray:
         """Measured (distorted) coordinates of ideal ones (n, 2)."""
@@ -119,6 +105,35 @@ class ViewCamera:
         distance of X from the plane."""
         pi = self.matrix.T @ np.asarray(l, dtype=float)
         return pi / np.linalg.norm(pi[:3])
+
+
+def ideal_coordinates(model, xy, io, jacobians: bool = False):
+    """Ideal image coordinates relative to the principal point, y down, of
+    measured coordinates xy (n, 2) with the interior orientation ``io`` (p,)
+    or per row (n, p) of camera model ``model`` (a name): brown's
+    ``correct``, other models ``c * image_to_ray`` with ``c = io[0]`` (the
+    principal distance of the ideal frame). With ``jacobians`` also
+    ``d ideal / d xy`` (n, 2, 2). The one implementation of
+    :meth:`ViewCamera.ideal` and of the batch line code
+    (:mod:`photogram.lines.batch`)."""
+    m = camera_model(model)
+    xy = np.atleast_2d(np.asarray(xy, dtype=float))
+    io = np.broadcast_to(np.asarray(io, dtype=float), (len(xy), m.n_params))
+    if model == "brown":
+        out = m.correct(xy, io, jacobians="xy" if jacobians else False)
+        return (out[0], out[1]["xy"]) if jacobians else out
+    c = io[:, :1]
+    t = m.image_to_ray(xy, io)
+    if not jacobians:
+        return c * t
+    if model == "opencv":
+        _, part = m.distortion(t[:, 0], t[:, 1], io)
+        dxy_dt = (part["xy"] + np.eye(2)) * io[:, :2, None]
+        return c * t, c[:, :, None] * np.linalg.inv(dxy_dt)
+    h = 1e-4
+    J = np.stack([(m.image_to_ray(xy + h * e, io) - m.image_to_ray(xy - h * e, io))
+                  / (2 * h) for e in np.eye(2)], -1)
+    return c * t, c[:, :, None] * J
 
 
 def fit_view_line(xy, camera: ViewCamera, sigma=1.0, *, label: str | None = None,

@@ -3,7 +3,7 @@
 A ``[montecarlo]`` section names the chain (an ``orient`` or ``calibrate``
 project, optionally an ``intersect`` project), what to perturb and how many
 runs; :func:`run_montecarlo` builds the chain once (:class:`Chain`: truth
-world, lean adjustment and intersect kernels), propagates its covariance to
+world, the engine's adjustment and intersect problems), propagates its covariance to
 first order, runs the trials in chunks (this process, local processes or a
 Dask cluster, resumable) and writes the comparison of empirical and
 propagated sigmas. See docs/montecarlo.md.
@@ -78,7 +78,9 @@ def run_montecarlo(project, *, runs=None, seed=None, workers=None, scheduler=Non
     caller (``--scheduler``), never from the project file.
 
     Returns ``(folder, summary)``; the files are described in
-    :mod:`photogram.montecarlo.report`.
+    :mod:`photogram.montecarlo.report`. The library computes and writes the
+    results files; ``report.pdf`` is the command's
+    (:func:`photogram.commands.montecarlo.montecarlo`).
     """
     from photogram.montecarlo.chain import Chain
     from photogram.montecarlo.execute import Runner
@@ -115,6 +117,4 @@ def run_montecarlo(project, *, runs=None, seed=None, workers=None, scheduler=Non
         lines.append(f"{g}: sigma_mc / sigma_prop median {r['median']:.3f} "
                      f"({r['min']:.3f} .. {r['max']:.3f})")
     atomic_write_text(folder / "log.txt", "\n".join(lines) + "\n")
-    from photogram.report import write_report as write_pdf
-    write_pdf(folder)                     # report.pdf, as every command
     return folder, summary

@@ -2,9 +2,10 @@
 
 A :class:`Chain` is built once (in the parent process) from the
 ``[montecarlo]`` settings: the truth world (:mod:`photogram.montecarlo.truth`),
-the lean adjustment (:class:`~photogram.montecarlo.bundle.LeanBundle`) and,
-if asked, the lean intersect step
-(:class:`~photogram.montecarlo.intersect.LeanIntersect`). It is small and
+the adjustment step on the engine
+(:class:`~photogram.montecarlo.adjustment.EngineBundle`) and, if asked, the
+intersect step (:class:`~photogram.montecarlo.intersect.IntersectStep`:
+points by the engine, lines by :mod:`photogram.lines.batch`). It is small and
 picklable; :meth:`Chain.trial` runs one simulation from one
 :class:`numpy.random.SeedSequence`:
 
@@ -38,12 +39,11 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.geometry import matrix_to_opk, small_rotation
+from photogram.geometry import matrix_to_opk
 from photogram.jump.definitions import ANGLE_PARAMETERS, PARAMETERS
 from photogram.jump.stick import ANGLE_FACTORS
-from photogram.geometry import angle_increment_map
-from photogram.montecarlo.bundle import LeanBundle
-from photogram.montecarlo.intersect import LeanIntersect, local_basis_batch
+from photogram.montecarlo.adjustment import EngineBundle
+from photogram.montecarlo.intersect import IntersectStep
 from photogram.montecarlo.manifest import project_files
 
 __all__ = ["Chain", "Outputs"]
@@ -105,7 +105,9 @@ def _interior_covariance(settings, project, camera_names, parameter_names, files
         raise InputError("no covariance.npz of the interior orientation", file=folder,
                          hint="run photogram calibrate on the lab project first") from None
     index = {lab: i for i, lab in enumerate(labels)}
-    want = [f"{c}.{p}" for c in camera_names for p in parameter_names]
+    p_max = max((len(p) for p in parameter_names), default=0)
+    want = [f"{c}.{names[j]}" if j < len(names) else None
+            for c, names in zip(camera_names, parameter_names) for j in range(p_max)]
     sel = np.array([index.get(w, -1) for w in want])
     C = np.zeros((len(want), len(want)))
     ok = sel >= 0
@@ -118,7 +120,7 @@ class Chain:
 
     def __init__(self, settings, *, project_reader=None):
         from photogram.montecarlo.reported import command_sigmas
-        from photogram.montecarlo.truth import adjusted_result, project_points, simulation_truth
+        from photogram.montecarlo.truth import adjusted_result, simulation_truth
         from photogram.project import read_project
         read = project_reader or read_project
         self.settings = settings
@@ -137,26 +139,11 @@ class Chain:
         else:
             result1 = adjusted_result(prj1, fix_interior=self.fix_interior)
             truth1 = result1.project
-        b = LeanBundle(truth1, fix_interior=self.fix_interior)
+        b = EngineBundle(truth1, fix_interior=self.fix_interior)
         self.bundle = b
         K, p = b.start.io.shape
         self.shape_io = (K, p)
-        st = b.start
-        inp = b.inputs
-        inp.xy = project_points(st.io, matrix_to_opk(st.R), st.X0, st.X, b.station_camera,
-                                b.obs_station, b.obs_point)
-        if b.n_ref:
-            inp.reference = st.X[b.control].copy()
-        if len(b.prior_stations):
-            s = b.prior_stations
-            inp.station_prior = np.hstack([st.X0[s], matrix_to_opk(st.R[s])])
-        if len(b.ip_k):
-            inp.interior_prior = st.io[b.ip_k, b.ip_j].copy()
-        if len(b.d_a):
-            inp.distances = np.linalg.norm(st.X[b.d_a] - st.X[b.d_b], axis=1)
-        if len(b.v_t):
-            d = st.X[b.v_t] - st.X[b.v_b]
-            inp.verticals = d[:, :2] / d[:, 2:3]
+        # the exact observations of the truth (EngineBundle.exact_inputs)
         self.sig1 = b.input_sigmas()
         # interior orientation drawn from the calibration's covariance
         self.io_cov = np.zeros((K * p, K * p))
@@ -210,7 +197,7 @@ class Chain:
         from photogram.montecarlo.truth import (line_observations, project_points,
                                                 simulation_jump_truth)
         b = self.bundle
-        li = LeanIntersect(prj2, b.camera_names, b.station_names)
+        li = IntersectStep(prj2, b)
         st = b.start
         io, R, X0 = st.io, st.R, st.X0
         E = len(li.exposures)
@@ -223,13 +210,12 @@ class Chain:
                                  "of the truth", file=prj2.path)
             LP, LD = LP.reshape(-1, 3), LD.reshape(-1, 3)
         else:
-            X = li.intersect_points(io, R, X0, li.inputs_points,
-                                    li.triangulate(io, R, X0, li.inputs_points))
+            X = li.intersect_points(io, R, X0, li.inputs_points, li.start_points)
             LP, LD = li.intersect_lines(io, R, X0, li.inputs_lines)
-        xy_p = project_points(io, matrix_to_opk(R), X0, X, li.station_camera, li.p_station,
-                              li.p_point)
-        xy_l = line_observations(io, R, X0, li.station_camera, li.inputs_lines, li.l_station,
-                                 li.l_line, LP, LD)
+        xy_p = project_points(b.models, io, matrix_to_opk(R), X0, X, li.station_camera,
+                              li.p_station, li.p_point)
+        xy_l = line_observations(b.models, io, R, X0, li.station_camera, li.inputs_lines,
+                                 li.l_station, li.l_line, LP, LD)
         li.inputs_points, li.inputs_lines = xy_p, xy_l
         # the exact observations give back the truth (up to the tolerance)
         X = li.intersect_points(io, R, X0, xy_p, X)
@@ -246,11 +232,12 @@ class Chain:
             out.add([f"{s}.{q}" for q in _STATION], "station",
                     [u.length] * 3 + [u.angle] * 3, [False] * 3 + [True] * 3,
                     [1.0] * 3 + [fa] * 3)
-        dims = dict(zip(b.parameter_names, (1, 1, 1, -2, -4, -6, -1, -1, 0, 0)))
         K, p = self.shape_io
         for i in self.io_random:
-            cam, par = b.camera_names[i // p], b.parameter_names[i % p]
-            dim = dims.get(par, 1)
+            k = i // p
+            cam, par = b.camera_names[k], b.parameter_names[k][i % p]
+            dims = getattr(b.models[k], "parameter_dims", ()) or ()
+            dim = dims[i % p] if len(dims) > i % p else 1
             unit = u.image if dim == 1 else ("1" if dim == 0 else f"{u.image}^{dim}")
             out.add([f"{cam}.{par}"], "interior", unit)
         for i in self.collect:
@@ -359,34 +346,3 @@ class Chain:
         """``(sigma_prop, sigma_cmd)`` of every output (internal units)."""
         from photogram.montecarlo.propagation import propagate
         return propagate(self)
-
-
-def station_rows(bundle, Phi, R):
-    """Rows (6 S, M) of X0 and omega-phi-kappa from rows in (dX0, delta)."""
-    _, E = angle_increment_map(R)
-    rows = []
-    for s in range(len(R)):
-        cols = bundle.station_cols[s]
-        rows.append(Phi[cols[:3]])
-        rows.append(E[s] @ Phi[cols[3:]])
-    return np.vstack(rows)
-
-
-def perturb_orientation(io, R, X0, which, h, shape_io):
-    """The orientation with parameter ``which`` moved by ``h``: an interior
-    parameter (flat index) or ("station", s, q) in (dX0, delta)."""
-    io, R, X0 = io.copy(), R.copy(), X0.copy()
-    if isinstance(which, tuple):
-        _, s, q = which
-        if q < 3:
-            X0[s, q] += h
-        else:
-            d = np.zeros(3)
-            d[q - 3] = h
-            R[s] = small_rotation(d) @ R[s]
-    else:
-        io.reshape(-1)[which] += h
-    return io, R, X0
-
-
-__all__ += ["station_rows", "perturb_orientation", "local_basis_batch"]

@@ -1,84 +1,45 @@
-"""A lean, vectorized intersect step for Monte-Carlo runs.
+"""The intersect step of a Monte-Carlo chain, built once.
 
 The same estimators as ``photogram intersect`` (:mod:`photogram.jump.pipeline`),
-for all exposures at once and without the checks, figures and per-line
-Python loops:
+for all exposures at once:
 
-* **points** (all jumper points of all exposures): Gauss-Newton on the
-  collinearity residuals of the Brown correction model with the orientation
-  fixed, one 3x3 normal matrix per point, from a given start (the truth);
-* **image lines** (appendix C.2, step A, eq. (C11)): per (line, view) the
-  weighted orthogonal regression in ideal coordinates with the weights of
-  :func:`photogram.lines.fit_view_line` (the sigma across the line through the
-  correction Jacobian, with the normal of the unweighted principal axis) --
-  the limit the Gauss-Helmert iteration of :func:`fit_image_line` converges
-  to, in closed form;
-* **3D lines** (appendix C.2, step B, eqs. (C13)-(C14)): the planes through
-  the projection centres, all lines of a batch at once: the initial line
-  from the null space of the stacked (conditioned) planes (appendix C.3) or
-  a given start, then Gauss-Newton in the 4 local parameters of
-  :class:`photogram.lines.SpaceLine` with the weights (C14), the two points
-  per view kept during the iteration, as :func:`intersect_line` does;
-* the **stick model** by :func:`photogram.jump.stick.stick_model`
-  (vectorized already).
-
-Tests check every piece against the library functions it mirrors.
+* **points** (all jumper points of all exposures) by the engine: the
+  problem of the intersect project (:func:`photogram.adjust.build.build_problem`
+  with the orientation fixed, as ``photogram intersect`` builds it) is built
+  once; a run puts its orientation into the state and its image
+  coordinates into the image block and solves point by point
+  (:func:`photogram.adjust.dense.gauss_newton`, 3x3 normal equations per
+  point, :func:`photogram.adjust.dense.point_normals` for the cofactors);
+* **image lines and 3D lines** by the batch line code
+  :mod:`photogram.lines.batch` (the estimators of
+  :func:`photogram.lines.fit_view_line` and
+  :func:`photogram.lines.intersect_line`, vectorized over lines), with the
+  ideal coordinates of every camera model from
+  :func:`photogram.lines.views.ideal_coordinates`;
+* the **stick model** by :func:`photogram.jump.stick.stick_model`.
 """
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
 
+from photogram.adjust.build import build_problem, merged_image_blocks
+from photogram.adjust.dense import gauss_newton, point_normals, pointwise_structure
+from photogram.adjust.residual_blocks import ImagePointBlock
+from photogram.adjust.state import State
 from photogram.errors import InputError
-from photogram.geometry import camera_model, opk_to_matrix
-from photogram.geometry.camera import ideal_projection
+from photogram.geometry import matrix_to_opk
 from photogram.jump.exposures import exposure_order as _exposure_order
 from photogram.jump.exposures import split_id
 from photogram.jump.stick import stick_model
-from photogram.montecarlo.lines import (fit_lines_batch, initial_lines_batch,  # noqa: F401
-                                        intersect_lines_batch, local_basis_batch)
+from photogram.lines.batch import (fit_lines_batch, intersect_lines_batch,  # noqa: F401
+                                   local_basis_batch)
+from photogram.lines.views import ideal_coordinates
 
-__all__ = ["LeanIntersect", "IntersectOutput", "fit_lines_batch", "intersect_lines_batch",
-           "local_basis_batch"]
-
-
-def correct_fast(xy, io, jacobian=False):
-    """The brown model's correction (:meth:`BrownModel.correct`) of measured
-    ``xy`` with per-row ``io`` (n, 10), without the interior-orientation
-    derivatives; with ``jacobian`` also ``dC/dxy`` (n, 2, 2)."""
-    xb, yb = xy[:, 0] - io[:, 1], xy[:, 1] - io[:, 2]
-    K1, K2, K3, P1, P2, B1, B2 = (io[:, i] for i in range(3, 10))
-    u = (1.0 + B1) * xb - B2 * yb
-    v = -yb
-    r2 = u * u + v * v
-    k = r2 * (K1 + r2 * (K2 + r2 * K3))
-    U = u + u * k + P1 * (r2 + 2 * u * u) + 2 * P2 * u * v
-    V = v + v * k + P2 * (r2 + 2 * v * v) + 2 * P1 * u * v
-    C = np.stack([U, -V], -1)
-    if not jacobian:
-        return C
-    kp = K1 + r2 * (2.0 * K2 + 3.0 * r2 * K3)
-    a = 1 + k + 2 * u * u * kp + 6 * P1 * u + 2 * P2 * v      # dU/du
-    b = 2 * u * v * kp + 2 * P1 * v + 2 * P2 * u               # dU/dv
-    c = 2 * u * v * kp + 2 * P2 * u + 2 * P1 * v               # dV/du
-    d = 1 + k + 2 * v * v * kp + 6 * P2 * v + 2 * P1 * u       # dV/dv
-    # (U, -V) by (u, v), times d(u, v)/d(xb, yb) = [[1 + B1, -B2], [0, -1]]
-    J = np.empty((len(xb), 2, 2))
-    J[:, 0, 0] = a * (1.0 + B1)
-    J[:, 0, 1] = -a * B2 - b
-    J[:, 1, 0] = -c * (1.0 + B1)
-    J[:, 1, 1] = c * B2 + d
-    return C, J
-
-
-def _segments(keys):
-    """Order that sorts ``keys`` and the start of each group."""
-    order = np.argsort(keys, kind="stable")
-    k = keys[order]
-    starts = np.flatnonzero(np.r_[True, k[1:] != k[:-1]]) if len(k) else np.zeros(0, int)
-    return order, starts
+__all__ = ["IntersectStep", "IntersectOutput", "local_basis_batch"]
 
 
 @dataclass
@@ -90,7 +51,7 @@ class IntersectOutput:
     model: object          # StickModel
 
 
-class LeanIntersect:
+class IntersectStep:
     """The intersect step of one project, built once.
 
     Parameters
@@ -98,21 +59,21 @@ class LeanIntersect:
     project : Project
         The intersect project (moving points ``P1@001``, ski lines
         ``L1@001``, ``[intersect]`` settings).
-    camera_names, station_names : list of str
-        Order of the cameras and stations of the orientation passed to
-        :meth:`solve` (those of the adjustment step).
+    bundle : EngineBundle
+        The adjustment step: its cameras (models) and stations name the
+        orientation passed to :meth:`solve`; its truth orientation is where
+        the intersect problem is built.
+    start_points : (n_points, 3), optional
+        Approximate points (the truth of a simulation); default: the
+        approximation chain of ``photogram intersect``.
     """
 
-    def __init__(self, project, camera_names, station_names):
-        self.model = camera_model("brown")
+    def __init__(self, project, bundle, start_points=None):
+        camera_names, station_names = bundle.camera_names, bundle.station_names
+        self.models = bundle.models
         cfg = project.intersect
         self.cfg = cfg
         self.length_unit = project.units.length
-        for n, cam in project.cameras.items():
-            if cam.model != "brown":
-                raise InputError(f"photogram montecarlo supports the brown camera model only "
-                                 f"(camera {n})", file=project.path)
-        cam_of = {}
         st = project.stations
         s_index = {n: i for i, n in enumerate(station_names)}
         c_index = {n: i for i, n in enumerate(camera_names)}
@@ -121,34 +82,35 @@ class LeanIntersect:
             raise InputError(f"station(s) {', '.join(missing)} of the intersect project are not "
                              f"in the adjustment project", file=project.path,
                              hint="both projects must name the same stations")
+        cam_of = {}
         for n, cname in zip(st.names, st.camera):
             if cname not in c_index:
                 raise InputError(f"camera {cname} of the intersect project is not in the "
                                  f"adjustment project", file=project.path)
             cam_of[s_index[n]] = c_index[cname]
+            k = c_index[cname]
+            if project.cameras[cname].model != bundle.models[k].name:
+                raise InputError(f"camera {cname}: model {project.cameras[cname].model} in the "
+                                 f"intersect project, {bundle.models[k].name} in the "
+                                 f"adjustment project", file=project.path)
         local_to_global = np.array([s_index[n] for n in st.names], dtype=int)
+        self.local_to_global = local_to_global
         self.station_camera = np.zeros(len(station_names), dtype=int)
         for s, k in cam_of.items():
             self.station_camera[s] = k
-        sig = project.adjustment.sigma_image
-        cam_sigma = {n: (sig[c] if isinstance(sig, dict) else sig)
-                     for n, c in zip(st.names, st.camera)}
-        # ---- points ------------------------------------------------------
+        self.camera_global = np.array([c_index[n] for n in project.cameras], dtype=int)
+        # ---- points: the engine problem of photogram intersect -----------
         ip = project.image_points
         self.point_ids = list(project.points.ids)
         self.p_station = local_to_global[np.asarray(ip.station, dtype=int)]
         self.p_point = np.asarray(ip.point, dtype=int)
-        self.p_camera = self.station_camera[self.p_station]
-        default = np.array([cam_sigma[st.names[s]] for s in ip.station], dtype=float)
-        self.p_sigma = np.where(np.isfinite(ip.sigma), ip.sigma, default)
         self.n_points = len(self.point_ids)
-        if np.any(np.bincount(self.p_point, minlength=self.n_points) < 2):
-            bad = [self.point_ids[i] for i in
-                   np.flatnonzero(np.bincount(self.p_point, minlength=self.n_points) < 2)]
+        counts = np.bincount(self.p_point, minlength=self.n_points)
+        if np.any(counts < 2):
+            bad = [self.point_ids[i] for i in np.flatnonzero(counts < 2)]
             raise InputError(f"point(s) {', '.join(bad[:5])} have fewer than 2 rays",
                              file=project.path)
-        self._p_order = np.argsort(self.p_point, kind="stable")
-        self._p_starts = np.flatnonzero(np.r_[True, np.diff(self.p_point[self._p_order]) != 0])
+        self._build_points(project, bundle, start_points)
         pidx = {n: i for i, n in enumerate(self.point_ids)}
         moving = [split_id(i) for i in self.point_ids if "@" in i]
         self.exposures, frames = _exposure_order([e for _, e in moving])
@@ -165,6 +127,9 @@ class LeanIntersect:
             raise InputError("montecarlo: every exposure needs all four jumper points",
                              file=project.path)
         # ---- lines -------------------------------------------------------
+        sig = project.adjustment.sigma_image
+        cam_sigma = {n: (sig[c] if isinstance(sig, dict) else sig)
+                     for n, c in zip(st.names, st.camera)}
         il = project.image_lines
         lab = np.asarray(il.line, dtype=object)
         self.l_station = local_to_global[np.asarray(il.station, dtype=int)]
@@ -182,7 +147,6 @@ class LeanIntersect:
         line_no = np.array([line_of[x] for x in lab], dtype=int)
         self.l_line = line_no
         self.n_lines = 2 * E
-        # groups (line, station): rows kept in measurement order
         S = len(station_names)
         gkey = line_no * S + self.l_station
         uniq, self.l_group = np.unique(gkey, return_inverse=True)
@@ -197,56 +161,100 @@ class LeanIntersect:
         self.g_index = order.reshape(self.n_lines, self.k)          # group of (line, view)
         self.g_station = g_station[self.g_index]                     # (L, k)
         self.l_camera = self.station_camera[self.l_station]
-        self.inputs_points = np.asarray(ip.xy, dtype=float).copy()
+        names = [m.name for m in self.models]
+        self._l_rows = [(self.models[names.index(n)],
+                         np.flatnonzero(np.isin(self.l_camera,
+                                                [k for k, m in enumerate(names) if m == n])))
+                        for n in dict.fromkeys(names)]        # one call per camera model
         self.inputs_lines = np.asarray(il.xy, dtype=float).copy()
         self.max_iterations = 20
         self.tolerance = 1e-11
 
+    def _build_points(self, project, bundle, start_points):
+        """The engine problem of the points at the truth orientation."""
+        st = bundle.start
+        prj = copy.deepcopy(project)
+        for name, cam in prj.cameras.items():
+            k = self.camera_names_index(bundle, name)
+            for pname, v in zip(cam.parameters, st.io[k]):
+                cam.parameters[pname].value = float(v)
+        prj.stations.position = st.X0[self.local_to_global].copy()
+        prj.stations.angles = matrix_to_opk(st.R[self.local_to_global])
+        if start_points is not None:
+            prj.points.xyz = np.asarray(start_points, dtype=float).copy()
+        else:
+            from photogram.commands.bundle import approximate_if_needed
+            prj = approximate_if_needed(prj, {"warnings": []})
+        built = build_problem(prj, fix_interior=True, fix_stations=True)
+        pb = merged_image_blocks(built.problem)
+        if not pointwise_structure(pb).ok:
+            raise InputError("montecarlo: the intersect project's points are coupled "
+                             "(distances, verticality, a datum)", file=project.path)
+        self.problem = pb
+        self.state0 = pb.state.copy()
+        self._image = [b for b in pb.blocks if isinstance(b, ImagePointBlock)]
+        n = len(self.p_point)
+        self.p_sigma = np.zeros(n)
+        for b in self._image:
+            self.p_sigma[b.rows] = b.sigma[:, 0]
+        self.inputs_points = np.asarray(project.image_points.xy, dtype=float).copy()
+        self.start_points = pb.state.points.copy()
+        self._n_io = [len(v) for v in pb.state.io]
+        self._in_order = [len(b.rows) == n and np.array_equal(b.rows, np.arange(n))
+                          for b in self._image]
+
+    @staticmethod
+    def camera_names_index(bundle, name):
+        return bundle.camera_names.index(name)
+
     # ------------------------------------------------------------------
     def intersect_points(self, io, R, X0, xy, start, covariance=False, tol=None):
-        """All points by Gauss-Newton from ``start`` (n_points, 3)."""
-        st, pt, cam = self.p_station, self.p_point, self.p_camera
-        C = correct_fast(xy, io[cam])
-        X = np.array(start, dtype=float)
-        Rs, X0s, c = R[st], X0[st], io[cam, 0]
-        w = 1.0 / self.p_sigma
-        order, starts = self._p_order, self._p_starts
-        for _ in range(self.max_iterations):
-            Xc = np.einsum("nij,nj->ni", Rs, X[pt] - X0s)
-            ideal, Jxc, _ = ideal_projection(Xc, c, jacobians=True)
-            r = (C - ideal) * w[:, None]
-            JX = -(Jxc @ Rs) * w[:, None, None]
-            Jt = np.swapaxes(JX, 1, 2)
-            A = np.add.reduceat((Jt @ JX)[order], starts, axis=0)
-            b = np.add.reduceat((Jt @ r[..., None])[order], starts, axis=0)
-            dx = -np.linalg.solve(A, b)[..., 0]
-            X += dx
-            if np.abs(dx).max() <= (tol or self.tolerance) * (1.0 + np.abs(X).max()):
-                break
-        if covariance:
-            return X, np.linalg.inv(A)
-        return X
+        """All points by the engine from ``start`` (n_points, 3) with the
+        orientation ``io`` (K, p), ``R``, ``X0`` of the adjustment step's
+        cameras and stations and the image coordinates ``xy`` (rows of the
+        image points table); with ``covariance`` also the cofactors (n, 3, 3)
+        of every point (a-priori image sigmas)."""
+        pb = self.problem
+        l2g = self.local_to_global
+        state = State(np.array(start, dtype=float), np.asarray(R, dtype=float)[l2g],
+                      np.asarray(X0, dtype=float)[l2g],
+                      [np.array(io[k, :n], dtype=float)
+                       for k, n in zip(self.camera_global, self._n_io)])
+        xy = np.asarray(xy, dtype=float)
+        for b, in_order in zip(self._image, self._in_order):
+            b.xy = xy.copy() if in_order else xy[b.rows]
+        pb.state = state
+        gauss_newton(pb, tolerance=tol or self.tolerance, max_iterations=self.max_iterations)
+        X = pb.state.points.copy()
+        if not covariance:
+            return X
+        points, A, _ = point_normals(pb, pb.state)
+        cov = np.full((self.n_points, 3, 3), np.nan)
+        cov[points] = np.linalg.inv(A)
+        return X, cov
 
-    def triangulate(self, io, R, X0, xy):
-        """Closed-form start: the point nearest to its rays (least squares)."""
-        st, pt, cam = self.p_station, self.p_point, self.p_camera
-        C = self.model.correct(xy, io[cam])
-        dc = np.stack([C[:, 0], -C[:, 1], -io[cam, 0]], -1)
-        d = np.einsum("nji,nj->ni", R[st], dc)
-        d /= np.linalg.norm(d, axis=1, keepdims=True)
-        M = np.eye(3) - d[:, :, None] * d[:, None, :]
-        n = self.n_points
-        A = np.zeros((n, 3, 3))
-        b = np.zeros((n, 3))
-        Mb = np.einsum("nij,nj->ni", M, X0[st])
-        for q in range(9):
-            A[:, q // 3, q % 3] = np.bincount(pt, weights=M[:, q // 3, q % 3], minlength=n)
-        for q in range(3):
-            b[:, q] = np.bincount(pt, weights=Mb[:, q], minlength=n)
-        return np.linalg.solve(A, b[..., None])[..., 0]
+    def ideal(self, io, xy, rows_by_model, jacobians=False):
+        """Ideal coordinates of image coordinates xy (camera per row) by
+        :func:`photogram.lines.views.ideal_coordinates`."""
+        if len(rows_by_model) == 1:                  # one camera model: no scatter
+            model, rows = rows_by_model[0]
+            return ideal_coordinates(model.name, xy, io[self.l_camera, :model.n_params],
+                                     jacobians=jacobians)
+        xi = np.zeros((len(xy), 2))
+        J = np.zeros((len(xy), 2, 2)) if jacobians else None
+        for model, rows in rows_by_model:
+            if not len(rows):
+                continue
+            ior = io[self.l_camera[rows], :model.n_params]
+            out = ideal_coordinates(model.name, xy[rows], ior, jacobians=jacobians)
+            if jacobians:
+                xi[rows], J[rows] = out
+            else:
+                xi[rows] = out
+        return (xi, J) if jacobians else xi
 
     def fit_lines(self, io, xy):
-        xi, J = correct_fast(xy, io[self.l_camera], jacobian=True)
+        xi, J = self.ideal(io, xy, self._l_rows, jacobians=True)
         return fit_lines_batch(xi, J, self.l_sigma, self.l_group, self.n_groups)
 
     def intersect_lines(self, io, R, X0, xy, start=None, covariance=False, tol=None):
@@ -274,7 +282,3 @@ class LeanIntersect:
         P = X[self.jumper_index]
         line_P, line_D = LP.reshape(E, 2, 3), LD.reshape(E, 2, 3)
         return IntersectOutput(P, X, line_P, line_D, self.stick(P, line_P, line_D))
-
-    def orientation_of(self, angles_or_R, X0):
-        R = angles_or_R if np.ndim(angles_or_R) == 3 else opk_to_matrix(angles_or_R)
-        return np.asarray(R, dtype=float), np.asarray(X0, dtype=float)

@@ -11,7 +11,7 @@ the norm of its row of ``Phi``:
   interior orientation);
 * intersect step (points, lines, stick model) with the orientation fixed:
   ``d out = G dtheta_orientation + (image noise)`` with ``G`` by central
-  differences through the lean intersect step, and the image part from the
+  differences through the intersect step, and the image part from the
   intersect's own cofactors (points: 3x3 per point, lines: 4x4 per line,
   the stick model by :func:`photogram.jump.propagate.propagate`).
 
@@ -27,7 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 from photogram.jump.definitions import PARAMETERS
-from photogram.montecarlo.chain import perturb_orientation, station_rows
+from photogram.lines.batch import local_basis_batch
+from photogram.montecarlo.orientation import perturb_orientation, station_rows
 
 __all__ = ["propagate"]
 
@@ -78,7 +79,7 @@ def _stage2(chain, Phi_theta, thetas):
     LP, LD, covL, _ = li.intersect_lines(io, R, X0, li.inputs_lines, (chain.LP2, chain.LD2),
                                          covariance=True)
     E = chain.n_exposures
-    u, v = local_basis_batch_of(LD)
+    u, v = local_basis_batch(LD)
     B = np.stack([u, v], -1)                                     # (L, 3, 2)
     cov_d = (B @ covL[:, :2, :2] @ np.swapaxes(B, 1, 2)).reshape(E, 2, 3, 3)
     cov_p = covX[li.jumper_index]                                # (E, 4, 3, 3)
@@ -88,11 +89,6 @@ def _stage2(chain, Phi_theta, thetas):
     var_img = np.concatenate([np.diagonal(cov_p, axis1=2, axis2=3).ravel(),
                               np.diagonal(img_model.cov, axis1=1, axis2=2).ravel()])
     return orient, var_img
-
-
-def local_basis_batch_of(D):
-    from photogram.montecarlo.intersect import local_basis_batch
-    return local_basis_batch(D)
 
 
 def propagate(chain):

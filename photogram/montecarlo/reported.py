@@ -132,8 +132,10 @@ def command_sigmas(chain, prj1, prj2=None, result=None):
     if chain.fix_interior:
         io_sig = np.sqrt(np.clip(np.diag(chain.io_cov), 0, None))
     else:
-        io_sig = np.array([[result.camera_sigma[c].get(q, np.nan) for q in b.parameter_names]
-                           for c in b.camera_names], dtype=float).ravel()
+        io_sig = np.array([[result.camera_sigma[c].get(q, np.nan) for q in names]
+                           + [np.nan] * (p - len(names))
+                           for c, names in zip(b.camera_names, b.parameter_names)],
+                          dtype=float).ravel()
     parts.append(io_sig[chain.io_random])
     if len(chain.collect):
         if chain.settings.align == "plan":

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from photogram.errors import GeometryError, InputError
-from photogram.geometry import camera_model, matrix_to_opk
+from photogram.geometry import matrix_to_opk
 from photogram.project.tables import angle_to_rad
 
 __all__ = ["adjusted_truth", "adjusted_result", "simulation_truth", "read_truth_table",
@@ -142,18 +142,30 @@ def simulation_jump_truth(project, exposures, point_names, skis):
     return P, LP, LD
 
 
-def project_points(io, angles, X0, X, camera, station, point):
-    """Exact image coordinates of observations (brown model)."""
-    model = camera_model("brown")
-    return model.project(X[point], angles[station], X0[station], io[camera[station]])
+def project_points(models, io, angles, X0, X, camera, station, point):
+    """Exact image coordinates of observations: camera ``k`` of model
+    ``models[k]`` with the interior orientation ``io[k, :n_k]`` (io padded
+    to the largest model)."""
+    xy = np.zeros((len(point), 2))
+    cam = camera[station]
+    for k, model in enumerate(models):
+        rows = np.flatnonzero(cam == k)
+        if len(rows):
+            s, p = station[rows], point[rows]
+            xy[rows] = model.project(X[p], angles[s], X0[s], io[k, :model.n_params])
+    return xy
 
 
-def line_observations(io, R, X0, station_camera, xy_measured, station, line_no, LP, LD):
+def line_observations(models, io, R, X0, station_camera, xy_measured, station, line_no, LP, LD):
     """Exact image coordinates along the true lines: the image of the point
     of line ``line_no`` nearest to the ray of each measured point."""
-    model = camera_model("brown")
+    from photogram.lines.views import ideal_coordinates
     cam = station_camera[station]
-    C = model.correct(xy_measured, io[cam])
+    C = np.zeros((len(station), 2))
+    for k, model in enumerate(models):
+        rows = np.flatnonzero(cam == k)
+        if len(rows):
+            C[rows] = ideal_coordinates(model.name, xy_measured[rows], io[k, :model.n_params])
     c = io[cam, 0]
     dc = np.stack([C[:, 0], -C[:, 1], -c], -1)
     ray = np.einsum("nji,nj->ni", R[station], dc)
@@ -165,4 +177,5 @@ def line_observations(io, R, X0, station_camera, xy_measured, station, line_no, 
     e = np.einsum("ni,ni->n", ray, w0)
     t = (b * e - d) / (1.0 - b * b)
     Y = P + t[:, None] * D
-    return model.project(Y, matrix_to_opk(R[station]), X0[station], io[cam])
+    return project_points(models, io, matrix_to_opk(R), X0, Y, station_camera, station,
+                          np.arange(len(Y)))

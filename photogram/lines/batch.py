@@ -1,9 +1,18 @@
-"""Batch line photogrammetry for Monte-Carlo runs: image lines of many
-groups of points at once (appendix C.2, step A, eq. (C11)) and 3D lines
-from k image lines each, all lines at once (step B, eqs. (C13)-(C14); the
-initial line of appendix C.3). The estimators of
-:func:`photogram.lines.fit_view_line` and :func:`photogram.lines.intersect_line`,
-vectorized over lines (see :mod:`photogram.montecarlo.intersect`).
+"""Line photogrammetry for many lines at once: image lines of many groups
+of points (appendix C.2, step A, eq. (C11)) and 3D lines from k image lines
+each (step B, eqs. (C13)-(C14); the initial line of appendix C.3), all lines
+of a batch in one vectorized evaluation.
+
+The estimators of :func:`photogram.lines.fit_view_line` and
+:func:`photogram.lines.intersect_line`: the image line by the weighted
+orthogonal regression in ideal coordinates with the weights of
+:func:`fit_view_line` (the limit its Gauss-Helmert iteration converges to, in
+closed form); the 3D line by Gauss-Newton in the 4 local parameters of
+:class:`~photogram.lines.SpaceLine` with the weights (C14), the two points per
+view kept during the iteration. Ideal coordinates of any camera model come
+from :func:`photogram.lines.views.ideal_coordinates` (the function
+:meth:`ViewCamera.ideal` uses). Tests check them against the per-line
+functions; Monte Carlo (:mod:`photogram.montecarlo.intersect`) runs them.
 """
 
 from __future__ import annotations
@@ -147,9 +156,11 @@ def initial_lines_batch(l, R, X0, c):
 
 
 def _cross(a, b):
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
 
 
 def _line_system(P, D, t, l, cov_l, R, X0, c, u, v):
@@ -164,17 +175,25 @@ def _line_system(P, D, t, l, cov_l, R, X0, c, u, v):
     e = x * l0 + y * l1 + l2                                            # (L,k,2)
     # l^T dxy/dXc = c/z (-l0, l1, l0 X/z - l1 Y/z)
     ci = cc * iz
-    gx = np.stack([-l0 * ci, l1 * ci, (l0 * -ax - l1 * ay) * ci], -1)   # (L,k,2,3)
+    # (arrays filled in place: np.stack costs more than the arithmetic here)
+    gx = np.empty(x.shape + (3,))                                       # (L,k,2,3)
+    gx[..., 0] = -l0 * ci
+    gx[..., 1] = l1 * ci
+    gx[..., 2] = (l0 * -ax - l1 * ay) * ci
     g2 = gx @ R                                                         # d e / dY
     # C = Xt cov Xt^T with Xt = (x, y, 1)
-    Xt = np.stack([x, y, np.ones_like(x)], -1)                          # (L,k,2,3)
+    Xt = np.empty(x.shape + (3,))                                       # (L,k,2,3)
+    Xt[..., 0], Xt[..., 1], Xt[..., 2] = x, y, 1.0
     C = Xt @ cov_l @ np.swapaxes(Xt, -1, -2)                            # (L,k,2,2)
     det = C[..., 0, 0] * C[..., 1, 1] - C[..., 0, 1] * C[..., 1, 0]
-    W = np.stack([np.stack([C[..., 1, 1], -C[..., 0, 1]], -1),
-                  np.stack([-C[..., 1, 0], C[..., 0, 0]], -1)], -2) / det[..., None, None]
+    W = np.empty(C.shape)
+    W[..., 0, 0], W[..., 0, 1] = C[..., 1, 1], -C[..., 0, 1]
+    W[..., 1, 0], W[..., 1, 1] = -C[..., 1, 0], C[..., 0, 0]
+    W /= det[..., None, None]
     gu = (g2 * u[:, None, None, :]).sum(-1)
     gv = (g2 * v[:, None, None, :]).sum(-1)
-    A = np.stack([t * gu, t * gv, gu, gv], -1)                          # (L,k,2,4)
+    A = np.empty(gu.shape + (4,))                                       # (L,k,2,4)
+    A[..., 0], A[..., 1], A[..., 2], A[..., 3] = t * gu, t * gv, gu, gv
     AtW = np.swapaxes(A, -1, -2) @ W                                    # (L,k,4,2)
     N = (AtW @ A).sum(1)
     g = (AtW @ e[..., None])[..., 0].sum(1)
@@ -217,7 +236,7 @@ def intersect_lines_batch(l, cov_l, ends, R, X0, c, start=None, *, max_iteration
         try:
             step = -np.linalg.solve(N, g[..., None])[..., 0]
         except np.linalg.LinAlgError:
-            raise GeometryError("montecarlo: a 3D line has singular normal equations",
+            raise GeometryError("a 3D line has singular normal equations",
                                 hint="the planes of its views (nearly) coincide") from None
         D = D + step[:, 0:1] * u + step[:, 1:2] * v
         D /= np.linalg.norm(D, axis=1, keepdims=True)
