@@ -76,7 +76,7 @@ def test_engine_bundle_reproduces_the_command(net):
     """The Monte-Carlo adjustment step is the engine's problem re-solved
     with new observations: from a perturbed start it reaches what
     ``photogram orient`` reaches, and its cofactors are the engine's."""
-    from photogram.commands.bundle import adjust
+    from photogram.bundle import adjust
     from photogram.montecarlo.adjustment import EngineBundle
     from photogram.stats.covariance import cofactors, station_covariances
     from photogram.adjust.build import build_problem
@@ -100,7 +100,7 @@ def test_engine_bundle_reproduces_the_command(net):
 
 
 def test_exact_inputs_give_back_the_truth(net):
-    from photogram.commands.bundle import adjust
+    from photogram.bundle import adjust
     from photogram.montecarlo.adjustment import EngineBundle
     result = adjust(read_project(net / "net.prj"), fix_interior=True)
     eb = EngineBundle(result.project, fix_interior=True)

@@ -16,11 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-# adjust stays importable from here: photogram.montecarlo imports it so
 from photogram.bundle import adjust, check_finite
 from photogram.errors import GeometryError
-# read back by later commands; photogram.montecarlo still imports it from here
-from photogram.project.results_read import read_orientation_covariance  # noqa: F401
 
 log = logging.getLogger("photogram")
 

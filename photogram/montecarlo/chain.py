@@ -87,7 +87,7 @@ def _wrap(x):
 
 
 def _interior_covariance(settings, project, camera_names, parameter_names, files=None):
-    from photogram.commands.bundle import read_orientation_covariance
+    from photogram.project.results_read import read_orientation_covariance
     folder = settings.interior_covariance
     if folder is None:
         srcs = {project.sources.get(f"cameras:{n}") for n in camera_names}

@@ -183,7 +183,7 @@ class IntersectStep:
         if start_points is not None:
             prj.points.xyz = np.asarray(start_points, dtype=float).copy()
         else:
-            from photogram.commands.bundle import approximate_if_needed
+            from photogram.bundle import approximate_if_needed
             prj = approximate_if_needed(prj, {"warnings": []})
         built = build_problem(prj, fix_interior=True, fix_stations=True)
         pb = merged_image_blocks(built.problem)

@@ -6,7 +6,7 @@ computed by the commands' own code, once, at the chain's setup, so that they
 cannot go stale when a command changes:
 
 * the adjustment step (``photogram orient`` / ``calibrate``): the
-  :func:`photogram.commands.bundle.adjust` result of the adjustment project,
+  :func:`photogram.bundle.adjust` result of the adjustment project,
   i.e. the sigmas of stations.csv (for ``orient`` with the propagated
   covariance of the calibration and the interior-exterior cross-covariances
   when covariance.npz lies beside the cameras file), points.csv and, for
@@ -50,7 +50,7 @@ def _orientation_for_intersect(prj2, prj1, result):
     """``(labels, matrix)`` as ``photogram intersect`` combines the folders
     of ``[intersect] orientation``, with the adjustment step's results folder
     taken from ``result`` (the covariance its command writes now)."""
-    from photogram.commands.bundle import read_orientation_covariance
+    from photogram.project.results_read import read_orientation_covariance
     where = prj2.intersect.orientation
     if where is None:
         return None
@@ -114,7 +114,7 @@ def command_sigmas(chain, prj1, prj2=None, result=None):
         The adjustment command's result if already computed (``truth =
         "adjusted"``); otherwise it is computed here.
     """
-    from photogram.commands.bundle import adjust
+    from photogram.bundle import adjust
     b = chain.bundle
     n_out = len(chain.outputs.names)
     out = np.full(n_out, np.nan)

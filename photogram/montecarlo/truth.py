@@ -49,7 +49,7 @@ def read_truth_table(path: Path, required=()):
 def adjusted_result(project, *, fix_interior: bool):
     """The adjustment command's result for the adjustment step (its project
     is the truth world; its sigmas are what the command reports)."""
-    from photogram.commands.bundle import adjust
+    from photogram.bundle import adjust
     result = adjust(project, fix_interior=fix_interior)
     if result.summary["status"] != "converged":
         raise GeometryError(f"montecarlo: the adjustment of {project.path} did not converge "
