@@ -2,19 +2,8 @@
 Bundle Adjustment Toolbox) as a photogram project. The parsers of DBAT's
 text tables and camera XML live in :mod:`photogram.project.dbat_tables`
 (the .prj reader accepts those tables as input; the project layer is below
-io) and are re-exported here:
-
-* Image points: comma-separated, ``#`` comments, columns named by a DBAT
-  format string, by default ``"im,id,x,y,sxy"`` (image id, point id, pixel
-  coordinates x right / y down, sigma); DBAT's aerial examples use
-  ``"id,im,x,y"`` with the sigma given separately.
-* Control points: ``id,label,x,y,z``, ``id,label,x,y,z,sxyz`` or
-  ``id,label,x,y,z,sx,sy,sz`` (recognised by the number of columns).
-* Camera XML: a ``<camera>`` element (in a camera file such as
-  ``c4040z.xml`` or in a DBAT script's ``<input><cameras>``) with ``unit``,
-  ``sensor`` ("w,h" or "auto,h"), ``image`` ("W,H" px), ``focal``, optional
-  ``cc`` and ``pp`` (``0``/``default``/``focal`` or absent: the focal length
-  and the sensor centre), ``K``, ``P``, ``model``.
+io) and are re-exported here (the table formats and the camera XML are
+described there).
 
 :func:`load_dbat_project` assembles a :class:`photogram.project.model.Project`
 with one camera of model ``"brown"`` in **pixel** units: ``c = cc / pixel
