@@ -40,8 +40,9 @@ import numpy as np
 
 from photogram.errors import GeometryError
 
-__all__ = ["local_basis_batch", "across_sigma", "fit_points_padded", "fit_lines_batch",
-           "initial_lines_batch", "intersect_lines_full", "intersect_lines_batch"]
+__all__ = ["local_basis_batch", "line_layout", "across_sigma", "fit_points_padded",
+           "fit_lines_batch", "image_line_arrays", "initial_lines_batch", "intersect_lines_full",
+           "intersect_lines_batch"]
 
 
 def local_basis_batch(D):
@@ -64,39 +65,49 @@ def _major_axis(Sxx, Sxy, Syy):
 # step A (C11)
 
 
-def _layout(group, n_groups):
-    """Rows and columns of points in a padded (G, m) layout, the points of
-    each group in measurement order; the counts per group."""
+def line_layout(group, n_groups):
+    """Where the points of G groups go in the padded layout of
+    :func:`fit_points_padded`: ``(src, mask)`` with ``padded = values[src]``
+    (m, G), point i of group g at ``[i, g]`` in measurement order, padding
+    repeating the group's first point; ``mask`` (m, G) the real points.
+    Depends on the groups only: callers with fixed groups (Monte Carlo)
+    compute it once."""
     group = np.asarray(group)
     order = np.argsort(group, kind="stable")
     cnt = np.bincount(group, minlength=n_groups)
     start = np.cumsum(cnt) - cnt
-    rows = group[order]
-    cols = np.arange(len(group)) - start[rows]
-    return order, rows, cols, cnt
+    rows = np.arange(len(group)) - start[group[order]]
+    mask = np.zeros((int(cnt.max()), n_groups), dtype=bool)
+    mask[rows, group[order]] = True
+    src = np.broadcast_to(order[start], mask.shape).copy()
+    src[rows, group[order]] = order
+    return src, mask
 
 
 def across_sigma(xi, J, sigma, mask):
-    """A-priori sigma across the line of corrected points (G, m):
+    """A-priori sigma across the line of corrected points (m, G):
     ``sigma_i |J_i^T n|``, n the normal of the principal axis of the
     (unweighted) corrected points of each group.
 
     Parameters
     ----------
-    xi : (G, m, 2) ideal coordinates, padded
-    J : (G, m, 2, 2) d ideal / d measured
-    sigma : (G, m) a-priori sigma of the measured coordinates
-    mask : (G, m) real (not padding) points
+    xi : (m, G, 2) ideal coordinates, point i of group g at ``[i, g]``
+        (padded, any finite values where not ``mask``)
+    J : (m, G, 2, 2) d ideal / d measured
+    sigma : (m, G) a-priori sigma of the measured coordinates
+    mask : (m, G) real (not padding) points
     """
-    cnt = mask.sum(1)
-    x = np.where(mask[..., None], xi, 0.0)
-    m = x.sum(1) / cnt[:, None]
-    u = np.where(mask[..., None], xi - m[:, None], 0.0)
-    a = _major_axis((u[..., 0] ** 2).sum(1), (u[..., 0] * u[..., 1]).sum(1),
-                    (u[..., 1] ** 2).sum(1))
-    n = np.stack([-a[:, 1], a[:, 0]], -1)
-    Jn = J[..., 0, :] * n[:, None, 0:1] + J[..., 1, :] * n[:, None, 1:2]     # J^T n
-    return sigma * np.sqrt((Jn * Jn).sum(-1))
+    if mask.all():
+        u = xi - xi.sum(0) / len(xi)
+    else:
+        x = np.where(mask[..., None], xi, 0.0)
+        u = np.where(mask[..., None], xi - x.sum(0) / mask.sum(0)[:, None], 0.0)
+    a = _major_axis((u[..., 0] ** 2).sum(0), (u[..., 0] * u[..., 1]).sum(0),
+                    (u[..., 1] ** 2).sum(0))
+    n0, n1 = -a[:, 1], a[:, 0]
+    Jn0 = J[..., 0, 0] * n0 + J[..., 1, 0] * n1                     # J^T n
+    Jn1 = J[..., 0, 1] * n0 + J[..., 1, 1] * n1
+    return sigma * np.sqrt(Jn0 * Jn0 + Jn1 * Jn1)
 
 
 def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int = 50):
@@ -110,76 +121,88 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
 
     Parameters
     ----------
-    xy : (G, m, 2) points, padded to the longest group (any finite values)
-    sig : (G, m) a-priori sigma of each point (isotropic), positive where
+    xy : (m, G, 2) points, point i of group g at ``[i, g]``, padded to the
+        longest group (any finite values where not ``mask``)
+    sig : (m, G) a-priori sigma of each point (isotropic), positive where
         ``mask``
-    mask : (G, m) bool, the real points; each group's first and last real
-        points orient the line, all groups need at least 2 points
+    mask : (m, G) bool, the real points, first in each column; each group's
+        first and last points orient the line, all groups need at least 2
+    tol, max_iterations :
+        Stopping rule and the most iterations.
 
     Returns
     -------
     SimpleNamespace
         ``normal`` (G, 2), ``d`` (G,), ``centroid`` (G, 2), ``Sss`` and ``W``
         (G,) (``cov (theta, d_c) = diag(1/Sss, 1/W)``), ``residuals`` and
-        ``s`` (G, m) (zero at padding), ``s_range`` (G, 2), ``sigma0``,
-        ``along``, ``across``, ``rms`` (G,), ``transposed`` (G,) bool,
-        ``iterations`` (G,) int. A group whose points coincide has
-        ``rms == 0`` and NaN results.
+        ``s`` (m, G) (along-line coordinates from the centroid; zero at
+        padding), ``s_range`` (G, 2), ``sigma0``, ``along``, ``across``,
+        ``rms`` (G,), ``transposed`` (G,) bool, ``iterations`` (G,) int. A
+        group whose points coincide has ``rms == 0`` and NaN results.
     """
-    G, m = mask.shape
-    cnt = mask.sum(1)
-    w = np.where(mask, 1.0 / np.where(mask, sig, 1.0) ** 2, 0.0)
-    W = w.sum(1)
-    xc = (w[..., None] * xy).sum(1) / W[:, None]
-    u = np.where(mask[..., None], xy - xc[:, None], 0.0)
-    rms = np.sqrt((w * (u ** 2).sum(2)).sum(1) / W)
-    dx = u
+    m, G = mask.shape
+    full = bool(mask.all())                 # no padding: skip the masking
+    cnt = mask.sum(0)
+    w = 1.0 / sig ** 2 if full else np.where(mask, 1.0 / np.where(mask, sig, 1.0) ** 2, 0.0)
+    W = w.sum(0)
+    xc = (w[..., None] * xy).sum(0) / W[:, None]
+    dx = xy - xc if full else np.where(mask[..., None], xy - xc, 0.0)
+    rms = np.sqrt((w * (dx ** 2).sum(2)).sum(0) / W)
     with np.errstate(divide="ignore", invalid="ignore"):
-        u = u / rms[:, None, None]
-    spread = (w[..., None] * u ** 2).sum(1)
+        u = dx / rms[:, None]
+    spread = (w[..., None] * u ** 2).sum(0)
     transposed = spread[:, 1] > spread[:, 0]
-    p = np.where(transposed[:, None], u[..., 1], u[..., 0])
-    q = np.where(transposed[:, None], u[..., 0], u[..., 1])
+    p = np.where(transposed, u[..., 1], u[..., 0])
+    q = np.where(transposed, u[..., 0], u[..., 1])
 
     # Gauss-Helmert iteration of q + v_q = a (p + v_p) + b, Q = sigma_i^2 I:
     # equivalent weight (B Q B^T)^-1 = w_i / (1 + a^2)  (C11)
     with np.errstate(divide="ignore", invalid="ignore"):
-        a = (w * p * q).sum(1) / (w * p * p).sum(1)            # P = 1: ordinary LS
+        a = (w * p * q).sum(0) / (w * p * p).sum(0)            # P = 1: ordinary LS
     ok = np.isfinite(a)
     a = np.where(ok, a, 0.0)
     b = np.zeros(G)
-    vp = np.zeros((G, m))
+    vp = np.zeros((m, G))
     its = np.zeros(G, dtype=int)
     small = np.zeros(G, dtype=int)
     active = ok.copy()
-    N = np.empty((G, 2, 2))
-    rhs = np.empty((G, 2, 1))
+    P, mis, B0, PB0, tmp = (np.empty((m, G)) for _ in range(5))
     for it in range(1, max_iterations + 1):
         if not active.any():
             break
         aa = 1.0 + a * a
-        P = w / aa[:, None]
-        mis = q - a[:, None] * p - b[:, None]              # w = f(l + v0) - B v0
-        A0 = -(p + vp)
-        PA0 = P * A0
-        N[:, 0, 0] = (PA0 * A0).sum(1)                     # A = (A0, -1)
-        N[:, 0, 1] = N[:, 1, 0] = -PA0.sum(1)
-        N[:, 1, 1] = P.sum(1)
-        N[~ok] = np.eye(2)
-        rhs[:, 0, 0] = -(PA0 * mis).sum(1)
-        rhs[:, 1, 0] = (P * mis).sum(1)
-        da, db = np.linalg.solve(N, rhs)[:, :, 0].T
-        lam = (A0 * da[:, None] - db[:, None] + mis) / aa[:, None]   # (A dx + w) / (B B^T)
+        np.divide(w, aa, out=P)
+        np.multiply(a, p, out=mis)
+        np.subtract(q, mis, out=mis)
+        mis -= b                                           # w = f(l + v0) - B v0
+        # A = (A0, -1), A0 = -(p + v_p) = -B0; the signs are taken out of the
+        # sums below (exactly)
+        np.add(p, vp, out=B0)
+        np.multiply(P, B0, out=PB0)
+        n00 = np.multiply(PB0, B0, out=tmp).sum(0)
+        n01, n11 = PB0.sum(0), P.sum(0)
+        r0 = np.multiply(PB0, mis, out=tmp).sum(0)
+        r1 = np.multiply(P, mis, out=tmp).sum(0)
+        # the 2x2 normal equations by Cramer's rule
+        det = n00 * n11 - n01 * n01
+        det[~ok] = 1.0
+        da = (r0 * n11 - n01 * r1) / det
+        db = (n00 * r1 - n01 * r0) / det
+        # lam = (A dx + w) / (B B^T) = (A0 da - db + mis) / (1 + a^2)
+        np.multiply(B0, da, out=tmp)
+        tmp += db
+        np.subtract(mis, tmp, out=tmp)
+        tmp /= aa
         an, bn = a + da, b + db
         # the steps alternate large/small (a and v take turns), so stop after
         # two small ones in a row
         small_now = (np.abs(da) <= tol * (1.0 + np.abs(an))) & (np.abs(db) <= tol)
         if active.all():
-            vp = a[:, None] * lam                          # v = -B^T lam, B = (-a, 1)
+            np.multiply(a, tmp, out=vp)                    # v = -B^T lam, B = (-a, 1)
             a, b = an, bn
             its[:] = it
         else:
-            vp = np.where(active[:, None], a[:, None] * lam, vp)
+            vp = np.where(active, a * tmp, vp)
             a, b = np.where(active, an, a), np.where(active, bn, b)
             its[active] = it
         small = np.where(small_now, small + 1, 0)
@@ -193,27 +216,32 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
     nvec /= nrm[:, None]
     d = b / nrm * rms + (nvec[:, 0] * xc[:, 0] + nvec[:, 1] * xc[:, 1])
     t = np.stack([nvec[:, 1], -nvec[:, 0]], -1)
-    last = xy[np.arange(G), np.maximum(cnt - 1, 0)]
-    flip = (t * (last - xy[:, 0])).sum(1) < 0
+    last = xy[np.maximum(cnt - 1, 0), np.arange(G)]
+    flip = (t * (last - xy[0])).sum(1) < 0
     sgn = np.where(flip, -1.0, 1.0)
     nvec, d, t = nvec * sgn[:, None], d * sgn, t * sgn[:, None]
-    r = np.where(mask, xy[..., 0] * nvec[:, None, 0] + xy[..., 1] * nvec[:, None, 1]
-                 - d[:, None], 0.0)
-    s = dx[..., 0] * t[:, None, 0] + dx[..., 1] * t[:, None, 1]
-    Sss = (w * s * s).sum(1)
-    wrr = (w * r * r).sum(1)
+    r = xy[..., 0] * nvec[:, 0] + xy[..., 1] * nvec[:, 1] - d
+    if not full:
+        r[~mask] = 0.0
+    s = dx[..., 0] * t[:, 0] + dx[..., 1] * t[:, 1]
+    Sss = (w * s * s).sum(0)
+    wrr = (w * r * r).sum(0)
     along = np.sqrt(Sss / W)
     across = np.sqrt(wrr / W)
     dof = cnt - 2
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma0 = np.where(dof > 0, np.sqrt(wrr / dof), np.nan)
-    s_range = np.stack([np.where(mask, s, np.inf).min(1), np.where(mask, s, -np.inf).max(1)], -1)
+    if full:
+        s_range = np.stack([s.min(0), s.max(0)], -1)
+    else:
+        s_range = np.stack([np.where(mask, s, np.inf).min(0),
+                            np.where(mask, s, -np.inf).max(0)], -1)
     return SimpleNamespace(normal=nvec, d=d, centroid=xc, Sss=Sss, W=W, residuals=r, s=s,
                            s_range=s_range, sigma0=sigma0, along=along, across=across,
                            rms=rms, transposed=transposed, iterations=its)
 
 
-def fit_lines_batch(xi, J, sigma, group, n_groups, *, tol: float = 1e-13,
+def fit_lines_batch(xi, J, sigma, group, n_groups, *, layout=None, tol: float = 1e-13,
                     max_iterations: int = 50):
     """Image lines of many groups of ideal points at once (step A): the
     estimator of :func:`photogram.lines.fit_view_line` (:func:`across_sigma`
@@ -227,6 +255,8 @@ def fit_lines_batch(xi, J, sigma, group, n_groups, *, tol: float = 1e-13,
     group : (n,) group index per point, each group's points in measurement
         order (the first and last orient the line)
     n_groups : int
+    layout : tuple, optional
+        :func:`line_layout` of ``group`` (computed if not given).
     tol, max_iterations :
         Gauss-Helmert control (:func:`fit_points_padded`).
 
@@ -236,17 +266,10 @@ def fit_lines_batch(xi, J, sigma, group, n_groups, *, tol: float = 1e-13,
     cov_l : (G, 3, 3) their covariance (rank 2)
     ends : (G, 2, 2) the extreme points projected onto the line
     """
-    order, rows, cols, cnt = _layout(group, n_groups)
-    m = int(cnt.max())
-    X = np.zeros((n_groups, m, 2))
-    X[rows, cols] = xi[order]
-    Jp = np.zeros((n_groups, m, 2, 2))
-    Jp[rows, cols] = J[order]
-    sg = np.ones((n_groups, m))
-    sg[rows, cols] = np.asarray(sigma, dtype=float)[order]
-    mask = np.zeros((n_groups, m), dtype=bool)
-    mask[rows, cols] = True
-    f = fit_points_padded(X, across_sigma(X, Jp, sg, mask), mask, tol=tol,
+    src, mask = layout if layout is not None else line_layout(group, n_groups)
+    X = xi[src]
+    sg = np.broadcast_to(np.asarray(sigma, dtype=float), (len(xi),))[src]
+    f = fit_points_padded(X, across_sigma(X, J[src], sg, mask), mask, tol=tol,
                           max_iterations=max_iterations)
     return image_line_arrays(f)
 

@@ -275,7 +275,7 @@ def fit_image_line(xy, sigma=1.0, *, tol: float = 1e-13, max_iterations: int = 5
                             hint="measure at least two (better 10-20) points along the line")
     sig = _sigmas(sigma, n)
     # the one implementation: a batch of one group
-    f = fit_points_padded(xy[None], sig[None], np.ones((1, n), dtype=bool), tol=tol,
+    f = fit_points_padded(xy[:, None], sig[:, None], np.ones((n, 1), dtype=bool), tol=tol,
                           max_iterations=max_iterations)
     if f.rms[0] == 0.0:
         raise GeometryError(f"{what}: all {n} points coincide",
@@ -289,7 +289,7 @@ def fit_image_line(xy, sigma=1.0, *, tol: float = 1e-13, max_iterations: int = 5
                  "images as a point")
     cov = np.diag([1.0 / f.Sss[0], 1.0 / f.W[0]])
     return ImageLine(normal=f.normal[0], d=float(f.d[0]), centroid=f.centroid[0],
-                     cov_centroid=cov, residuals=f.residuals[0], sigma=sig,
+                     cov_centroid=cov, residuals=f.residuals[:, 0], sigma=sig,
                      sigma0=float(f.sigma0[0]), s_range=f.s_range[0],
                      transposed=bool(f.transposed[0]), iterations=int(f.iterations[0]),
                      frame=frame, station=station, label=label)

@@ -174,7 +174,8 @@ def fit_view_line(xy, camera: ViewCamera, sigma=1.0, *, label: str | None = None
     # the sigma across the line of the corrected points, with the normal of
     # the principal axis (the unweighted solution) of the corrected points
     if len(xi) >= 2 and np.isfinite(xi).all():
-        sig = across_sigma(xi[None], J[None], sig[None], np.ones((1, len(xi)), dtype=bool))[0]
+        sig = across_sigma(xi[:, None], J[:, None], sig[:, None],
+                           np.ones((len(xi), 1), dtype=bool))[:, 0]
     line = fit_image_line(xi, sig, frame="ideal", station=camera.name, label=label, **kwargs)
     return line
 
