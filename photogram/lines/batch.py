@@ -145,15 +145,18 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
     cnt = mask.sum(0)
     w = 1.0 / sig ** 2 if full else np.where(mask, 1.0 / np.where(mask, sig, 1.0) ** 2, 0.0)
     W = w.sum(0)
-    xc = (w[..., None] * xy).sum(0) / W[:, None]
-    dx = xy - xc if full else np.where(mask[..., None], xy - xc, 0.0)
-    rms = np.sqrt((w * (dx ** 2).sum(2)).sum(0) / W)
+    x, y = xy[..., 0].copy(), xy[..., 1].copy()        # (m, G) planes: faster arithmetic
+    xc = np.stack([(w * x).sum(0) / W, (w * y).sum(0) / W], -1)
+    dx, dy = x - xc[:, 0], y - xc[:, 1]
+    if not full:
+        dx[~mask] = 0.0
+        dy[~mask] = 0.0
+    rms = np.sqrt((w * (dx ** 2 + dy ** 2)).sum(0) / W)
     with np.errstate(divide="ignore", invalid="ignore"):
-        u = dx / rms[:, None]
-    spread = (w[..., None] * u ** 2).sum(0)
-    transposed = spread[:, 1] > spread[:, 0]
-    p = np.where(transposed, u[..., 1], u[..., 0])
-    q = np.where(transposed, u[..., 0], u[..., 1])
+        ux, uy = dx / rms, dy / rms
+    transposed = (w * uy ** 2).sum(0) > (w * ux ** 2).sum(0)
+    p = np.where(transposed, uy, ux)
+    q = np.where(transposed, ux, uy)
 
     # Gauss-Helmert iteration of q + v_q = a (p + v_p) + b, Q = sigma_i^2 I:
     # equivalent weight (B Q B^T)^-1 = w_i / (1 + a^2)  (C11)
@@ -166,7 +169,11 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
     its = np.zeros(G, dtype=int)
     small = np.zeros(G, dtype=int)
     active = ok.copy()
-    P, mis, B0, PB0, tmp = (np.empty((m, G)) for _ in range(5))
+    # the five sums of an iteration in one reduction: P B0^2, P B0 mis,
+    # P mis, P B0, P
+    prod = np.empty((5, m, G))
+    P, PB0 = prod[4], prod[3]
+    mis, B0, tmp = (np.empty((m, G)) for _ in range(3))
     for it in range(1, max_iterations + 1):
         if not active.any():
             break
@@ -179,10 +186,10 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
         # sums below (exactly)
         np.add(p, vp, out=B0)
         np.multiply(P, B0, out=PB0)
-        n00 = np.multiply(PB0, B0, out=tmp).sum(0)
-        n01, n11 = PB0.sum(0), P.sum(0)
-        r0 = np.multiply(PB0, mis, out=tmp).sum(0)
-        r1 = np.multiply(P, mis, out=tmp).sum(0)
+        np.multiply(PB0, B0, out=prod[0])
+        np.multiply(PB0, mis, out=prod[1])
+        np.multiply(P, mis, out=prod[2])
+        n00, r0, r1, n01, n11 = prod.sum(1)
         # the 2x2 normal equations by Cramer's rule
         det = n00 * n11 - n01 * n01
         det[~ok] = 1.0
@@ -216,14 +223,14 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
     nvec /= nrm[:, None]
     d = b / nrm * rms + (nvec[:, 0] * xc[:, 0] + nvec[:, 1] * xc[:, 1])
     t = np.stack([nvec[:, 1], -nvec[:, 0]], -1)
-    last = xy[np.maximum(cnt - 1, 0), np.arange(G)]
-    flip = (t * (last - xy[0])).sum(1) < 0
+    i_last = np.maximum(cnt - 1, 0), np.arange(G)
+    flip = t[:, 0] * (x[i_last] - x[0]) + t[:, 1] * (y[i_last] - y[0]) < 0
     sgn = np.where(flip, -1.0, 1.0)
     nvec, d, t = nvec * sgn[:, None], d * sgn, t * sgn[:, None]
-    r = xy[..., 0] * nvec[:, 0] + xy[..., 1] * nvec[:, 1] - d
+    r = x * nvec[:, 0] + y * nvec[:, 1] - d
     if not full:
         r[~mask] = 0.0
-    s = dx[..., 0] * t[:, 0] + dx[..., 1] * t[:, 1]
+    s = dx * t[:, 0] + dy * t[:, 1]
     Sss = (w * s * s).sum(0)
     wrr = (w * r * r).sum(0)
     along = np.sqrt(Sss / W)
@@ -281,23 +288,21 @@ def image_line_arrays(f):
     (:func:`fit_points_padded`); as :class:`~photogram.lines.ImageLine`'s
     ``homogeneous``, ``cov_homogeneous`` and ``end_points``."""
     nvec, xc = f.normal, f.centroid
-    G = len(nvec)
-    t = np.stack([nvec[:, 1], -nvec[:, 0]], -1)
-    l = np.stack([nvec[:, 0], nvec[:, 1], -f.d], -1)
-    # (theta, d_c) -> (theta, d): d = n(theta) . x_c + d_c, dn/dtheta = -t
-    Jd = np.zeros((G, 2, 2))
-    Jd[:, 0, 0] = 1.0
-    Jd[:, 1, 0] = -(t[:, 0] * xc[:, 0] + t[:, 1] * xc[:, 1])
-    Jd[:, 1, 1] = 1.0
-    cov_c = np.zeros((G, 2, 2))
-    cov_c[:, 0, 0] = 1.0 / f.Sss
-    cov_c[:, 1, 1] = 1.0 / f.W
-    cov = Jd @ cov_c @ np.swapaxes(Jd, 1, 2)
-    Jh = np.zeros((G, 3, 2))                                # dl/d(theta, d)
-    Jh[:, 0, 0] = -nvec[:, 1]
-    Jh[:, 1, 0] = nvec[:, 0]
-    Jh[:, 2, 1] = -1.0
-    cov_l = Jh @ cov @ np.swapaxes(Jh, 1, 2)
+    n0, n1 = nvec[:, 0], nvec[:, 1]
+    t0, t1 = n1, -n0                                       # direction t = (n_y, -n_x)
+    l = np.stack([n0, n1, -f.d], -1)
+    # (theta, d_c) -> (theta, d): d = n(theta) . x_c + d_c, dn/dtheta = -t;
+    # dl/d(theta, d) = ((-n_y, n_x, 0), (0, 0, -1)); written out
+    vt, vd = 1.0 / f.Sss, 1.0 / f.W
+    j = -(t0 * xc[:, 0] + t1 * xc[:, 1])
+    cov_l = np.empty((len(nvec), 3, 3))
+    cov_l[:, 0, 0] = n1 * n1 * vt
+    cov_l[:, 0, 1] = cov_l[:, 1, 0] = -n1 * n0 * vt
+    cov_l[:, 1, 1] = n0 * n0 * vt
+    cov_l[:, 0, 2] = cov_l[:, 2, 0] = n1 * j * vt
+    cov_l[:, 1, 2] = cov_l[:, 2, 1] = -n0 * j * vt
+    cov_l[:, 2, 2] = j * j * vt + vd
+    t = np.stack([t0, t1], -1)
     ends = xc[:, None, :] + f.s_range[:, :, None] * t[:, None, :]
     return l, cov_l, ends
 
@@ -375,43 +380,49 @@ def _line_system(P, D, t, l, cov_l, R, X0, c, u, v):
     The conditions are the signed distances ``e = l . (x, 1)`` of the ideal
     images ``x`` of the points ``Y = P + t D`` from the image lines ((C13)
     divided by the depth), their covariance ``C = X^T Sigma_l X``,
-    ``X = [(x_1, 1), (x_2, 1)]`` (C14); the design matrix by the analytic
-    derivative ``de/dY = l^T dx/dXc R`` and ``dY/d(alpha, beta, gamma,
-    delta) = (t u, t v, u, v)``.
+    ``X = [(x_1, 1), (x_2, 1)]`` (C14), the weights ``W = C^-1``; the design
+    matrix by the analytic derivative ``de/dY = l^T dx/dXc R`` and
+    ``dY/d(alpha, beta, gamma, delta) = (t u, t v, u, v)``.
+    (Written out element by element: for these small arrays numpy's stacked
+    matrix products cost more than the arithmetic.)
     """
-    Y = P[:, None, None, :] + t[..., None] * D[:, None, None, :]         # (L,k,2,3)
-    Xc = (Y - X0[:, :, None, :]) @ np.swapaxes(R, -1, -2)               # R (Y - X0)
+    L, k = t.shape[:2]
+    RP = np.einsum("lkij,lkj->lki", R, P[:, None, :] - X0)[:, :, None, :]   # R (P - X0)
+    RD = np.einsum("lkij,lj->lki", R, D)[:, :, None, :]
+    Xc = RP + t[..., None] * RD                                  # R (Y - X0)   (L,k,2,3)
     iz = 1.0 / Xc[..., 2]
     cc = c[:, :, None]
-    ax, ay = -Xc[..., 0] * iz, Xc[..., 1] * iz                          # c = 1
+    ax, ay = -Xc[..., 0] * iz, Xc[..., 1] * iz                   # c = 1
     x, y = cc * ax, cc * ay
     l0, l1, l2 = (l[..., i:i + 1] for i in range(3))
-    e = x * l0 + y * l1 + l2                                            # (L,k,2)
-    # l^T dxy/dXc = c/z (-l0, l1, l0 X/z - l1 Y/z)
+    e = x * l0 + y * l1 + l2                                     # (L,k,2)
+    # l^T dxy/dXc = c/z (-l0, l1, l0 X/z - l1 Y/z); times R u, R v
     ci = cc * iz
-    # (arrays filled in place: np.stack costs more than the arithmetic here)
-    gx = np.empty(x.shape + (3,))                                       # (L,k,2,3)
-    gx[..., 0] = -l0 * ci
-    gx[..., 1] = l1 * ci
-    gx[..., 2] = (l0 * -ax - l1 * ay) * ci
-    g2 = gx @ R                                                         # d e / dY
-    # C = Xt cov Xt^T with Xt = (x, y, 1)
-    Xt = np.empty(x.shape + (3,))                                       # (L,k,2,3)
-    Xt[..., 0], Xt[..., 1], Xt[..., 2] = x, y, 1.0
-    C = Xt @ cov_l @ np.swapaxes(Xt, -1, -2)                            # (L,k,2,2)
-    det = C[..., 0, 0] * C[..., 1, 1] - C[..., 0, 1] * C[..., 1, 0]
-    W = np.empty(C.shape)
-    W[..., 0, 0], W[..., 0, 1] = C[..., 1, 1], -C[..., 0, 1]
-    W[..., 1, 0], W[..., 1, 1] = -C[..., 1, 0], C[..., 0, 0]
-    W /= det[..., None, None]
-    gu = (g2 * u[:, None, None, :]).sum(-1)
-    gv = (g2 * v[:, None, None, :]).sum(-1)
-    A = np.empty(gu.shape + (4,))                                       # (L,k,2,4)
+    g0, g1, g2 = -l0 * ci, l1 * ci, (l0 * -ax - l1 * ay) * ci
+    Ru = np.einsum("lkij,lj->lki", R, u)
+    Rv = np.einsum("lkij,lj->lki", R, v)
+    gu = g0 * Ru[..., 0:1] + g1 * Ru[..., 1:2] + g2 * Ru[..., 2:3]
+    gv = g0 * Rv[..., 0:1] + g1 * Rv[..., 1:2] + g2 * Rv[..., 2:3]
+    # C = Xt Sigma_l Xt^T, Xt = (x, y, 1) per point (C14)
+    S = cov_l[..., None]                                         # (L,k,3,3,1)
+    Sx0 = S[:, :, 0, 0] * x + S[:, :, 0, 1] * y + S[:, :, 0, 2]
+    Sx1 = S[:, :, 1, 0] * x + S[:, :, 1, 1] * y + S[:, :, 1, 2]
+    Sx2 = S[:, :, 2, 0] * x + S[:, :, 2, 1] * y + S[:, :, 2, 2]
+    Cpp = x * Sx0 + y * Sx1 + Sx2                                # C_11, C_22
+    C01 = x[..., 0] * Sx0[..., 1] + y[..., 0] * Sx1[..., 1] + Sx2[..., 1]
+    det = Cpp[..., 0] * Cpp[..., 1] - C01 * C01
+    W00, W11, W01 = Cpp[..., 1] / det, Cpp[..., 0] / det, -C01 / det
+    A = np.empty((L, k, 2, 4))
     A[..., 0], A[..., 1], A[..., 2], A[..., 3] = t * gu, t * gv, gu, gv
-    AtW = np.swapaxes(A, -1, -2) @ W                                    # (L,k,4,2)
-    N = (AtW @ A).sum(1)
-    g = (AtW @ e[..., None])[..., 0].sum(1)
-    chi2 = (e[..., None, :] @ W @ e[..., None])[..., 0, 0].sum(1)
+    WA = np.empty((L, k, 2, 4))
+    WA[:, :, 0] = W00[..., None] * A[:, :, 0] + W01[..., None] * A[:, :, 1]
+    WA[:, :, 1] = W01[..., None] * A[:, :, 0] + W11[..., None] * A[:, :, 1]
+    N = np.swapaxes(A.reshape(L, 2 * k, 4), 1, 2) @ WA.reshape(L, 2 * k, 4)
+    We = np.empty((L, k, 2))
+    We[..., 0] = W00 * e[..., 0] + W01 * e[..., 1]
+    We[..., 1] = W01 * e[..., 0] + W11 * e[..., 1]
+    g = (A * We[..., None]).sum((1, 2))
+    chi2 = (e * We).sum((1, 2))
     return N, g, chi2
 
 

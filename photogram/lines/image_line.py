@@ -24,6 +24,10 @@ lines, the transposed form ``x = a y + b`` for steep ones, so that
 
 with the homogeneous vector ``l = (n_x, n_y, -d)`` (``l . (x, y, 1) = 0``);
 the paper's ``(a, b)`` are available from :meth:`ImageLine.slope_intercept`.
+
+The iteration is :func:`photogram.lines.batch.fit_points_padded`, the one
+implementation for one line (:func:`fit_image_line`, a batch of one) and for
+many (Monte Carlo, :func:`photogram.lines.batch.fit_lines_batch`).
 """
 
 from __future__ import annotations

@@ -27,6 +27,10 @@ the baseline of two of the three cameras. With two views the solution is
 the exact intersection of the two planes; the covariance is then the
 propagated one and the redundancy ``2 k - 4`` is zero.
 
+The estimator is :func:`photogram.lines.batch.intersect_lines_full`, the
+one implementation for one line (:func:`intersect_line`, a batch of one)
+and for many (Monte Carlo, :func:`photogram.lines.batch.intersect_lines_batch`).
+
 The one-step solution, eq. (C15), is in :mod:`photogram.lines.one_step`;
 :func:`~photogram.lines.from_points.intersect_line_from_points` runs either
 from measured points.

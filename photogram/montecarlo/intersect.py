@@ -10,12 +10,11 @@ for all exposures at once:
   coordinates into the image block and solves point by point
   (:func:`photogram.adjust.dense.gauss_newton`, 3x3 normal equations per
   point, :func:`photogram.adjust.dense.point_normals` for the cofactors);
-* **image lines and 3D lines** by the batch line code
-  :mod:`photogram.lines.batch` (the estimators of
-  :func:`photogram.lines.fit_view_line` and
-  :func:`photogram.lines.intersect_line`, vectorized over lines), with the
-  ideal coordinates of every camera model from
-  :func:`photogram.lines.views.ideal_coordinates`;
+* **image lines and 3D lines** by the line code of the commands,
+  :mod:`photogram.lines.batch` (:func:`photogram.lines.fit_view_line` and
+  :func:`photogram.lines.intersect_line` are its batches of one), here over
+  all lines of a run at once, with the ideal coordinates of every camera
+  model from :func:`photogram.lines.views.ideal_coordinates`;
 * the **stick model** by :func:`photogram.jump.stick.stick_model`.
 """
 
