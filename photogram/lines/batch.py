@@ -110,7 +110,8 @@ def across_sigma(xi, J, sigma, mask):
     return sigma * np.sqrt(Jn0 * Jn0 + Jn1 * Jn1)
 
 
-def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int = 50):
+def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int = 50,
+                      residuals: bool = True):
     """Straight lines fitted to G groups of points at once, eq. (C11).
 
     The Gauss-Helmert adjustment of :func:`photogram.lines.fit_image_line`
@@ -129,6 +130,9 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
         first and last points orient the line, all groups need at least 2
     tol, max_iterations :
         Stopping rule and the most iterations.
+    residuals : bool
+        Also the residuals and the quantities from them (``residuals``,
+        ``sigma0``, ``along``, ``across``; else None).
 
     Returns
     -------
@@ -167,16 +171,16 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
     b = np.zeros(G)
     vp = np.zeros((m, G))
     its = np.zeros(G, dtype=int)
-    small = np.zeros(G, dtype=int)
+    was_small = np.zeros(G, dtype=bool)
     active = ok.copy()
+    all_ok = bool(ok.all())
     # the five sums of an iteration in one reduction: P B0^2, P B0 mis,
     # P mis, P B0, P
     prod = np.empty((5, m, G))
     P, PB0 = prod[4], prod[3]
     mis, B0, tmp = (np.empty((m, G)) for _ in range(3))
+    all_active = all_ok
     for it in range(1, max_iterations + 1):
-        if not active.any():
-            break
         aa = 1.0 + a * a
         np.divide(w, aa, out=P)
         np.multiply(a, p, out=mis)
@@ -192,7 +196,8 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
         n00, r0, r1, n01, n11 = prod.sum(1)
         # the 2x2 normal equations by Cramer's rule
         det = n00 * n11 - n01 * n01
-        det[~ok] = 1.0
+        if not all_ok:
+            det[~ok] = 1.0
         da = (r0 * n11 - n01 * r1) / det
         db = (n00 * r1 - n01 * r0) / det
         # lam = (A dx + w) / (B B^T) = (A0 da - db + mis) / (1 + a^2)
@@ -203,8 +208,8 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
         an, bn = a + da, b + db
         # the steps alternate large/small (a and v take turns), so stop after
         # two small ones in a row
-        small_now = (np.abs(da) <= tol * (1.0 + np.abs(an))) & (np.abs(db) <= tol)
-        if active.all():
+        is_small = (np.abs(da) <= tol * (1.0 + np.abs(an))) & (np.abs(db) <= tol)
+        if all_active:
             np.multiply(a, tmp, out=vp)                    # v = -B^T lam, B = (-a, 1)
             a, b = an, bn
             its[:] = it
@@ -212,8 +217,11 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
             vp = np.where(active, a * tmp, vp)
             a, b = np.where(active, an, a), np.where(active, bn, b)
             its[active] = it
-        small = np.where(small_now, small + 1, 0)
-        active &= small < 2
+        active &= ~(is_small & was_small)
+        was_small = is_small
+        all_active = bool(active.all())
+        if not all_active and not active.any():
+            break
     a = np.where(ok, a, np.nan)
 
     nrm = np.hypot(a, 1.0)
@@ -227,17 +235,19 @@ def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int 
     flip = t[:, 0] * (x[i_last] - x[0]) + t[:, 1] * (y[i_last] - y[0]) < 0
     sgn = np.where(flip, -1.0, 1.0)
     nvec, d, t = nvec * sgn[:, None], d * sgn, t * sgn[:, None]
-    r = x * nvec[:, 0] + y * nvec[:, 1] - d
-    if not full:
-        r[~mask] = 0.0
     s = dx * t[:, 0] + dy * t[:, 1]
     Sss = (w * s * s).sum(0)
-    wrr = (w * r * r).sum(0)
-    along = np.sqrt(Sss / W)
-    across = np.sqrt(wrr / W)
-    dof = cnt - 2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sigma0 = np.where(dof > 0, np.sqrt(wrr / dof), np.nan)
+    r = along = across = sigma0 = None
+    if residuals:
+        r = x * nvec[:, 0] + y * nvec[:, 1] - d
+        if not full:
+            r[~mask] = 0.0
+        wrr = (w * r * r).sum(0)
+        along = np.sqrt(Sss / W)
+        across = np.sqrt(wrr / W)
+        dof = cnt - 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sigma0 = np.where(dof > 0, np.sqrt(wrr / dof), np.nan)
     if full:
         s_range = np.stack([s.min(0), s.max(0)], -1)
     else:
@@ -277,7 +287,7 @@ def fit_lines_batch(xi, J, sigma, group, n_groups, *, layout=None, tol: float = 
     X = xi[src]
     sg = np.broadcast_to(np.asarray(sigma, dtype=float), (len(xi),))[src]
     f = fit_points_padded(X, across_sigma(X, J[src], sg, mask), mask, tol=tol,
-                          max_iterations=max_iterations)
+                          max_iterations=max_iterations, residuals=False)
     return image_line_arrays(f)
 
 
