@@ -45,12 +45,17 @@ __all__ = ["local_basis_batch", "line_layout", "across_sigma", "fit_points_padde
            "intersect_lines_batch"]
 
 
+_AXIS_CROSS = np.array([[0, 2, 1], [2, 0, 0], [1, 0, 0]])   # e_i x D = S[i] * D[T[i]]
+_AXIS_SIGN = np.array([[0.0, -1.0, 1.0], [1.0, 0.0, -1.0], [-1.0, 1.0, 0.0]])
+
+
 def local_basis_batch(D):
-    """:func:`photogram.lines.local_basis` for (L, 3) unit directions."""
+    """:func:`photogram.lines.local_basis` for (L, 3) unit directions:
+    ``u = e x D / |e x D|`` with e the world axis least aligned with D,
+    ``v = D x u`` (``e x D`` as a signed permutation of D, exactly the
+    cross product)."""
     idx = np.argmin(np.abs(D), axis=1)
-    e = np.zeros_like(D)
-    e[np.arange(len(D)), idx] = 1.0
-    u = _cross(e, D)
+    u = np.take_along_axis(D, _AXIS_CROSS[idx], axis=1) * _AXIS_SIGN[idx]
     u /= np.sqrt((u * u).sum(1))[:, None]
     return u, _cross(D, u)
 
