@@ -1,37 +1,62 @@
-"""Line photogrammetry for many lines at once: image lines of many groups
+"""Line photogrammetry, the one implementation: image lines of many groups
 of points (appendix C.2, step A, eq. (C11)) and 3D lines from k image lines
 each (step B, eqs. (C13)-(C14); the initial line of appendix C.3), all lines
 of a batch in one vectorized evaluation.
 
-The estimators of :func:`photogram.lines.fit_view_line` and
-:func:`photogram.lines.intersect_line`: the image line by the weighted
-orthogonal regression in ideal coordinates with the weights of
-:func:`fit_view_line` (the limit its Gauss-Helmert iteration converges to, in
-closed form); the 3D line by Gauss-Newton in the 4 local parameters of
-:class:`~photogram.lines.SpaceLine` with the weights (C14), the two points per
-view kept during the iteration. Ideal coordinates of any camera model come
-from :func:`photogram.lines.views.ideal_coordinates` (the function
-:meth:`ViewCamera.ideal` uses). Tests check them against the per-line
-functions; Monte Carlo (:mod:`photogram.montecarlo.intersect`) runs them.
+The commands' per-line functions are batches of one:
+:func:`photogram.lines.fit_image_line` (and
+:func:`photogram.lines.fit_view_line`) run :func:`fit_points_padded`,
+:func:`photogram.lines.intersect_line` runs :func:`intersect_lines_full`;
+Monte Carlo (:mod:`photogram.montecarlo.intersect`) runs
+:func:`fit_lines_batch` and :func:`intersect_lines_batch`, which call the
+same two functions for all lines of a run.
+
+* **Image lines** (eq. (C11)): the Gauss-Helmert iteration of
+  ``(q + v_q) = a (p + v_p) + b`` with the equivalent weight
+  ``w_i / (1 + a^2)`` in centred coordinates scaled to unit RMS radius, the
+  transposed form for steep lines (:mod:`photogram.lines.image_line`), each
+  group stopped by its own rule (two small steps of ``a`` in a row). The
+  a-priori sigma across the line of corrected points is
+  ``sigma_i |J_i^T n|`` with the normal n of the unweighted principal axis
+  (:func:`across_sigma`).
+* **3D lines** (eqs. (C13)-(C14)): Gauss-Newton in the 4 local parameters of
+  :class:`~photogram.lines.SpaceLine` with the weights ``C_j^-1`` of (C14),
+  the two points per view (closest to the rays of the measured segment's
+  end points) kept during the iteration, each line stopped by its own rule
+  (rotation below ``tol`` rad and shift below ``tol`` times the distance to
+  the cameras), then recentred to the middle of the measured segments; the
+  covariance and chi2 of (C14) there.
+
+Ideal coordinates of any camera model come from
+:func:`photogram.lines.views.ideal_coordinates` (the function
+:meth:`ViewCamera.ideal` uses).
 """
 
 from __future__ import annotations
+
+from types import SimpleNamespace
 
 import numpy as np
 
 from photogram.errors import GeometryError
 
-__all__ = ["local_basis_batch", "fit_lines_batch", "initial_lines_batch",
+__all__ = ["local_basis_batch", "line_layout", "across_sigma", "fit_points_padded",
+           "fit_lines_batch", "image_line_arrays", "initial_lines_batch", "intersect_lines_full",
            "intersect_lines_batch"]
 
 
+_AXIS_CROSS = np.array([[0, 2, 1], [2, 0, 0], [1, 0, 0]])   # e_i x D = S[i] * D[T[i]]
+_AXIS_SIGN = np.array([[0.0, -1.0, 1.0], [1.0, 0.0, -1.0], [-1.0, 1.0, 0.0]])
+
+
 def local_basis_batch(D):
-    """:func:`photogram.lines.local_basis` for (L, 3) unit directions."""
+    """:func:`photogram.lines.local_basis` for (L, 3) unit directions:
+    ``u = e x D / |e x D|`` with e the world axis least aligned with D,
+    ``v = D x u`` (``e x D`` as a signed permutation of D, exactly the
+    cross product)."""
     idx = np.argmin(np.abs(D), axis=1)
-    e = np.zeros_like(D)
-    e[np.arange(len(D)), idx] = 1.0
-    u = _cross(e, D)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    u = np.take_along_axis(D, _AXIS_CROSS[idx], axis=1) * _AXIS_SIGN[idx]
+    u /= np.sqrt((u * u).sum(1))[:, None]
     return u, _cross(D, u)
 
 
@@ -41,8 +66,208 @@ def _major_axis(Sxx, Sxy, Syy):
     return np.stack([np.cos(phi), np.sin(phi)], axis=-1)
 
 
-def fit_lines_batch(xi, J, sigma, group, n_groups):
-    """Image lines of many groups of ideal points at once (step A).
+# ---------------------------------------------------------------------------
+# step A (C11)
+
+
+def line_layout(group, n_groups):
+    """Where the points of G groups go in the padded layout of
+    :func:`fit_points_padded`: ``(src, mask)`` with ``padded = values[src]``
+    (m, G), point i of group g at ``[i, g]`` in measurement order, padding
+    repeating the group's first point; ``mask`` (m, G) the real points.
+    Depends on the groups only: callers with fixed groups (Monte Carlo)
+    compute it once."""
+    group = np.asarray(group)
+    order = np.argsort(group, kind="stable")
+    cnt = np.bincount(group, minlength=n_groups)
+    start = np.cumsum(cnt) - cnt
+    rows = np.arange(len(group)) - start[group[order]]
+    mask = np.zeros((int(cnt.max()), n_groups), dtype=bool)
+    mask[rows, group[order]] = True
+    src = np.broadcast_to(order[start], mask.shape).copy()
+    src[rows, group[order]] = order
+    return src, mask
+
+
+def across_sigma(xi, J, sigma, mask):
+    """A-priori sigma across the line of corrected points (m, G):
+    ``sigma_i |J_i^T n|``, n the normal of the principal axis of the
+    (unweighted) corrected points of each group.
+
+    Parameters
+    ----------
+    xi : (m, G, 2) ideal coordinates, point i of group g at ``[i, g]``
+        (padded, any finite values where not ``mask``)
+    J : (m, G, 2, 2) d ideal / d measured
+    sigma : (m, G) a-priori sigma of the measured coordinates
+    mask : (m, G) real (not padding) points
+    """
+    if mask.all():
+        u = xi - xi.sum(0) / len(xi)
+    else:
+        x = np.where(mask[..., None], xi, 0.0)
+        u = np.where(mask[..., None], xi - x.sum(0) / mask.sum(0)[:, None], 0.0)
+    a = _major_axis((u[..., 0] ** 2).sum(0), (u[..., 0] * u[..., 1]).sum(0),
+                    (u[..., 1] ** 2).sum(0))
+    n0, n1 = -a[:, 1], a[:, 0]
+    Jn0 = J[..., 0, 0] * n0 + J[..., 1, 0] * n1                     # J^T n
+    Jn1 = J[..., 0, 1] * n0 + J[..., 1, 1] * n1
+    return sigma * np.sqrt(Jn0 * Jn0 + Jn1 * Jn1)
+
+
+def fit_points_padded(xy, sig, mask, *, tol: float = 1e-13, max_iterations: int = 50,
+                      residuals: bool = True):
+    """Straight lines fitted to G groups of points at once, eq. (C11).
+
+    The Gauss-Helmert adjustment of :func:`photogram.lines.fit_image_line`
+    (module docstring of :mod:`photogram.lines.image_line`) for every group,
+    each with its own stopping rule: the change of ``a`` (centred, scaled
+    frame) below ``tol (1 + |a|)`` and that of ``b`` below ``tol`` in two
+    successive iterations.
+
+    Parameters
+    ----------
+    xy : (m, G, 2) points, point i of group g at ``[i, g]``, padded to the
+        longest group (any finite values where not ``mask``)
+    sig : (m, G) a-priori sigma of each point (isotropic), positive where
+        ``mask``
+    mask : (m, G) bool, the real points, first in each column; each group's
+        first and last points orient the line, all groups need at least 2
+    tol, max_iterations :
+        Stopping rule and the most iterations.
+    residuals : bool
+        Also the residuals and the quantities from them (``residuals``,
+        ``sigma0``, ``along``, ``across``; else None).
+
+    Returns
+    -------
+    SimpleNamespace
+        ``normal`` (G, 2), ``d`` (G,), ``centroid`` (G, 2), ``Sss`` and ``W``
+        (G,) (``cov (theta, d_c) = diag(1/Sss, 1/W)``), ``residuals`` and
+        ``s`` (m, G) (along-line coordinates from the centroid; zero at
+        padding), ``s_range`` (G, 2), ``sigma0``, ``along``, ``across``,
+        ``rms`` (G,), ``transposed`` (G,) bool, ``iterations`` (G,) int. A
+        group whose points coincide has ``rms == 0`` and NaN results.
+    """
+    m, G = mask.shape
+    full = bool(mask.all())                 # no padding: skip the masking
+    cnt = mask.sum(0)
+    w = 1.0 / sig ** 2 if full else np.where(mask, 1.0 / np.where(mask, sig, 1.0) ** 2, 0.0)
+    W = w.sum(0)
+    x, y = xy[..., 0].copy(), xy[..., 1].copy()        # (m, G) planes: faster arithmetic
+    xc = np.stack([(w * x).sum(0) / W, (w * y).sum(0) / W], -1)
+    dx, dy = x - xc[:, 0], y - xc[:, 1]
+    if not full:
+        dx[~mask] = 0.0
+        dy[~mask] = 0.0
+    rms = np.sqrt((w * (dx ** 2 + dy ** 2)).sum(0) / W)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ux, uy = dx / rms, dy / rms
+    transposed = (w * uy ** 2).sum(0) > (w * ux ** 2).sum(0)
+    p = np.where(transposed, uy, ux)
+    q = np.where(transposed, ux, uy)
+
+    # Gauss-Helmert iteration of q + v_q = a (p + v_p) + b, Q = sigma_i^2 I:
+    # equivalent weight (B Q B^T)^-1 = w_i / (1 + a^2)  (C11)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = (w * p * q).sum(0) / (w * p * p).sum(0)            # P = 1: ordinary LS
+    ok = np.isfinite(a)
+    a = np.where(ok, a, 0.0)
+    b = np.zeros(G)
+    vp = np.zeros((m, G))
+    its = np.zeros(G, dtype=int)
+    was_small = np.zeros(G, dtype=bool)
+    active = ok.copy()
+    all_ok = bool(ok.all())
+    # the five sums of an iteration in one reduction: P B0^2, P B0 mis,
+    # P mis, P B0, P
+    prod = np.empty((5, m, G))
+    P, PB0 = prod[4], prod[3]
+    mis, B0, tmp = (np.empty((m, G)) for _ in range(3))
+    all_active = all_ok
+    for it in range(1, max_iterations + 1):
+        aa = 1.0 + a * a
+        np.divide(w, aa, out=P)
+        np.multiply(a, p, out=mis)
+        np.subtract(q, mis, out=mis)
+        mis -= b                                           # w = f(l + v0) - B v0
+        # A = (A0, -1), A0 = -(p + v_p) = -B0; the signs are taken out of the
+        # sums below (exactly)
+        np.add(p, vp, out=B0)
+        np.multiply(P, B0, out=PB0)
+        np.multiply(PB0, B0, out=prod[0])
+        np.multiply(PB0, mis, out=prod[1])
+        np.multiply(P, mis, out=prod[2])
+        n00, r0, r1, n01, n11 = prod.sum(1)
+        # the 2x2 normal equations by Cramer's rule
+        det = n00 * n11 - n01 * n01
+        if not all_ok:
+            det[~ok] = 1.0
+        da = (r0 * n11 - n01 * r1) / det
+        db = (n00 * r1 - n01 * r0) / det
+        # lam = (A dx + w) / (B B^T) = (A0 da - db + mis) / (1 + a^2)
+        np.multiply(B0, da, out=tmp)
+        tmp += db
+        np.subtract(mis, tmp, out=tmp)
+        tmp /= aa
+        an, bn = a + da, b + db
+        # the steps alternate large/small (a and v take turns), so stop after
+        # two small ones in a row
+        is_small = (np.abs(da) <= tol * (1.0 + np.abs(an))) & (np.abs(db) <= tol)
+        if all_active:
+            np.multiply(a, tmp, out=vp)                    # v = -B^T lam, B = (-a, 1)
+            a, b = an, bn
+            its[:] = it
+        else:
+            vp = np.where(active, a * tmp, vp)
+            a, b = np.where(active, an, a), np.where(active, bn, b)
+            its[active] = it
+        active &= ~(is_small & was_small)
+        was_small = is_small
+        all_active = bool(active.all())
+        if not all_active and not active.any():
+            break
+    a = np.where(ok, a, np.nan)
+
+    nrm = np.hypot(a, 1.0)
+    nvec = np.empty((G, 2))
+    nvec[:, 0] = np.where(transposed, 1.0, -a)
+    nvec[:, 1] = np.where(transposed, -a, 1.0)
+    nvec /= nrm[:, None]
+    d = b / nrm * rms + (nvec[:, 0] * xc[:, 0] + nvec[:, 1] * xc[:, 1])
+    t = np.stack([nvec[:, 1], -nvec[:, 0]], -1)
+    i_last = np.maximum(cnt - 1, 0), np.arange(G)
+    flip = t[:, 0] * (x[i_last] - x[0]) + t[:, 1] * (y[i_last] - y[0]) < 0
+    sgn = np.where(flip, -1.0, 1.0)
+    nvec, d, t = nvec * sgn[:, None], d * sgn, t * sgn[:, None]
+    s = dx * t[:, 0] + dy * t[:, 1]
+    Sss = (w * s * s).sum(0)
+    r = along = across = sigma0 = None
+    if residuals:
+        r = x * nvec[:, 0] + y * nvec[:, 1] - d
+        if not full:
+            r[~mask] = 0.0
+        wrr = (w * r * r).sum(0)
+        along = np.sqrt(Sss / W)
+        across = np.sqrt(wrr / W)
+        dof = cnt - 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sigma0 = np.where(dof > 0, np.sqrt(wrr / dof), np.nan)
+    if full:
+        s_range = np.stack([s.min(0), s.max(0)], -1)
+    else:
+        s_range = np.stack([np.where(mask, s, np.inf).min(0),
+                            np.where(mask, s, -np.inf).max(0)], -1)
+    return SimpleNamespace(normal=nvec, d=d, centroid=xc, Sss=Sss, W=W, residuals=r, s=s,
+                           s_range=s_range, sigma0=sigma0, along=along, across=across,
+                           rms=rms, transposed=transposed, iterations=its)
+
+
+def fit_lines_batch(xi, J, sigma, group, n_groups, *, layout=None, tol: float = 1e-13,
+                    max_iterations: int = 50):
+    """Image lines of many groups of ideal points at once (step A): the
+    estimator of :func:`photogram.lines.fit_view_line` (:func:`across_sigma`
+    and :func:`fit_points_padded`).
 
     Parameters
     ----------
@@ -52,6 +277,10 @@ def fit_lines_batch(xi, J, sigma, group, n_groups):
     group : (n,) group index per point, each group's points in measurement
         order (the first and last orient the line)
     n_groups : int
+    layout : tuple, optional
+        :func:`line_layout` of ``group`` (computed if not given).
+    tol, max_iterations :
+        Gauss-Helmert control (:func:`fit_points_padded`).
 
     Returns
     -------
@@ -59,58 +288,42 @@ def fit_lines_batch(xi, J, sigma, group, n_groups):
     cov_l : (G, 3, 3) their covariance (rank 2)
     ends : (G, 2, 2) the extreme points projected onto the line
     """
-    def gsum(v):
-        return np.bincount(group, weights=v, minlength=n_groups)
+    src, mask = layout if layout is not None else line_layout(group, n_groups)
+    X = xi[src]
+    sg = np.broadcast_to(np.asarray(sigma, dtype=float), (len(xi),))[src]
+    f = fit_points_padded(X, across_sigma(X, J[src], sg, mask), mask, tol=tol,
+                          max_iterations=max_iterations, residuals=False)
+    return image_line_arrays(f)
 
-    cnt = gsum(np.ones(len(group)))
-    m = np.stack([gsum(xi[:, 0]), gsum(xi[:, 1])], -1) / cnt[:, None]
-    u = xi - m[group]
-    a = _major_axis(gsum(u[:, 0] ** 2), gsum(u[:, 0] * u[:, 1]), gsum(u[:, 1] ** 2))
-    n0 = np.stack([-a[:, 1], a[:, 0]], -1)[group]                 # unweighted normal
-    sig = sigma * np.linalg.norm(np.einsum("nji,nj->ni", J, n0), axis=1)
-    w = 1.0 / sig ** 2
-    W = gsum(w)
-    xc = np.stack([gsum(w * xi[:, 0]), gsum(w * xi[:, 1])], -1) / W[:, None]
-    u = xi - xc[group]
-    a = _major_axis(gsum(w * u[:, 0] ** 2), gsum(w * u[:, 0] * u[:, 1]), gsum(w * u[:, 1] ** 2))
-    nvec = np.stack([-a[:, 1], a[:, 0]], -1)
-    t = np.stack([nvec[:, 1], -nvec[:, 0]], -1)
-    # orient from the first to the last point of each group
-    first = np.full(n_groups, -1)
-    last = np.full(n_groups, -1)
-    idx = np.arange(len(group))
-    np.maximum.at(last, group, idx)
-    first_rev = np.full(n_groups, len(group))
-    np.minimum.at(first_rev, group, idx)
-    first = first_rev
-    flip = np.einsum("gi,gi->g", t, xi[last] - xi[first]) < 0
-    nvec[flip] *= -1.0
-    t[flip] *= -1.0
-    d = np.einsum("gi,gi->g", nvec, xc)
-    s = np.einsum("ni,ni->n", xi - xc[group], t[group])
-    Sss = gsum(w * s * s)
-    smin = np.full(n_groups, np.inf)
-    smax = np.full(n_groups, -np.inf)
-    np.minimum.at(smin, group, s)
-    np.maximum.at(smax, group, s)
-    l = np.stack([nvec[:, 0], nvec[:, 1], -d], -1)
-    # covariance of (theta, d_c) -> (theta, d) -> l
-    G = len(W)
-    cov_c = np.zeros((G, 2, 2))
-    cov_c[:, 0, 0] = 1.0 / Sss
-    cov_c[:, 1, 1] = 1.0 / W
-    Jd = np.zeros((G, 2, 2))
-    Jd[:, 0, 0] = 1.0
-    Jd[:, 1, 0] = -np.einsum("gi,gi->g", t, xc)
-    Jd[:, 1, 1] = 1.0
-    Jh = np.zeros((G, 3, 2))
-    Jh[:, 0, 0] = -nvec[:, 1]
-    Jh[:, 1, 0] = nvec[:, 0]
-    Jh[:, 2, 1] = -1.0
-    T = Jh @ Jd
-    cov_l = T @ cov_c @ np.swapaxes(T, 1, 2)
-    ends = xc[:, None, :] + np.stack([smin, smax], -1)[:, :, None] * t[:, None, :]
+
+def image_line_arrays(f):
+    """Homogeneous lines ``l = (n_x, n_y, -d)`` (G, 3), their covariance
+    (G, 3, 3) (rank 2, propagated from ``diag(1/Sss, 1/W)`` of
+    ``(theta, d_c)``) and the end points (G, 2, 2) of fitted lines ``f``
+    (:func:`fit_points_padded`); as :class:`~photogram.lines.ImageLine`'s
+    ``homogeneous``, ``cov_homogeneous`` and ``end_points``."""
+    nvec, xc = f.normal, f.centroid
+    n0, n1 = nvec[:, 0], nvec[:, 1]
+    t0, t1 = n1, -n0                                       # direction t = (n_y, -n_x)
+    l = np.stack([n0, n1, -f.d], -1)
+    # (theta, d_c) -> (theta, d): d = n(theta) . x_c + d_c, dn/dtheta = -t;
+    # dl/d(theta, d) = ((-n_y, n_x, 0), (0, 0, -1)); written out
+    vt, vd = 1.0 / f.Sss, 1.0 / f.W
+    j = -(t0 * xc[:, 0] + t1 * xc[:, 1])
+    cov_l = np.empty((len(nvec), 3, 3))
+    cov_l[:, 0, 0] = n1 * n1 * vt
+    cov_l[:, 0, 1] = cov_l[:, 1, 0] = -n1 * n0 * vt
+    cov_l[:, 1, 1] = n0 * n0 * vt
+    cov_l[:, 0, 2] = cov_l[:, 2, 0] = n1 * j * vt
+    cov_l[:, 1, 2] = cov_l[:, 2, 1] = -n0 * j * vt
+    cov_l[:, 2, 2] = j * j * vt + vd
+    t = np.stack([t0, t1], -1)
+    ends = xc[:, None, :] + f.s_range[:, :, None] * t[:, None, :]
     return l, cov_l, ends
+
+
+# ---------------------------------------------------------------------------
+# step B (C13)-(C14)
 
 
 def _rays(xy, R, c):
@@ -131,9 +344,21 @@ def _closest_t(P, D, X0, rays):
         return np.where(den > 1e-14, (b * e - dd[..., None]) / den, -dd[..., None])
 
 
+def _two_points(P, D, X0, rays):
+    """Parameters t (L, k, 2) of the two points Y_1, Y_2 per view: the
+    points of the line closest to the rays of the segment's end points
+    (moved apart by +-1 where they coincide)."""
+    t = _closest_t(P, D, X0, rays)
+    same = np.abs(t[..., 1] - t[..., 0]) < 1e-9 * (1.0 + np.abs(t).max(-1))
+    t[same] += np.array([-1.0, 1.0])
+    return t
+
+
 def initial_lines_batch(l, R, X0, c):
-    """Initial 3D lines (L lines, k views): null space of the conditioned
-    planes ``pi = P^T l`` (appendix C.3, ``method="svd"``)."""
+    """Initial 3D lines (L lines, k views), appendix C.3 (``method="svd"`` of
+    :func:`photogram.lines.initial_line_homogeneous`): the null space of the
+    planes ``pi = P^T l`` conditioned by the centroid and RMS radius of the
+    projection centres; the point closest to that centroid."""
     K = np.stack([-c, c, np.ones_like(c)], -1)                  # (L, k, 3)
     nrm = np.einsum("lkji,lkj->lki", R, K * l)                   # R^T K l
     pi4 = -np.einsum("lki,lki->lk", X0, nrm)
@@ -148,9 +373,9 @@ def initial_lines_batch(l, R, X0, c):
     _, _, Vt = np.linalg.svd(Pc)
     x1, x2 = Vt[:, -2], Vt[:, -1]
     d = x1[:, 3:4] * x2[:, :3] - x2[:, 3:4] * x1[:, :3]
-    m = np.cross(x1[:, :3], x2[:, :3])
-    dd = np.einsum("li,li->l", d, d)
-    P = np.cross(d, m) / dd[:, None]
+    m = _cross(x1[:, :3], x2[:, :3])
+    dd = (d * d).sum(1)
+    P = _cross(d, m) / dd[:, None]
     D = d / np.sqrt(dd)[:, None]
     return centre + scale[:, None] * P, D
 
@@ -164,46 +389,72 @@ def _cross(a, b):
 
 
 def _line_system(P, D, t, l, cov_l, R, X0, c, u, v):
-    """Normal equations (C13)-(C14) of L lines at once: N (L,4,4), g (L,4)."""
-    Y = P[:, None, None, :] + t[..., None] * D[:, None, None, :]         # (L,k,2,3)
-    Xc = (Y - X0[:, :, None, :]) @ np.swapaxes(R, -1, -2)               # R (Y - X0)
+    """Normal equations of (C13)-(C14) of L lines at once: N (L,4,4),
+    g (L,4), chi2 (L,).
+
+    The conditions are the signed distances ``e = l . (x, 1)`` of the ideal
+    images ``x`` of the points ``Y = P + t D`` from the image lines ((C13)
+    divided by the depth), their covariance ``C = X^T Sigma_l X``,
+    ``X = [(x_1, 1), (x_2, 1)]`` (C14), the weights ``W = C^-1``; the design
+    matrix by the analytic derivative ``de/dY = l^T dx/dXc R`` and
+    ``dY/d(alpha, beta, gamma, delta) = (t u, t v, u, v)``.
+    (Written out element by element: for these small arrays numpy's stacked
+    matrix products cost more than the arithmetic.)
+    """
+    L, k = t.shape[:2]
+    RP = np.einsum("lkij,lkj->lki", R, P[:, None, :] - X0)[:, :, None, :]   # R (P - X0)
+    RD = np.einsum("lkij,lj->lki", R, D)[:, :, None, :]
+    Xc = RP + t[..., None] * RD                                  # R (Y - X0)   (L,k,2,3)
     iz = 1.0 / Xc[..., 2]
     cc = c[:, :, None]
-    ax, ay = -Xc[..., 0] * iz, Xc[..., 1] * iz                          # c = 1
+    ax, ay = -Xc[..., 0] * iz, Xc[..., 1] * iz                   # c = 1
     x, y = cc * ax, cc * ay
     l0, l1, l2 = (l[..., i:i + 1] for i in range(3))
-    e = x * l0 + y * l1 + l2                                            # (L,k,2)
-    # l^T dxy/dXc = c/z (-l0, l1, l0 X/z - l1 Y/z)
+    e = x * l0 + y * l1 + l2                                     # (L,k,2)
+    # l^T dxy/dXc = c/z (-l0, l1, l0 X/z - l1 Y/z); times R u, R v
     ci = cc * iz
-    # (arrays filled in place: np.stack costs more than the arithmetic here)
-    gx = np.empty(x.shape + (3,))                                       # (L,k,2,3)
-    gx[..., 0] = -l0 * ci
-    gx[..., 1] = l1 * ci
-    gx[..., 2] = (l0 * -ax - l1 * ay) * ci
-    g2 = gx @ R                                                         # d e / dY
-    # C = Xt cov Xt^T with Xt = (x, y, 1)
-    Xt = np.empty(x.shape + (3,))                                       # (L,k,2,3)
-    Xt[..., 0], Xt[..., 1], Xt[..., 2] = x, y, 1.0
-    C = Xt @ cov_l @ np.swapaxes(Xt, -1, -2)                            # (L,k,2,2)
-    det = C[..., 0, 0] * C[..., 1, 1] - C[..., 0, 1] * C[..., 1, 0]
-    W = np.empty(C.shape)
-    W[..., 0, 0], W[..., 0, 1] = C[..., 1, 1], -C[..., 0, 1]
-    W[..., 1, 0], W[..., 1, 1] = -C[..., 1, 0], C[..., 0, 0]
-    W /= det[..., None, None]
-    gu = (g2 * u[:, None, None, :]).sum(-1)
-    gv = (g2 * v[:, None, None, :]).sum(-1)
-    A = np.empty(gu.shape + (4,))                                       # (L,k,2,4)
+    g0, g1, g2 = -l0 * ci, l1 * ci, (l0 * -ax - l1 * ay) * ci
+    Ru = np.einsum("lkij,lj->lki", R, u)
+    Rv = np.einsum("lkij,lj->lki", R, v)
+    gu = g0 * Ru[..., 0:1] + g1 * Ru[..., 1:2] + g2 * Ru[..., 2:3]
+    gv = g0 * Rv[..., 0:1] + g1 * Rv[..., 1:2] + g2 * Rv[..., 2:3]
+    # C = Xt Sigma_l Xt^T, Xt = (x, y, 1) per point (C14)
+    S = cov_l[..., None]                                         # (L,k,3,3,1)
+    Sx0 = S[:, :, 0, 0] * x + S[:, :, 0, 1] * y + S[:, :, 0, 2]
+    Sx1 = S[:, :, 1, 0] * x + S[:, :, 1, 1] * y + S[:, :, 1, 2]
+    Sx2 = S[:, :, 2, 0] * x + S[:, :, 2, 1] * y + S[:, :, 2, 2]
+    Cpp = x * Sx0 + y * Sx1 + Sx2                                # C_11, C_22
+    C01 = x[..., 0] * Sx0[..., 1] + y[..., 0] * Sx1[..., 1] + Sx2[..., 1]
+    det = Cpp[..., 0] * Cpp[..., 1] - C01 * C01
+    W00, W11, W01 = Cpp[..., 1] / det, Cpp[..., 0] / det, -C01 / det
+    A = np.empty((L, k, 2, 4))
     A[..., 0], A[..., 1], A[..., 2], A[..., 3] = t * gu, t * gv, gu, gv
-    AtW = np.swapaxes(A, -1, -2) @ W                                    # (L,k,4,2)
-    N = (AtW @ A).sum(1)
-    g = (AtW @ e[..., None])[..., 0].sum(1)
-    chi2 = (e[..., None, :] @ W @ e[..., None])[..., 0, 0].sum(1)
+    WA = np.empty((L, k, 2, 4))
+    WA[:, :, 0] = W00[..., None] * A[:, :, 0] + W01[..., None] * A[:, :, 1]
+    WA[:, :, 1] = W01[..., None] * A[:, :, 0] + W11[..., None] * A[:, :, 1]
+    N = np.swapaxes(A.reshape(L, 2 * k, 4), 1, 2) @ WA.reshape(L, 2 * k, 4)
+    We = np.empty((L, k, 2))
+    We[..., 0] = W00 * e[..., 0] + W01 * e[..., 1]
+    We[..., 1] = W01 * e[..., 0] + W11 * e[..., 1]
+    g = (A * We[..., None]).sum((1, 2))
+    chi2 = (e * We).sum((1, 2))
     return N, g, chi2
 
 
-def intersect_lines_batch(l, cov_l, ends, R, X0, c, start=None, *, max_iterations=20,
-                          tol=1e-10, covariance=False):
-    """3D lines from k image lines each (step B), L lines at once.
+def intersect_lines_full(l, cov_l, ends, R, X0, c, start=None, *, max_iterations: int = 50,
+                         tol: float = 1e-10, covariance: bool = True, what: str = "line"):
+    """3D lines from k image lines each (step B, eqs. (C13)-(C14)), L lines
+    at once; the estimator of :func:`photogram.lines.intersect_line`.
+
+    Gauss-Newton in the local parameters ``(alpha, beta, gamma, delta)`` of
+    each line (:meth:`photogram.lines.SpaceLine.update`) from the start
+    lines, the two points per view fixed at the start; each line stops on
+    its own when the rotation is below ``tol`` rad and the shift below
+    ``tol`` times the mean distance of its start point from the cameras.
+    Then the point is moved to the middle of the measured segments (the
+    points of the line closest to the rays of their end points) and, with
+    ``covariance``, the normal matrix of (C14) is evaluated there with two
+    new points per view.
 
     Parameters
     ----------
@@ -211,47 +462,88 @@ def intersect_lines_batch(l, cov_l, ends, R, X0, c, start=None, *, max_iteration
     ends : (L, k, 2, 2) end points of the measured segments (ideal)
     R, X0, c : (L, k, 3, 3), (L, k, 3), (L, k) the views
     start : (P, D) or None
-        Start lines (L, 3) each; default the SVD initial lines.
+        Start lines (L, 3) each; default :func:`initial_lines_batch`.
+    max_iterations, tol :
+        Gauss-Newton control.
+    covariance : bool
+        Also the covariance (L, 4, 4) of the local parameters at the
+        returned points and chi2 (L,).
+    what : str
+        The lines' name in the GeometryError of singular normal equations.
+
+    Returns
+    -------
+    SimpleNamespace
+        ``P``, ``D`` (L, 3) point and unit direction, ``iterations`` (L,),
+        ``converged`` (L,) bool, ``rays`` (L, k, 2, 3) of the end points;
+        with ``covariance`` also ``cov`` (L, 4, 4), ``chi2`` (L,).
+    """
+    if start is None:
+        P, D = initial_lines_batch(l, R, X0, c)
+    else:
+        P, D = (np.array(a, dtype=float) for a in start)
+    n = len(P)
+    rays = _rays(ends, R[:, :, None], c[:, :, None])                    # (L,k,2,3)
+    t = _two_points(P, D, X0, rays)
+    dX = P[:, None] - X0
+    scale = np.sqrt((dX * dX).sum(-1)).mean(1)
+    its = np.zeros(n, dtype=int)
+    converged = np.zeros(n, dtype=bool)
+    active = np.ones(n, dtype=bool)
+    for it in range(1, max_iterations + 1):
+        u, v = local_basis_batch(D)
+        N, g, _ = _line_system(P, D, t, l, cov_l, R, X0, c, u, v)
+        try:
+            step = -np.linalg.solve(N, g[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            raise GeometryError(f"{what}: singular normal equations",
+                                hint="the planes of the views (nearly) coincide") from None
+        Dn = D + step[:, 0:1] * u + step[:, 1:2] * v
+        Dn /= np.sqrt((Dn * Dn).sum(1))[:, None]
+        Pn = P + step[:, 2:3] * u + step[:, 3:4] * v
+        small = ((np.abs(step[:, :2]).max(1) <= tol)
+                 & (np.abs(step[:, 2:]).max(1) <= tol * scale))
+        if active.all():
+            P, D = Pn, Dn
+        else:
+            P, D = np.where(active[:, None], Pn, P), np.where(active[:, None], Dn, D)
+        its[active] = it
+        converged |= active & small
+        active &= ~small
+        if not active.any():
+            break
+    te = _closest_t(P, D, X0, rays)
+    mid = P + (0.5 * (te.min(axis=(1, 2)) + te.max(axis=(1, 2))))[:, None] * D
+    P = P + ((mid - P) * D).sum(1)[:, None] * D
+    out = SimpleNamespace(P=P, D=D, iterations=its, converged=converged, rays=rays)
+    if covariance:
+        u, v = local_basis_batch(D)
+        N, _, out.chi2 = _line_system(P, D, _two_points(P, D, X0, rays), l, cov_l, R, X0, c,
+                                      u, v)
+        out.cov = np.linalg.inv(N)
+    return out
+
+
+def intersect_lines_batch(l, cov_l, ends, R, X0, c, start=None, *, max_iterations=50,
+                          tol=1e-10, covariance=False):
+    """3D lines from k image lines each (step B), L lines at once:
+    :func:`intersect_lines_full` as arrays.
+
+    Parameters
+    ----------
+    l, cov_l, ends, R, X0, c, start, max_iterations, tol :
+        As :func:`intersect_lines_full`.
     covariance : bool
         Also return the (L, 4, 4) covariance of the local parameters at the
-        returned points.
+        returned points and chi2 (L,).
 
     Returns
     -------
     P, D : (L, 3) point (recentred to the middle of the measured segments)
         and unit direction; with ``covariance`` also cov (L, 4, 4) and chi2.
     """
-    if start is None:
-        P, D = initial_lines_batch(l, R, X0, c)
-    else:
-        P, D = (np.array(a, dtype=float) for a in start)
-    rays = _rays(ends, R[:, :, None], c[:, :, None])                    # (L,k,2,3)
-    t = _closest_t(P, D, X0, rays)
-    same = np.abs(t[..., 1] - t[..., 0]) < 1e-9 * (1.0 + np.abs(t).max(-1))
-    t[same] += np.array([-1.0, 1.0])
-    scale = np.mean(np.linalg.norm(P[:, None] - X0, axis=-1), axis=1)
-    for _ in range(max_iterations):
-        u, v = local_basis_batch(D)
-        N, g, _ = _line_system(P, D, t, l, cov_l, R, X0, c, u, v)
-        try:
-            step = -np.linalg.solve(N, g[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            raise GeometryError("a 3D line has singular normal equations",
-                                hint="the planes of its views (nearly) coincide") from None
-        D = D + step[:, 0:1] * u + step[:, 1:2] * v
-        D /= np.linalg.norm(D, axis=1, keepdims=True)
-        P = P + step[:, 2:3] * u + step[:, 3:4] * v
-        if (np.abs(step[:, :2]).max() <= tol
-                and np.all(np.abs(step[:, 2:]).max(1) <= tol * scale)):
-            break
-    te = _closest_t(P, D, X0, rays)
-    mid = 0.5 * (te.min(axis=(1, 2)) + te.max(axis=(1, 2)))
-    P = P + mid[:, None] * D
+    out = intersect_lines_full(l, cov_l, ends, R, X0, c, start, max_iterations=max_iterations,
+                               tol=tol, covariance=covariance, what="a 3D line")
     if not covariance:
-        return P, D
-    u, v = local_basis_batch(D)
-    t = _closest_t(P, D, X0, rays)
-    same = np.abs(t[..., 1] - t[..., 0]) < 1e-9 * (1.0 + np.abs(t).max(-1))
-    t[same] += np.array([-1.0, 1.0])
-    N, _, chi2 = _line_system(P, D, t, l, cov_l, R, X0, c, u, v)
-    return P, D, np.linalg.inv(N), chi2
+        return out.P, out.D
+    return out.P, out.D, out.cov, out.chi2

@@ -24,6 +24,10 @@ lines, the transposed form ``x = a y + b`` for steep ones, so that
 
 with the homogeneous vector ``l = (n_x, n_y, -d)`` (``l . (x, y, 1) = 0``);
 the paper's ``(a, b)`` are available from :meth:`ImageLine.slope_intercept`.
+
+The iteration is :func:`photogram.lines.batch.fit_points_padded`, the one
+implementation for one line (:func:`fit_image_line`, a batch of one) and for
+many (Monte Carlo, :func:`photogram.lines.batch.fit_lines_batch`).
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from photogram.errors import GeometryError, InputError
+from photogram.lines.batch import fit_points_padded
 
 __all__ = ["ImageLine", "fit_image_line", "normalize_line", "line_distance",
            "line_angle"]
@@ -273,66 +278,22 @@ def fit_image_line(xy, sigma=1.0, *, tol: float = 1e-13, max_iterations: int = 5
         raise GeometryError(f"{what}: {n} point measured, a line needs at least 2",
                             hint="measure at least two (better 10-20) points along the line")
     sig = _sigmas(sigma, n)
-    w = 1.0 / sig ** 2
-    W = w.sum()
-    xc = (w[:, None] * xy).sum(0) / W
-    u = xy - xc
-    rms = np.sqrt((w * (u ** 2).sum(1)).sum() / W)
-    if rms == 0.0:
+    # the one implementation: a batch of one group
+    f = fit_points_padded(xy[:, None], sig[:, None], np.ones((n, 1), dtype=bool), tol=tol,
+                          max_iterations=max_iterations)
+    if f.rms[0] == 0.0:
         raise GeometryError(f"{what}: all {n} points coincide",
                             hint="measure points spread along the line")
-    u = u / rms
-    spread = (w[:, None] * u ** 2).sum(0)
-    transposed = bool(spread[1] > spread[0])
-    p, q = (u[:, 1], u[:, 0]) if transposed else (u[:, 0], u[:, 1])
-
-    # Gauss-Helmert iteration of q + v_q = a (p + v_p) + b, Q = sigma_i^2 I:
-    # equivalent weight (B Q B^T)^-1 = w_i / (1 + a^2)  (C11)
-    a = float((w * p * q).sum() / (w * p * p).sum())       # P = 1: ordinary LS
-    b = 0.0
-    vp = np.zeros(n)
-    it, small = 0, 0
-    for it in range(1, max_iterations + 1):
-        P = w / (1.0 + a * a)
-        mis = q - a * p - b                                 # w = f(l + v0) - B v0
-        A0 = -(p + vp)
-        N = np.array([[(P * A0 * A0).sum(), -(P * A0).sum()],   # A = (A0, -1)
-                      [-(P * A0).sum(), P.sum()]])
-        rhs = -np.array([(P * A0 * mis).sum(), -(P * mis).sum()])
-        da, db = np.linalg.solve(N, rhs)
-        lam = (A0 * da - db + mis) / (1.0 + a * a)          # (A dx + w) / (B B^T)
-        vp = a * lam                                        # v = -B^T lam, B = (-a, 1)
-        a, b = a + da, b + db
-        # the steps alternate large/small (a and v take turns), so stop after
-        # two small ones in a row
-        small = small + 1 if abs(da) <= tol * (1.0 + abs(a)) and abs(db) <= tol else 0
-        if small == 2:
-            break
-
-    nrm = np.hypot(a, 1.0)
-    if transposed:       # x = a y + b  ->  x - a y = b
-        nvec = np.array([1.0, -a]) / nrm
-    else:                # y = a x + b  -> -a x + y = b
-        nvec = np.array([-a, 1.0]) / nrm
-    d = b / nrm * rms + nvec @ xc
-    t = np.array([nvec[1], -nvec[0]])
-    if t @ (xy[-1] - xy[0]) < 0:
-        nvec, d, t = -nvec, -d, -t
-    r = xy @ nvec - d
-    s = (xy - xc) @ t
-    Sss = (w * s * s).sum()
-    along = np.sqrt(Sss / W)
-    across = np.sqrt((w * r * r).sum() / W)
+    along, across = float(f.along[0]), float(f.across[0])
     if along == 0.0 or across > max_width_ratio * along:
         raise GeometryError(
             f"{what}: the {n} points do not lie along a line (spread across "
             f"{across:.3g}, along {along:.3g} image units)",
             hint="check the measurements; a line through the projection centre "
                  "images as a point")
-    dof = n - 2
-    sigma0 = float(np.sqrt((w * r * r).sum() / dof)) if dof > 0 else float("nan")
-    cov = np.diag([1.0 / Sss, 1.0 / W])
-    return ImageLine(normal=nvec, d=float(d), centroid=xc, cov_centroid=cov, residuals=r,
-                     sigma=sig, sigma0=sigma0, s_range=np.array([s.min(), s.max()]),
-                     transposed=transposed, iterations=it, frame=frame, station=station,
-                     label=label)
+    cov = np.diag([1.0 / f.Sss[0], 1.0 / f.W[0]])
+    return ImageLine(normal=f.normal[0], d=float(f.d[0]), centroid=f.centroid[0],
+                     cov_centroid=cov, residuals=f.residuals[:, 0], sigma=sig,
+                     sigma0=float(f.sigma0[0]), s_range=f.s_range[0],
+                     transposed=bool(f.transposed[0]), iterations=int(f.iterations[0]),
+                     frame=frame, station=station, label=label)

@@ -27,6 +27,10 @@ the baseline of two of the three cameras. With two views the solution is
 the exact intersection of the two planes; the covariance is then the
 propagated one and the redundancy ``2 k - 4`` is zero.
 
+The estimator is :func:`photogram.lines.batch.intersect_lines_full`, the
+one implementation for one line (:func:`intersect_line`, a batch of one)
+and for many (Monte Carlo, :func:`photogram.lines.batch.intersect_lines_batch`).
+
 The one-step solution, eq. (C15), is in :mod:`photogram.lines.one_step`;
 :func:`~photogram.lines.from_points.intersect_line_from_points` runs either
 from measured points.
@@ -40,8 +44,9 @@ import numpy as np
 
 from photogram.errors import GeometryError, InputError
 from photogram.init.intersection import project_ideal
-from photogram.lines.initial import (_homogeneous, _views, check_plane_geometry,
-                                     initial_line_homogeneous, line_planes, plane_angles)
+from photogram.lines.batch import intersect_lines_full
+from photogram.lines.initial import (_homogeneous, _views, check_plane_geometry, line_planes,
+                                     plane_angles)
 from photogram.lines.plucker import SpaceLine, point_on_line, project_line_batch
 from photogram.lines.views import fit_view_line
 
@@ -148,41 +153,10 @@ class _Views:
         self.cov_l = np.array([line.cov_homogeneous for line in lines])
         self.ends = np.array([line.end_points for line in lines])            # (k, 2, 2)
         self.rays = np.array([c.rays(e) for c, e in zip(cams, self.ends)])    # (k, 2, 3)
-        self.R2 = np.repeat(self.R, 2, axis=0)
-        self.X02 = np.repeat(self.X0, 2, axis=0)
-        self.c2 = np.repeat(self.c, 2)
 
     def extent(self, L) -> dict:
         t = np.sort(_closest_t(L, self.X0, self.rays), axis=1)
         return dict(zip(self.names, t))
-
-    def points(self, L) -> np.ndarray:
-        """Parameters t (k, 2) of the two points Y_1, Y_2 per view: the
-        points of L closest to the rays of the segment's end points."""
-        t = _closest_t(L, self.X0, self.rays)
-        same = np.abs(t[:, 1] - t[:, 0]) < 1e-9 * (1.0 + np.abs(t).max(1))
-        t[same] += np.array([-1.0, 1.0])
-        return t
-
-    def system(self, L, t):
-        """Normal equations of (C13)-(C14) at L for the points t: N (4,4),
-        g (4,), chi2."""
-        u, v = L.basis
-        k = len(self.names)
-        Y = L.point + t[..., None] * L.direction
-        xy, J, _ = project_ideal(Y.reshape(-1, 3), self.R2, self.X02, self.c2, jacobians=True)
-        xy, J = xy.reshape(k, 2, 2), J.reshape(k, 2, 2, 3)
-        e = np.einsum("kpi,ki->kp", xy, self.l[:, :2]) + self.l[:, 2:3]       # (C13) / depth
-        Xt = np.concatenate([xy, np.ones((k, 2, 1))], axis=2)
-        C = Xt @ self.cov_l @ Xt.transpose(0, 2, 1)                           # (C14)
-        one = np.ones_like(t)[..., None]
-        dY = np.stack([t[..., None] * u, t[..., None] * v, one * u, one * v], axis=-1)
-        A = np.einsum("ki,kpic,kcd,kpdq->kpq", self.l[:, :2], J, self.R, dY)
-        W = np.linalg.inv(C)
-        N = np.einsum("kpq,kpr,krs->qs", A, W, A)
-        g = np.einsum("kpq,kpr,kr->q", A, W, e)
-        chi2 = float(np.einsum("kp,kpr,kr->", e, W, e))
-        return N, g, chi2
 
     def end_point_residuals(self, L) -> dict:
         l, _ = project_line_batch(L, self.R, self.X0, self.c, names=self.names)
@@ -226,7 +200,8 @@ def intersect_line(lines, cameras, *, label: str | None = None,
     label : str, optional
         Name of the line for messages (default: the lines' label).
     initial : SpaceLine, optional
-        Start value (default :func:`initial_line_homogeneous`, SVD).
+        Start value (default the SVD initial line of appendix C.3,
+        :func:`~photogram.lines.batch.initial_lines_batch`).
     min_plane_angle_deg : float
         The best pair of planes must meet at least at this angle.
     strict : bool
@@ -253,24 +228,15 @@ def intersect_line(lines, cameras, *, label: str | None = None,
     planes = line_planes(lines, cams) if len(lines) else np.zeros((0, 4))
     pair, _ = check_plane_geometry(planes, names, label,
                                    min_plane_angle_deg if strict else -1.0)
-    L = initial if initial is not None else initial_line_homogeneous(
-        lines, cams, label=label, min_plane_angle_deg=None)
-    L = SpaceLine(L.point, L.direction, label=label)
     what = f"line {label}" if label else "line"
     views = _Views(names, lines, cams)
-    scale = _scale(L, cams)
-    converged, it = False, 0
-    t = views.points(L)
-    for it in range(1, max_iterations + 1):
-        N, g, _ = views.system(L, t)
-        step = -_solve(N, g, what)
-        L = L.update(step)
-        if np.abs(step[:2]).max() <= tol and np.abs(step[2:]).max() <= tol * scale:
-            converged = True
-            break
-    L = _recentre(L, views.extent(L))
-    N, _, chi2 = views.system(L, views.points(L))
-    L.covariance = np.linalg.inv(N)
+    # the one implementation: a batch of one line
+    start = None if initial is None else (initial.point[None], initial.direction[None])
+    out = intersect_lines_full(views.l[None], views.cov_l[None], views.ends[None],
+                               views.R[None], views.X0[None], views.c[None], start,
+                               max_iterations=max_iterations, tol=tol, what=what)
+    L = SpaceLine(out.P[0], out.D[0], covariance=out.cov[0], label=label)
+    chi2, it, converged = float(out.chi2[0]), int(out.iterations[0]), bool(out.converged[0])
     extent = views.extent(L)
     r = 2 * len(lines) - 4
     return LineIntersection(

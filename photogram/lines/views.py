@@ -25,6 +25,7 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.geometry import camera_model, opk_to_matrix
 from photogram.init.intersection import project_ideal, ray_directions
+from photogram.lines.batch import across_sigma
 from photogram.lines.image_line import ImageLine, fit_image_line
 
 __all__ = ["ViewCamera", "ideal_coordinates", "fit_view_line", "cameras_from_project",
@@ -173,9 +174,8 @@ def fit_view_line(xy, camera: ViewCamera, sigma=1.0, *, label: str | None = None
     # the sigma across the line of the corrected points, with the normal of
     # the principal axis (the unweighted solution) of the corrected points
     if len(xi) >= 2 and np.isfinite(xi).all():
-        u = xi - xi.mean(0)
-        n = np.linalg.eigh(u.T @ u)[1][:, 0]
-        sig = sig * np.linalg.norm(np.einsum("nji,j->ni", J, n), axis=1)
+        sig = across_sigma(xi[:, None], J[:, None], sig[:, None],
+                           np.ones((len(xi), 1), dtype=bool))[:, 0]
     line = fit_image_line(xi, sig, frame="ideal", station=camera.name, label=label, **kwargs)
     return line
 

@@ -10,12 +10,11 @@ for all exposures at once:
   coordinates into the image block and solves point by point
   (:func:`photogram.adjust.dense.gauss_newton`, 3x3 normal equations per
   point, :func:`photogram.adjust.dense.point_normals` for the cofactors);
-* **image lines and 3D lines** by the batch line code
-  :mod:`photogram.lines.batch` (the estimators of
-  :func:`photogram.lines.fit_view_line` and
-  :func:`photogram.lines.intersect_line`, vectorized over lines), with the
-  ideal coordinates of every camera model from
-  :func:`photogram.lines.views.ideal_coordinates`;
+* **image lines and 3D lines** by the line code of the commands,
+  :mod:`photogram.lines.batch` (:func:`photogram.lines.fit_view_line` and
+  :func:`photogram.lines.intersect_line` are its batches of one), here over
+  all lines of a run at once, with the ideal coordinates of every camera
+  model from :func:`photogram.lines.views.ideal_coordinates`;
 * the **stick model** by :func:`photogram.jump.stick.stick_model`.
 """
 
@@ -36,7 +35,7 @@ from photogram.jump.exposures import exposure_order as _exposure_order
 from photogram.jump.exposures import split_id
 from photogram.jump.stick import stick_model
 from photogram.lines.batch import (fit_lines_batch, intersect_lines_batch,  # noqa: F401
-                                   local_basis_batch)
+                                   line_layout, local_basis_batch)
 from photogram.lines.views import ideal_coordinates
 
 __all__ = ["IntersectStep", "IntersectOutput", "local_basis_batch"]
@@ -151,6 +150,7 @@ class IntersectStep:
         gkey = line_no * S + self.l_station
         uniq, self.l_group = np.unique(gkey, return_inverse=True)
         self.n_groups = len(uniq)
+        self.l_layout = line_layout(self.l_group, self.n_groups)
         g_line, g_station = uniq // S, uniq % S
         views = np.bincount(g_line, minlength=self.n_lines)
         if np.any(views < 2) or np.any(views != views[0]):
@@ -255,7 +255,8 @@ class IntersectStep:
 
     def fit_lines(self, io, xy):
         xi, J = self.ideal(io, xy, self._l_rows, jacobians=True)
-        return fit_lines_batch(xi, J, self.l_sigma, self.l_group, self.n_groups)
+        return fit_lines_batch(xi, J, self.l_sigma, self.l_group, self.n_groups,
+                               layout=self.l_layout)
 
     def intersect_lines(self, io, R, X0, xy, start=None, covariance=False, tol=None):
         l, cov_l, ends = self.fit_lines(io, xy)
