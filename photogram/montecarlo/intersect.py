@@ -38,6 +38,10 @@ from photogram.lines.batch import (fit_lines_batch, intersect_lines_batch,  # no
                                    line_layout, local_basis_batch)
 from photogram.lines.views import ideal_coordinates
 
+#: the image-line fit's stopping rule outside trials (that of photogram
+#: intersect: :func:`photogram.lines.fit_image_line`)
+IMAGE_LINE_TOLERANCE = 1e-13
+
 __all__ = ["IntersectStep", "IntersectOutput", "local_basis_batch"]
 
 
@@ -253,13 +257,16 @@ class IntersectStep:
                 xi[rows] = out
         return (xi, J) if jacobians else xi
 
-    def fit_lines(self, io, xy):
+    def fit_lines(self, io, xy, tol=None):
+        """The image lines (the commands' Gauss-Helmert fit, eq. (C11));
+        ``tol`` its stopping rule (default: the commands' 1e-13; a trial
+        passes the trial tolerance, as for every other iteration of a run)."""
         xi, J = self.ideal(io, xy, self._l_rows, jacobians=True)
         return fit_lines_batch(xi, J, self.l_sigma, self.l_group, self.n_groups,
-                               layout=self.l_layout)
+                               layout=self.l_layout, tol=tol or IMAGE_LINE_TOLERANCE)
 
     def intersect_lines(self, io, R, X0, xy, start=None, covariance=False, tol=None):
-        l, cov_l, ends = self.fit_lines(io, xy)
+        l, cov_l, ends = self.fit_lines(io, xy, tol=tol)
         g = self.g_index
         Rv, X0v = R[self.g_station], X0[self.g_station]
         cv = io[self.station_camera[self.g_station], 0]
