@@ -242,26 +242,34 @@ def test_interrupted_run_resumes_and_gives_the_same_results(net, tmp_path):
 # ---------------------------------------------------------------------------
 # the jump chain (orient -> intersect) on simulated files
 
-def test_orient_intersect_chain_on_the_simulated_jump(tmp_path):
+def _jump_chain(tmp_path, runs, convert=lambda project: project):
+    """Monte Carlo of the simulated field orientation and the 3-exposure
+    jump (image and reference perturbed), the cameras converted by
+    ``convert``: ``(folder, summary)`` after checking that no run failed and
+    the headline has its three groups."""
     from photogram.montecarlo import run_montecarlo
     from photogram.simulation.designs import field_design
     from photogram.simulation.jump import jump_project
     field, _ = field_design()
-    write_project(field, tmp_path / "field.prj")
+    write_project(convert(field), tmp_path / "field.prj")
     jumps, _ = jump_project(n_exposures=3)
-    write_project(jumps, tmp_path / "jumps.prj")
-    path = _chain_file(tmp_path, """
+    write_project(convert(jumps), tmp_path / "jumps.prj")
+    path = _chain_file(tmp_path, f"""
         orient = "field.prj"
         intersect = "jumps.prj"
         perturb = ["image", "reference"]
-        runs = 30
+        runs = {runs}
         seed = 3
         """)
     folder, summary = run_montecarlo(read_project(path), progress=False)
     assert summary["failed"] == 0
-    head = summary["headline"]
-    assert set(head) == {"station", "jumper", "stick"}
-    for group in head.values():
+    assert set(summary["headline"]) == {"station", "jumper", "stick"}
+    return folder, summary
+
+
+def test_orient_intersect_chain_on_the_simulated_jump(tmp_path):
+    folder, summary = _jump_chain(tmp_path, runs=30)
+    for group in summary["headline"].values():
         assert 0.6 < group["ratio"]["median"] < 1.4          # 30 runs: +-26 % at 2 sigma
     t2 = (folder / "table2.csv").read_text()
     assert "P1.X" in t2 and "delta_phi" in t2
@@ -372,23 +380,6 @@ def test_monte_carlo_with_other_camera_models_agrees_with_propagation(net, tmp_p
 def test_orient_intersect_chain_with_opencv_cameras(tmp_path):
     """Field orientation and jump intersection (points by the engine, lines
     by the batch line code) with opencv cameras."""
-    from photogram.montecarlo import run_montecarlo
-    from photogram.simulation.designs import field_design
-    from photogram.simulation.jump import jump_project
-    field, _ = field_design()
-    write_project(_to_opencv(field), tmp_path / "field.prj")
-    jumps, _ = jump_project(n_exposures=3)
-    write_project(_to_opencv(jumps), tmp_path / "jumps.prj")
-    path = _chain_file(tmp_path, """
-        orient = "field.prj"
-        intersect = "jumps.prj"
-        perturb = ["image", "reference"]
-        runs = 60
-        seed = 3
-        """)
-    folder, summary = run_montecarlo(read_project(path), progress=False)
-    assert summary["failed"] == 0
-    head = summary["headline"]
-    assert set(head) == {"station", "jumper", "stick"}
-    for group in head.values():
+    _, summary = _jump_chain(tmp_path, runs=60, convert=_to_opencv)
+    for group in summary["headline"].values():
         assert 0.7 < group["ratio"]["median"] < 1.3          # 60 runs: +-18 % at 2 sigma
