@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from photogram.lines import SpaceLine, fit_view_line, intersect_line
-from photogram.lines.batch import fit_lines_batch, intersect_lines_batch, line_layout
+from photogram.lines.batch import intersect_lines_batch
+from photogram.lines.batch_image import fit_lines_batch, line_layout
 from photogram.simulation.ski_lines import field_cameras, measure_segment
 
 CAMS = field_cameras()

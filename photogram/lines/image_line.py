@@ -25,9 +25,9 @@ lines, the transposed form ``x = a y + b`` for steep ones, so that
 with the homogeneous vector ``l = (n_x, n_y, -d)`` (``l . (x, y, 1) = 0``);
 the paper's ``(a, b)`` are available from :meth:`ImageLine.slope_intercept`.
 
-The iteration is :func:`photogram.lines.batch.fit_points_padded`, the one
+The iteration is :func:`photogram.lines.batch_image.fit_points_padded`, the one
 implementation for one line (:func:`fit_image_line`, a batch of one) and for
-many (Monte Carlo, :func:`photogram.lines.batch.fit_lines_batch`).
+many (Monte Carlo, :func:`photogram.lines.batch_image.fit_lines_batch`).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from photogram.errors import GeometryError, InputError
-from photogram.lines.batch import fit_points_padded
+from photogram.lines.batch_image import fit_points_padded
 
 __all__ = ["ImageLine", "fit_image_line", "normalize_line", "line_distance",
            "line_angle"]

@@ -25,7 +25,7 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.geometry import camera_model, opk_to_matrix
 from photogram.init.intersection import project_ideal, ray_directions
-from photogram.lines.batch import across_sigma
+from photogram.lines.batch_image import across_sigma
 from photogram.lines.image_line import ImageLine, fit_image_line
 
 __all__ = ["ViewCamera", "ideal_coordinates", "fit_view_line", "cameras_from_project",

@@ -11,7 +11,7 @@ for all exposures at once:
   (:func:`photogram.adjust.dense.gauss_newton`, 3x3 normal equations per
   point, :func:`photogram.adjust.dense.point_normals` for the cofactors);
 * **image lines and 3D lines** by the line code of the commands,
-  :mod:`photogram.lines.batch` (:func:`photogram.lines.fit_view_line` and
+  :mod:`photogram.lines.batch_image` and :mod:`photogram.lines.batch` (:func:`photogram.lines.fit_view_line` and
   :func:`photogram.lines.intersect_line` are its batches of one), here over
   all lines of a run at once, with the ideal coordinates of every camera
   model from :func:`photogram.lines.views.ideal_coordinates`;
@@ -34,8 +34,8 @@ from photogram.geometry import matrix_to_opk
 from photogram.jump.exposures import exposure_order as _exposure_order
 from photogram.jump.exposures import split_id
 from photogram.jump.stick import stick_model
-from photogram.lines.batch import (fit_lines_batch, intersect_lines_batch,  # noqa: F401
-                                   line_layout, local_basis_batch)
+from photogram.lines.batch import intersect_lines_batch, local_basis_batch  # noqa: F401
+from photogram.lines.batch_image import fit_lines_batch, line_layout
 from photogram.lines.views import ideal_coordinates
 
 #: the image-line fit's stopping rule outside trials (that of photogram
