@@ -290,7 +290,7 @@ def solve_dense(problem, state, damping=0.0):
     return dx
 
 
-def _scale(problem, state):
+def parameter_scale(problem, state):
     from photogram.adjust.solver import _parameter_scale
     return _parameter_scale(problem, state)[dense_structure(problem).free]
 
@@ -312,7 +312,7 @@ def gauss_newton(problem, *, tolerance=1e-10, max_iterations=30, scale=None):
         return _gauss_newton_points(problem, tolerance, max_iterations, scale)
     st = dense_structure(problem)
     state = problem.state
-    s = _scale(problem, state) if scale is None else scale
+    s = parameter_scale(problem, state) if scale is None else scale
     lay = problem.layout
     weights = [problem.weights(k) for k in range(len(problem.blocks))]
     for it in range(1, max_iterations + 1):

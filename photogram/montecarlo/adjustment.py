@@ -27,10 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from photogram.adjust.build import build_problem, merged_image_blocks
-from photogram.adjust.dense import dense_cofactors, dense_structure, gauss_newton
+from photogram.adjust.dense import (dense_cofactors, dense_structure, gauss_newton,
+                                    parameter_scale)
 from photogram.adjust.residual_blocks import (DistanceBlock, ImagePointBlock,
                                               InteriorPriorBlock, PointPriorBlock,
                                               StationPriorBlock, VerticalBlock)
+from photogram.adjust.state import State
 from photogram.errors import InputError
 from photogram.geometry import camera_model, matrix_to_opk
 
@@ -141,6 +143,8 @@ class EngineBundle:
         for k, cols in enumerate(lay.camera_cols):
             self.io_free[k, :len(cols)] = lay.free[cols]
         self.dense = dense_structure(pb)
+        #: the parameter scale of the convergence test, at the truth
+        self.scale = parameter_scale(pb, self.truth_state)
         self.sources = np.concatenate(
             [np.full(len(b) * b.dim, _source(b), dtype=object) for b in pb.blocks]
             or [np.zeros(0, dtype=object)])
@@ -233,10 +237,9 @@ class EngineBundle:
                 blk.set_observations(value)
 
     def _engine_state(self, state: BundleState):
-        out = self.truth_state.copy()
-        out.io = [np.array(state.io[k, :n], dtype=float) for k, n in enumerate(self.n_params)]
-        out.R, out.X0, out.points = state.R.copy(), state.X0.copy(), state.X.copy()
-        return out
+        return State(state.X.copy(), state.R.copy(), state.X0.copy(),
+                     [np.array(state.io[k, :n], dtype=float)
+                      for k, n in enumerate(self.n_params)])
 
     def _bundle_state(self, s) -> BundleState:
         io = np.zeros_like(self.start.io)
@@ -255,14 +258,8 @@ class EngineBundle:
         pb = self.problem
         pb.state = self._engine_state(state)
         it = gauss_newton(pb, tolerance=tol or self.tolerance,
-                          max_iterations=self.max_iterations, scale=self._scale())
+                          max_iterations=self.max_iterations, scale=self.scale)
         return self._bundle_state(pb.state), it
-
-    def _scale(self):
-        if getattr(self, "_scale_cache", None) is None:
-            from photogram.adjust.dense import _scale
-            self._scale_cache = _scale(self.problem, self.truth_state)
-        return self._scale_cache
 
     def linearize(self, state: BundleState, inputs: BundleInputs):
         """What first-order propagation needs at ``state``: the whitened
