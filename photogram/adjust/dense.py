@@ -33,7 +33,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as la
 
+from photogram.adjust.residual_blocks import ImagePointBlock
 from photogram.adjust.state import State
+
+_potrf, _potrs = la.get_lapack_funcs(("potrf", "potrs"), (np.zeros((1, 1)),))
 from photogram.errors import GeometryError
 
 __all__ = ["DenseStructure", "dense_structure", "dense_jacobian", "dense_normal",
@@ -82,7 +85,6 @@ class DenseStructure:
 
 
 def _plain_image_block(block) -> bool:
-    from photogram.adjust.residual_blocks import ImagePointBlock
     return type(block).evaluate is ImagePointBlock.evaluate and len(block.slot_cols) == 3
 
 
@@ -169,6 +171,9 @@ class PointwiseStructure:
         self.starts = np.flatnonzero(np.r_[True, p[1:] != p[:-1]]) if len(p) else \
             np.zeros(0, dtype=int)
         self.points = p[self.starts] if len(p) else np.zeros(0, dtype=int)
+        sizes = np.diff(np.r_[self.starts, len(p)])
+        # observations per point when every point has the same number
+        self.views = int(sizes[0]) if len(sizes) and np.all(sizes == sizes[0]) else 0
         free = lay.free[lay.point_cols[self.points]]                  # (n, 3)
         self.free = free
         self.fixed = np.nonzero(~free)
@@ -195,43 +200,79 @@ def point_normals(problem, state, weights=None):
     pointwise problem (fixed coordinates: unit rows and columns), with the
     point indices: ``(points, A, b)``."""
     ps = pointwise_structure(problem)
-    As, bs = [], []
-    for k, b in enumerate(problem.blocks):
-        j = ps.slots[k]
-        if j is None:
-            continue
-        if _plain_image_block(b):
-            e, Js = b.evaluate(state, True, fixed_io=True,       # the orientation is fixed
-                               fixed_stations=True)
-        else:
-            e, Js = b.evaluate(state, True)
-        w = problem.weights(k) if weights is None else weights[k]
-        r = (np.where(w > 0, e, 0.0) if not w.all() else e) * w
-        Jp = Js[j] * w[:, :, None]
-        Jt = np.swapaxes(Jp, 1, 2)
-        As.append(Jt @ Jp)
-        bs.append((Jt @ r[..., None])[..., 0])
-    As = As[0] if len(As) == 1 else np.concatenate(As)
-    bs = bs[0] if len(bs) == 1 else np.concatenate(bs)
-    A = np.add.reduceat(As[ps.order], ps.starts, axis=0)
-    g = np.add.reduceat(bs[ps.order], ps.starts, axis=0)
-    if ps.any_fixed:
-        A = A * ps.free[:, :, None] * ps.free[:, None, :]
-        g = g * ps.free
-        i, q = ps.fixed
-        A[i, q, q] = 1.0
+    system = _PointSystem(problem, state, weights)
+    A, g = system.normals(state.points)
     return ps.points, A, g
+
+
+class _PointSystem:
+    """The blocks of a pointwise problem as functions of the points alone
+    (:meth:`ImagePointBlock.points_only`: the orientation is fixed), their
+    weights, and the sums of their 3x3 normal equations per point."""
+
+    def __init__(self, problem, state, weights=None):
+        self.ps = ps = pointwise_structure(problem)
+        self.parts = []
+        for k, b in enumerate(problem.blocks):
+            j = ps.slots[k]
+            if j is None:
+                continue
+            w = problem.weights(k) if weights is None else weights[k]
+            if _plain_image_block(b):
+                f = b.points_only(state)
+            else:
+                f = _points_function(b, state, j)
+            self.parts.append((f, w, None if w.all() else w > 0))
+
+    def normals(self, points):
+        ps = self.ps
+        rs, Js = [], []
+        for f, w, used in self.parts:
+            e, J = f(points)
+            rs.append((e if used is None else np.where(used, e, 0.0)) * w)
+            Js.append(J * w[:, :, None])
+        if ps.views and len(Js) == 1:    # each point in as many rows: one product each
+            n = len(ps.points)
+            Jg = Js[0][ps.order].reshape(n, -1, 3)
+            Jt = np.swapaxes(Jg, 1, 2)
+            A = Jt @ Jg
+            g = (Jt @ rs[0][ps.order].reshape(n, -1, 1))[..., 0]
+        else:
+            As, bs = [], []
+            for r, J in zip(rs, Js):
+                Jt = np.swapaxes(J, 1, 2)
+                As.append(Jt @ J)
+                bs.append((Jt @ r[..., None])[..., 0])
+            As = As[0] if len(As) == 1 else np.concatenate(As)
+            bs = bs[0] if len(bs) == 1 else np.concatenate(bs)
+            A = np.add.reduceat(As[ps.order], ps.starts, axis=0)
+            g = np.add.reduceat(bs[ps.order], ps.starts, axis=0)
+        if ps.any_fixed:
+            A = A * ps.free[:, :, None] * ps.free[:, None, :]
+            g = g * ps.free
+            i, q = ps.fixed
+            A[i, q, q] = 1.0
+        return A, g
+
+
+def _points_function(block, state, slot):
+    """A block's residuals and point Jacobian as a function of the points."""
+    def f(points):
+        e, Js = block.evaluate(State(points, state.R, state.X0, state.io), True)
+        return e, Js[slot]
+    return f
 
 
 def _gauss_newton_points(problem, tolerance, max_iterations, scale):
     ps = pointwise_structure(problem)
-    lay = problem.layout
     weights = [problem.weights(k) for k in range(len(problem.blocks))]
     s = scale[dense_structure(problem).col_of[ps.cols]] if scale is not None else None
     # (scale: per free column, as gauss_newton's)
     state = problem.state
+    system = _PointSystem(problem, state, weights)
+    points = state.points
     for it in range(1, max_iterations + 1):
-        _, A, g = point_normals(problem, state, weights)
+        A, g = system.normals(points)
         try:
             step = -np.linalg.solve(A, g[..., None])[..., 0]
         except np.linalg.LinAlgError:
@@ -239,11 +280,11 @@ def _gauss_newton_points(problem, tolerance, max_iterations, scale):
                                 hint="check the geometry of the intersection") from None
         if not np.all(np.isfinite(step)):
             raise GeometryError("the adjustment diverged (non-finite step)")
-        points = state.points.copy()        # only points move: the orientation arrays
+        points = points.copy()              # only points move: the orientation arrays
         points[ps.points] += step           # are shared with the new state (not copied)
-        problem.state = state = State(points, state.R, state.X0, state.io)
+        problem.state = State(points, state.R, state.X0, state.io)
         if s is None:
-            size = 1.0 + float(np.nanmax(np.abs(problem.state.points[ps.points]), initial=0.0))
+            size = 1.0 + float(np.nanmax(np.abs(points[ps.points]), initial=0.0))
             done = np.max(np.abs(step), initial=0.0) <= tolerance * size
         else:
             done = np.max(np.abs(step) / s, initial=0.0) < tolerance
@@ -267,12 +308,14 @@ def _step(Ns, gs, d, G, damping=0.0):
     if damping:
         Ns = Ns + damping * np.diag(np.diag(Ns))
     if G is None:
-        try:
-            cho = la.cho_factor(Ns, check_finite=False)
-        except la.LinAlgError:
+        # LAPACK's Cholesky directly (what scipy.linalg.cho_factor/cho_solve
+        # call, without their checks and copies: the same numbers)
+        c, info = _potrf(Ns, lower=False, overwrite_a=False, clean=False)
+        if info != 0:
             raise GeometryError("singular normal equations (datum defect?)",
-                                hint="check the datum of the adjustment") from None
-        return -d * la.cho_solve(cho, gs, check_finite=False)
+                                hint="check the datum of the adjustment")
+        x, info = _potrs(c, gs, lower=False, overwrite_b=False)
+        return -d * x
     Gs = G * d[:, None]
     k = Gs.shape[1]
     M = np.block([[Ns, Gs], [Gs.T, np.zeros((k, k))]])

@@ -11,9 +11,12 @@ variance factors and robust weights.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from photogram.geometry import angle_increment_map
+from photogram.geometry.camera import ideal_projection
 
 
 class ResidualBlock:
@@ -99,16 +102,8 @@ class ImagePointBlock(ResidualBlock):
         X0 = state.X0[self.station]
         kw = {}
         if hasattr(self.model, "correction_terms"):
-            # a correction model (brown): C(xy, io) and dC/dio stay while
-            # the observations and the interior orientation do (orient,
-            # intersect, Monte-Carlo runs): computed once, not per iteration
-            key = (self.xy.tobytes(), io_cams.tobytes())
             need = jacobians and not fixed_io
-            if getattr(self, "_correction_key", None) != key or \
-                    (need and self._correction[1] is None):
-                self._correction = self.model.correction_terms(self.xy, io, io_jacobian=need)
-                self._correction_key = key
-            kw["correction"] = self._correction if need else (self._correction[0], None)
+            kw["correction"] = self._correction_terms(io_cams, io, need)
             if fixed_stations:
                 kw["stations"] = False
         # the state holds R: the models' rotation-matrix path (no angles)
@@ -119,6 +114,48 @@ class ImagePointBlock(ResidualBlock):
         station = None if jac["X0"] is None else np.concatenate([jac["X0"], jac["rotation"]],
                                                                  axis=2)
         return e, [jac["X"], station, jac["io"]]
+
+
+    def _correction_terms(self, io_cams, io, io_jacobian):
+        """A correction model's (brown) ``C(xy, io)`` and ``dC/dio`` (None
+        without ``io_jacobian``). They stay while the observations and the
+        interior orientation do (orient, intersect, Monte-Carlo runs):
+        computed once, not per iteration."""
+        key = (self.xy.tobytes(), io_cams.tobytes())
+        if getattr(self, "_correction_key", None) != key or \
+                (io_jacobian and self._correction[1] is None):
+            self._correction = self.model.correction_terms(self.xy, io, io_jacobian=io_jacobian)
+            self._correction_key = key
+        return self._correction if io_jacobian else (self._correction[0], None)
+
+    def points_only(self, state):
+        """The residuals as a function of the object points alone, every
+        station and interior parameter held at ``state``'s values (an
+        intersection; Ceres' constant parameter blocks): a function
+        ``f(points) -> (e (N, 2), dE/dX (N, 2, 3))`` that computes what does
+        not depend on the points once. The same numbers as
+        ``evaluate(state with those points, fixed_io=True,
+        fixed_stations=True)`` (its residual and point Jacobian)."""
+        if getattr(self.model, "residuals_indexed", None) is not None or \
+                not hasattr(self.model, "correction_terms"):
+            def general(points):
+                e, Js = self.evaluate(replace(state, points=points), True, fixed_io=True,
+                                      fixed_stations=True)
+                return e, Js[0]
+            return general
+        io_cams = np.stack([state.io[k] for k in self.cameras])
+        io = io_cams[self.camera]
+        C = self._correction_terms(io_cams, io, False)[0]
+        R, X0, c = state.R[self.station], state.X0[self.station], io[:, 0]
+        point = self.point
+
+        def collinearity(points):
+            # as BrownModel.residuals_rotation: e = C - ideal(R (X - X0)),
+            # dE/dX = -(d ideal / d Xc) R (appendix A)
+            Xc = np.einsum("nij,nj->ni", R, points[point] - X0)
+            ideal, J_xc, _ = ideal_projection(Xc, c, jacobians=True)
+            return C - ideal, -J_xc @ R
+        return collinearity
 
 
 def _compiled_rows(model, n_rows):

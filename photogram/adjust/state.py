@@ -37,18 +37,17 @@ class State:
 
     def updated(self, layout: "Layout", dx: np.ndarray) -> "State":
         """The state moved by the increment ``dx`` (one value per column)."""
-        new = self.copy()
-        for k, cols in enumerate(layout.camera_cols):
-            new.io[k] = new.io[k] + dx[cols]
+        io = [v + dx[cols] for v, cols in zip(self.io, layout.camera_cols)]
+        io += [v.copy() for v in self.io[len(io):]]
         st = dx[layout.station_cols]
-        new.X0 = new.X0 + st[:, :3]
         turned = np.flatnonzero(np.any(st[:, 3:] != 0.0, axis=1))
         if len(turned) == len(st):
-            new.R = small_rotation(st[:, 3:]) @ new.R
-        elif len(turned):          # a zero increment leaves R as it is (exactly)
-            new.R[turned] = small_rotation(st[turned, 3:]) @ new.R[turned]
-        new.points = new.points + dx[layout.point_cols]
-        return new
+            R = small_rotation(st[:, 3:]) @ self.R
+        else:                      # a zero increment leaves R as it is (exactly)
+            R = self.R.copy()
+            if len(turned):
+                R[turned] = small_rotation(st[turned, 3:]) @ self.R[turned]
+        return State(self.points + dx[layout.point_cols], R, self.X0 + st[:, :3], io)
 
 
 class Layout:

@@ -182,9 +182,10 @@ def rotation_observations(X, R, X0, io, n_params):
     X = np.atleast_2d(np.asarray(X, dtype=float))
     n = X.shape[0]
     try:
-        R = np.broadcast_to(np.asarray(R, dtype=float), (n, 3, 3))
-        X0 = np.broadcast_to(np.asarray(X0, dtype=float), (n, 3))
-        io = np.broadcast_to(np.asarray(io, dtype=float), (n, n_params))
+        R, X0, io = (a if a.shape == shape else np.broadcast_to(a, shape)
+                     for a, shape in ((np.asarray(R, dtype=float), (n, 3, 3)),
+                                      (np.asarray(X0, dtype=float), (n, 3)),
+                                      (np.asarray(io, dtype=float), (n, n_params))))
     except ValueError:
         raise InputError("observation arrays have inconsistent shapes",
                          hint=f"X is {X.shape}; R must be (n,3,3) or (3,3), X0 (n,3) "

@@ -65,11 +65,12 @@ def from_radians(values, unit: str) -> np.ndarray:
 def skew(v) -> np.ndarray:
     """Cross-product matrix ``[v]x`` of ``v`` (..., 3) -> (..., 3, 3)."""
     v = np.asarray(v, dtype=float)
-    z = np.zeros(v.shape[:-1])
+    k = np.zeros(v.shape[:-1] + (3, 3))
     x, y, w = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack([np.stack([z, -w, y], -1),
-                     np.stack([w, z, -x], -1),
-                     np.stack([-y, x, z], -1)], -2)
+    k[..., 0, 1], k[..., 0, 2] = -w, y
+    k[..., 1, 0], k[..., 1, 2] = w, -x
+    k[..., 2, 0], k[..., 2, 1] = -y, x
+    return k
 
 
 def _elementary(angles):
@@ -169,16 +170,30 @@ def matrix_to_opk(R) -> np.ndarray:
 # --------------------------------------------------------------------------
 # Rodrigues (rotation vector)
 # --------------------------------------------------------------------------
-def _rodrigues_coefficients(theta):
-    """A = sin t / t, B = (1 - cos t) / t^2 and their derivatives divided by
-    t, A'/t and B'/t, stable at t = 0 (Taylor series below 1e-2)."""
+def _rodrigues_ab(theta):
+    """A = sin t / t and B = (1 - cos t) / t^2, stable at t = 0 (Taylor
+    series below 1e-2); also the masked angle, its square, sin and cos."""
     small = theta < _SMALL_ANGLE
+    if small.all():            # a solver's increments: only the series (same values)
+        t2 = theta * theta
+        return (1 - t2 / 6 + t2 * t2 / 120 - t2 ** 3 / 5040,
+                0.5 - t2 / 24 + t2 * t2 / 720 - t2 ** 3 / 40320, small, None, t2, None, None)
     t = np.where(small, 1.0, theta)
     t2 = theta * theta
     s, c = np.sin(t), np.cos(t)
     a = np.where(small, 1 - t2 / 6 + t2 * t2 / 120 - t2 ** 3 / 5040, s / t)
     b = np.where(small, 0.5 - t2 / 24 + t2 * t2 / 720 - t2 ** 3 / 40320,
                  (1 - c) / t ** 2)
+    return a, b, small, t, t2, s, c
+
+
+def _rodrigues_coefficients(theta):
+    """A = sin t / t, B = (1 - cos t) / t^2 and their derivatives divided by
+    t, A'/t and B'/t, stable at t = 0 (Taylor series below 1e-2)."""
+    a, b, small, t, t2, s, c = _rodrigues_ab(np.asarray(theta, dtype=float))
+    if t is None:
+        t = np.ones_like(t2)
+        s, c = np.sin(t), np.cos(t)
     da = np.where(small, -1 / 3 + t2 / 30 - t2 * t2 / 840 + t2 ** 3 / 45360,
                   (t * c - s) / t ** 3)
     db = np.where(small, -1 / 12 + t2 / 180 - t2 * t2 / 6720 + t2 ** 3 / 453600,
@@ -202,7 +217,7 @@ def rodrigues_to_matrix(rvec) -> np.ndarray:
     R : ndarray, (..., 3, 3)
     """
     r = np.asarray(rvec, dtype=float)
-    a, b, _, _ = _rodrigues_coefficients(np.linalg.norm(r, axis=-1))
+    a, b = _rodrigues_ab(np.sqrt((r * r).sum(-1)))[:2]
     k = skew(r)
     return (np.eye(3) + a[..., None, None] * k
             + b[..., None, None] * (k @ k))

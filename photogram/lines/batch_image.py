@@ -21,7 +21,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-__all__ = ["line_layout", "across_sigma", "fit_points_padded", "fit_lines_batch",
+__all__ = ["fit_lines_padded", "line_layout", "across_sigma", "fit_points_padded", "fit_lines_batch",
            "image_line_arrays"]
 
 
@@ -254,9 +254,16 @@ def fit_lines_batch(xi, J, sigma, group, n_groups, *, layout=None, tol: float = 
     ends : (G, 2, 2) the extreme points projected onto the line
     """
     src, mask = layout if layout is not None else line_layout(group, n_groups)
-    X = xi[src]
     sg = np.broadcast_to(np.asarray(sigma, dtype=float), (len(xi),))[src]
-    f = fit_points_padded(X, across_sigma(X, J[src], sg, mask), mask, tol=tol,
+    return fit_lines_padded(xi[src], J[src], sg, mask, tol=tol, max_iterations=max_iterations)
+
+
+def fit_lines_padded(xi, J, sigma, mask, *, tol: float = 1e-13, max_iterations: int = 50):
+    """:func:`fit_lines_batch` of points already in the padded layout of
+    :func:`line_layout`: ``xi`` (m, G, 2), ``J`` (m, G, 2, 2), ``sigma``
+    (m, G), ``mask`` (m, G) (a caller that computes its ideal coordinates
+    in that layout saves the gathers)."""
+    f = fit_points_padded(xi, across_sigma(xi, J, sigma, mask), mask, tol=tol,
                           max_iterations=max_iterations, residuals=False)
     return image_line_arrays(f)
 

@@ -35,7 +35,7 @@ from photogram.jump.exposures import exposure_order as _exposure_order
 from photogram.jump.exposures import split_id
 from photogram.jump.stick import stick_model
 from photogram.lines.batch import intersect_lines_batch, local_basis_batch  # noqa: F401
-from photogram.lines.batch_image import fit_lines_batch, line_layout
+from photogram.lines.batch_image import fit_lines_batch, fit_lines_padded, line_layout
 from photogram.lines.views import ideal_coordinates
 
 #: the image-line fit's stopping rule outside trials (that of photogram
@@ -171,6 +171,8 @@ class IntersectStep:
                                                 [k for k, m in enumerate(names) if m == n])))
                         for n in dict.fromkeys(names)]        # one call per camera model
         self.inputs_lines = np.asarray(il.xy, dtype=float).copy()
+        self._l_camera_padded = self.l_camera[self.l_layout[0].ravel()]
+        self._l_sigma_padded = np.broadcast_to(self.l_sigma, self.l_camera.shape)[self.l_layout[0]]
         self.max_iterations = 20
         self.tolerance = 1e-11
 
@@ -261,9 +263,18 @@ class IntersectStep:
         """The image lines (the commands' Gauss-Helmert fit, eq. (C11));
         ``tol`` its stopping rule (default: the commands' 1e-13; a trial
         passes the trial tolerance, as for every other iteration of a run)."""
+        tol = tol or IMAGE_LINE_TOLERANCE
+        if len(self._l_rows) == 1:        # one camera model: straight into the padded layout
+            src, mask = self.l_layout
+            model = self._l_rows[0][0]
+            xi, J = ideal_coordinates(model.name, xy[src.ravel()],
+                                      io[self._l_camera_padded, :model.n_params],
+                                      jacobians=True)
+            return fit_lines_padded(xi.reshape(src.shape + (2,)), J.reshape(src.shape + (2, 2)),
+                                    self._l_sigma_padded, mask, tol=tol)
         xi, J = self.ideal(io, xy, self._l_rows, jacobians=True)
         return fit_lines_batch(xi, J, self.l_sigma, self.l_group, self.n_groups,
-                               layout=self.l_layout, tol=tol or IMAGE_LINE_TOLERANCE)
+                               layout=self.l_layout, tol=tol)
 
     def intersect_lines(self, io, R, X0, xy, start=None, covariance=False, tol=None):
         l, cov_l, ends = self.fit_lines(io, xy, tol=tol)
