@@ -174,3 +174,54 @@ def test_brown_correction_kept_while_observations_and_interior_stay():
     st = p.state.copy()
     st.io[0] = st.io[0] * (1 + 1e-3)
     np.testing.assert_array_equal(blk.evaluate(st)[0], fresh.evaluate(st)[0])
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_points_only_is_evaluate_with_the_orientation_held(model):
+    """ImagePointBlock.points_only (the intersection's residuals as a
+    function of the points alone) gives exactly evaluate's residuals and
+    point Jacobian at any points, and its Jacobian matches finite
+    differences."""
+    prj = _project(model, perturb=0.01)
+    p = build_problem(prj, fix_interior=True, fix_stations=True).problem
+    blk = next(b for b in p.blocks if isinstance(b, ImagePointBlock))
+    f = blk.points_only(p.state)
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        pts = p.state.points + rng.normal(0, 0.01, p.state.points.shape)
+        e, JX = f(pts)
+        st = State(pts, p.state.R, p.state.X0, p.state.io)
+        e_ref, Js = blk.evaluate(st, True, fixed_io=True, fixed_stations=True)
+        np.testing.assert_array_equal(e, e_ref)
+        np.testing.assert_array_equal(JX, Js[0])
+    h = 1e-6
+    for q in range(3):
+        dp = np.zeros_like(pts)
+        dp[:, q] = h
+        fd = (f(pts + dp)[0] - f(pts - dp)[0]) / (2 * h)
+        own = JX[:, :, q]
+        np.testing.assert_allclose(fd, own, rtol=1e-5, atol=1e-6 * np.abs(own).max())
+
+
+def test_point_normals_of_equal_views_equal_the_sum_per_observation():
+    """The batched product for points seen in equally many rows equals the
+    sum of the per-observation normal equations (reduceat) to rounding."""
+    rng = np.random.default_rng(4)
+    net = frame_network(n_stations=4, n_points=16, sigma=0.3, seed=4)
+    prj = to_project(net, control=[], point_sigma=0.001, sigma_image=0.3, name="d",
+                     perturb_points=0.01, perturb_stations=0.0, rng=rng)
+    p = build_problem(prj, fix_interior=True, fix_stations=True).problem
+    ps = pointwise_structure(p)
+    assert ps.ok and ps.views > 1 and len(p.blocks) == 1      # the batched path
+    points, A, g = point_normals(p, p.state)
+    blk = next(b for b in p.blocks if isinstance(b, ImagePointBlock))
+    e, Js = blk.evaluate(p.state, True, fixed_io=True, fixed_stations=True)
+    w = p.weights(p.blocks.index(blk))
+    J = Js[0] * w[:, :, None]
+    r = e * w
+    A_ref = np.zeros((len(p.state.points), 3, 3))
+    g_ref = np.zeros((len(p.state.points), 3))
+    np.add.at(A_ref, blk.point, np.swapaxes(J, 1, 2) @ J)
+    np.add.at(g_ref, blk.point, np.einsum("nki,nk->ni", J, r))
+    np.testing.assert_allclose(A, A_ref[points], rtol=1e-12, atol=1e-12 * np.abs(A).max())
+    np.testing.assert_allclose(g, g_ref[points], rtol=1e-10, atol=1e-12 * np.abs(g).max())

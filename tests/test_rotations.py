@@ -197,3 +197,17 @@ def test_quaternion_half_turns_canonical():
     q = rot.matrix_to_quaternion(R)
     assert np.allclose(q, [[0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], atol=1e-12)
     assert np.allclose(rot.quaternion_to_matrix(q), R, atol=1e-13)
+
+
+def test_rodrigues_series_shortcut_is_the_general_formula():
+    """rodrigues_to_matrix takes the series alone when every angle is below
+    1e-2 (a solver's increments): the same numbers as when the same vectors
+    come with a large one (np.where over both branches)."""
+    from photogram.geometry.rotations import rodrigues_to_matrix
+    rng = np.random.default_rng(8)
+    small = rng.normal(0, 1e-3, (20, 3))
+    mixed = np.vstack([small, [[0.3, -0.2, 1.0]]])
+    np.testing.assert_array_equal(rodrigues_to_matrix(small), rodrigues_to_matrix(mixed)[:20])
+    R = rodrigues_to_matrix(small)
+    np.testing.assert_allclose(R @ np.swapaxes(R, 1, 2), np.broadcast_to(np.eye(3), R.shape),
+                               atol=1e-15)
