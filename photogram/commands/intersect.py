@@ -116,6 +116,8 @@ def _points_table(result, unit):
     for e, exposure in enumerate(result.exposures):
         for k, name in enumerate(result.project.intersect.points):
             s = np.sqrt(np.clip(np.diag(result.cov_P[e])[3 * k:3 * k + 3], 0, None))
+            if not np.all(np.isfinite(result.P[e, k])):   # not measured: no sigma (not 0)
+                s = np.full(3, np.nan)
             rows.append({"exposure": exposure, "time": result.times[e], "point": name,
                          "X": result.P[e, k, 0], "Y": result.P[e, k, 1], "Z": result.P[e, k, 2],
                          "sX": s[0], "sY": s[1], "sZ": s[2]})
