@@ -40,6 +40,14 @@ def summary_lines(project: Project) -> list[str]:
                        f"max_iterations {adj.max_iterations}"),
         ("output", str(project.output_folder())),
     ]
+    t = getattr(project, "track", None)
+    if t is not None:      # a tracking project: its videos instead of observations
+        offsets = "estimated" if t.offsets is None else \
+            ", ".join(f"{k} {v:+d}" for k, v in t.offsets.items()) or "none"
+        rows[4:6] = [("track", f"{len(t.videos)} videos ({', '.join(t.videos)}), markers "
+                               f"{' '.join(t.markers)}, skis {' '.join(t.skis)}, "
+                               f"offsets {offsets}")]
+        rows = [r for r in rows if r[0] not in ("points", "constraints", "adjustment")]
     lines = [f"{project.path}: ok"] + [f"  {k:<13} {v}" for k, v in rows]
     lines += [f"warning: {w}" for w in project.warnings] or ["warnings: none"]
     return lines

@@ -53,6 +53,9 @@ COMMANDS: dict[str, Command] = {
                       "exterior orientation of the stations with known cameras"),
     "intersect": Command("photogram.commands.intersect:run", "the adjustment engine",
                          "object coordinates of points from oriented stations"),
+    "track": Command("photogram.commands.track:run", "the video tracker",
+                     "track jumper markers and ski lines in the videos of a jump -> the "
+                     "observations of intersect (docs/track.md)"),
     "montecarlo": Command("photogram.commands.montecarlo:run", "the Monte Carlo engine",
                           "precision of the results by Monte Carlo simulation"),
     "simulate": Command("photogram.commands.simulate:run", "the simulator",
@@ -92,7 +95,7 @@ def _common_options() -> argparse.ArgumentParser:
 
 #: commands that write a results folder (guarded by photogram.project.output_policy)
 WRITERS = {"calibrate": False, "orient": False, "intersect": False, "montecarlo": True,
-           "mocap": True}        # command -> resumable
+           "mocap": True, "track": False}        # command -> resumable
 
 
 def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:

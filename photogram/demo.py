@@ -7,7 +7,10 @@ projects, in the order a user runs it.
    ``calibrate projects/lab/lab.prj``   self-calibration of the lab frame from them
 2. ``orient projects/field/field.prj``  the simulated arena, cameras from step 1
 3. ``intersect projects/jumps/jumps.prj``  the simulated jump: jumper points,
-   ski lines and the stick model, orientation covariance propagated
+   ski lines and the stick model, orientation covariance propagated; then
+   ``track projects/jumps/track.prj``  the same jump from its rendered videos
+   (markers and ski lines tracked) and ``intersect
+   projects/jumps/jumps-video.prj``  the stick model from the tracked videos
 4. ``montecarlo projects/jumps/montecarlo.prj --runs 200``  accuracy by
    simulation of orient + intersect, Monte Carlo versus propagated sigmas
 5. ``mocap projects/ski-ptz/ski-ptz.prj``  markerless motion capture of a
@@ -75,12 +78,44 @@ def _measure(path):
     return folder
 
 
+def _track(path):
+    """photogram track of the simulated jump's videos: rendered into
+    ``video/`` first when they are missing (photogram.simulation.jump_video,
+    a few seconds), then tracked into the project's output folder (the demo
+    replaces its own earlier tracking)."""
+    from photogram.commands.track import track_and_write
+    from photogram.project.output_policy import claim_output, project_inputs
+
+    videos = path.parent / "video"
+    if not videos.is_dir():
+        from photogram.simulation.jump_video import render_jump_videos, write_jump_videos
+        write_jump_videos(render_jump_videos(), videos)
+        print(f"track {path.relative_to(ROOT)}: rendered the simulated videos into "
+              f"{videos.relative_to(ROOT)}")
+    project = read_project(path)
+    folder = project.output_folder()
+    if claim_output(folder, command="track", force=True, inputs=project_inputs(project)) != "new":
+        print(f"track {path.relative_to(ROOT)}: replacing the earlier results in "
+              f"{folder.relative_to(ROOT)}")
+    folder, result = track_and_write(project)
+    s = result.summary
+    truth = s.get("truth", {}).get("markers")
+    check = (f"; against the truth: marker centres {truth['rms_px']:.3f} px RMS, "
+             f"{truth['n_wrong']} wrong labels" if truth else "")
+    print(f"track {path.relative_to(ROOT)}: {s['markers_found']} of {s['markers_expected']} "
+          f"marker observations, {s['ski_lines_found']} of {s['ski_lines_expected']} ski lines"
+          f"{check}; results in {folder.relative_to(ROOT)}")
+    return folder
+
+
 def steps():
     """(command, function, project path, needs) of the demo, in order."""
     return [("measure", _measure, PROJECTS / "lab" / "frame.toml", None),
             ("calibrate", calibrate, PROJECTS / "lab" / "lab.prj", None),
             ("orient", orient, PROJECTS / "field" / "field.prj", None),
             ("intersect", intersect_and_write, PROJECTS / "jumps" / "jumps.prj", None),
+            ("track", _track, PROJECTS / "jumps" / "track.prj", None),
+            ("intersect", intersect_and_write, PROJECTS / "jumps" / "jumps-video.prj", None),
             ("montecarlo", _montecarlo, PROJECTS / "jumps" / "montecarlo.prj", None),
             ("mocap", _mocap, PROJECTS / "ski-ptz" / "ski-ptz.prj", None),
             ("mocap", _mocap, PROJECTS / "ski-ptz" / "ski-ptz-estimate.prj", None),
@@ -101,7 +136,7 @@ def run(args=None):
             continue
         if not path.is_file():
             continue
-        if command == "measure":
+        if command in ("measure", "track"):
             folders.append(function(path))
             continue
         project = read_project(path)

@@ -320,6 +320,7 @@ class Project:
     montecarlo: MonteCarloSettings | None = None
     targets: TargetSettings | None = None   # [targets]: None = no eccentricity correction
     mocap: object | None = None        # MocapSettings (photogram.project.reader_mocap)
+    track: object | None = None        # TrackSettings (photogram.project.reader_track)
     sources: dict[str, Path] = field(default_factory=dict)  # table -> file
     warnings: list[str] = field(default_factory=list)  # found by the reader
 

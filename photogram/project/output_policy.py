@@ -40,7 +40,7 @@ _RESUMABLE_STATE = RESUMABLE_STATE
 
 def project_inputs(project) -> list[Path]:
     """The files a project reads: the .prj, its tables, and the files of a
-    ``[mocap]`` section."""
+    ``[mocap]`` or ``[track]`` section."""
     out = [Path(project.path)] + [Path(p) for p in project.sources.values() if p]
     ms = getattr(project, "mocap", None)
     if ms is not None:
@@ -53,6 +53,10 @@ def project_inputs(project) -> list[Path]:
             out.append(Path(ms.source.path))
         out += [Path(p) for p in (ms.source.cameras or {}).values()]
         out += [Path(p) for p in (ms.images or {}).values()]
+    ts = getattr(project, "track", None)
+    if ts is not None:          # [track]: videos, seed clicks, exposure frames
+        out += [Path(p) for p in ts.videos.values()]
+        out += [Path(p) for p in (ts.seeds, ts.exposures) if p is not None]
     return out
 
 

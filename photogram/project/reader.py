@@ -28,6 +28,7 @@ from photogram.project.reader_dbat import _camera_from_dbat, _read_dbat_style, _
 from photogram.project.reader_sections import PROJECT_KEYS, _read_output, _read_project_section  # noqa: F401
 from photogram.project.reader_tables import (_read_observations, _read_points, _read_stations,
                                              _source_table)
+from photogram.project.reader_track import read_track_section
 from photogram.project.tables import Table, read_table  # noqa: F401
 from photogram.project.validate import DOCS, Section, TomlSource, suggest, validate_project
 
@@ -44,7 +45,8 @@ from photogram.project.reader_tables import (  # noqa: F401,E402  (re-exports)
 __all__ = ["read_project", "SECTIONS", "STATION_COLUMNS", "POINT_COLUMNS"]
 
 SECTIONS = ("project", "cameras", "stations", "points", "observations",
-            "constraints", "adjustment", "output", "intersect", "montecarlo", "mocap", "targets")
+            "constraints", "adjustment", "output", "intersect", "montecarlo", "mocap", "targets",
+            "track")
 REQUIRED_SECTIONS = ("project", "cameras", "stations", "observations")
 INTERSECT_KEYS = ("fps", "points", "skis", "ski_length", "binding_fraction", "orientation",
                   "swap_skis")
@@ -114,7 +116,10 @@ def read_project(path: str | Path) -> Project:
         return read_mocap_project(prj, src, root)
     # a Monte-Carlo chain file: [project], [montecarlo], [output] and no tables
     chain_only = "montecarlo" in root.data and "cameras" not in root.data
-    for name in ("project",) if chain_only else REQUIRED_SECTIONS:
+    required = ("project",) if chain_only else REQUIRED_SECTIONS
+    if "track" in root.data:      # a tracking project writes its observations
+        required = tuple(n for n in required if n != "observations")
+    for name in required:
         root.table(name)
     project = Project(path=prj, sources={"project": prj})
     _read_project_section(root.table("project"), project)
@@ -132,6 +137,8 @@ def read_project(path: str | Path) -> Project:
     project.intersect = _read_intersect(root.table("intersect", required=False), prj)
     _read_cameras(root.table("cameras"), project)
     _check_sigma_image(root, project)
+    if "track" in root.data:     # a tracking project: it writes the observations
+        return _read_track_project(root, project)
     tables = [root.table(n, required=n != "points") for n in ("stations", "points", "observations")]
     if tables[1] is None:      # no fixed points: only moving ones (exposures)
         tables[1] = Section(src, ("points",), {}, "[points]")
@@ -147,6 +154,20 @@ def read_project(path: str | Path) -> Project:
     _read_constraints(root.table("constraints", required=False), project)
     read_targets(root.table("targets", required=False), project)
     project.warnings = project.warnings + validate_project(project, src)
+    return project
+
+
+def _read_track_project(root: Section, project: Project) -> Project:
+    """``[track]`` with its cameras and stations (no tables of
+    observations: ``photogram track`` writes them; docs/track.md)."""
+    for name in ("points", "observations", "constraints", "montecarlo", "targets"):
+        if name in root.data:
+            raise root.error(name, f"[{name}] in a tracking project (one with [track])",
+                             hint="the tracked observations go into the intersect project "
+                                  "that reads photogram track's output")
+    project.stations = _read_stations(root.table("stations"), project)
+    project.track = read_track_section(root.table("track"), project.path,
+                                       list(project.stations.names))
     return project
 
 
