@@ -79,7 +79,7 @@ def _ski_corners(tail, tip, right, up, n_along: int = 6):
     return (axis[:, None, :] + offs[None]).reshape(-1, 3)
 
 
-def jumper_parts(P, tail, tip, marker_radius: float, hidden=()) -> Parts:
+def jumper_parts(P, tail, tip, marker_radius: float, hidden=(), body: bool = True) -> Parts:
     """The jumper's body, skis and markers for one pose.
 
     Joints from the four points (dm): the ankles 1.2 above the bindings
@@ -87,8 +87,14 @@ def jumper_parts(P, tail, tip, marker_radius: float, hidden=()) -> Parts:
     along P2->P1 and 1.7 either side, knees a little bent, arms along the
     body pointing back; the helmet a ball of radius 1.25 at P1. The skis are
     boxes 1.0 wide and 0.3 thick centred on their axes. ``hidden`` names
-    markers not drawn.
+    markers not drawn; ``body=False`` leaves only the markers.
     """
+    names = [n for n in ("P1", "P2", "P3", "P4") if n not in hidden]
+    idx = [int(n[1]) - 1 for n in names]
+    if not body:
+        empty = np.zeros((0, 3))
+        return Parts(empty, empty, np.zeros(0), np.zeros(0), np.zeros(0), [], [], P[idx],
+                     marker_radius, names)
     P3, P4, P2, P1 = P[2], P[3], P[1], P[0]
     O = 0.5 * (P3 + P4)
     right = _unit(P3 - P4)
@@ -116,8 +122,6 @@ def jumper_parts(P, tail, tip, marker_radius: float, hidden=()) -> Parts:
              (P1, P1, 1.25, 1.25, HELMET)]
     solids = [_ski_corners(tail[k], tip[k], _unit(np.cross(up, tip[k] - tail[k])), up)
               for k in range(2)]
-    names = [n for n in ("P1", "P2", "P3", "P4") if n not in hidden]
-    idx = [int(n[1]) - 1 for n in names]
     A, B, rA, rB, g = (np.array(v, float) for v in zip(*caps))
     return Parts(A, B, rA, rB, g, solids, [SKI, SKI], P[idx], marker_radius, names)
 

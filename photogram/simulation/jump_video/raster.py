@@ -71,25 +71,28 @@ def _to_canvas(xy, box, ss):
     return (np.asarray(xy, float) - [box[0] - 0.5, box[1] - 0.5]) * ss - 0.5
 
 
-def disc_coverage(centre, radius, box, ss: int, q: int = 4):
+def disc_coverage(centre, radius, box, ss: int, q: int = 16):
     """Area coverage of a disc on the canvas of ``box``.
 
-    Each canvas cell is sampled at ``q x q`` points (so ``ss q`` per pixel
-    and axis). Returns ``(v0, u0, cov)`` with ``cov`` a float32 block whose
-    top-left cell is canvas cell (u0, v0), or None if the disc misses.
+    Exact across rows (the disc's vertical extent at each sample column is
+    intersected with each cell analytically), midpoint-sampled along x at
+    ``q`` columns per cell (``ss q`` per pixel): the area is within ~1e-3 of
+    pi r^2 for r ~ 1.3 px. Returns ``(v0, u0, cov)`` with ``cov`` a float32
+    block whose top-left cell is canvas cell (u0, v0), or None if the disc
+    misses the canvas.
     """
     w, h = (box[2] - box[0]) * ss, (box[3] - box[1]) * ss
-    c = _to_canvas(centre, box, ss)
+    cu, cv = _to_canvas(centre, box, ss) + 0.5          # cell u spans [u, u + 1]
     r = radius * ss
-    u0, v0 = max(int(np.floor(c[0] - r)) - 1, 0), max(int(np.floor(c[1] - r)) - 1, 0)
-    u1, v1 = min(int(np.ceil(c[0] + r)) + 2, w), min(int(np.ceil(c[1] + r)) + 2, h)
+    u0, v0 = max(int(np.floor(cu - r)), 0), max(int(np.floor(cv - r)), 0)
+    u1, v1 = min(int(np.ceil(cu + r)) + 1, w), min(int(np.ceil(cv + r)) + 1, h)
     if u1 <= u0 or v1 <= v0:
         return None
-    sub = (np.arange(q) + 0.5) / q - 0.5
-    du = (np.arange(u0, u1)[:, None] + sub[None]).ravel() - c[0]
-    dv = (np.arange(v0, v1)[:, None] + sub[None]).ravel() - c[1]
-    inside = (dv[:, None] ** 2 + du[None, :] ** 2) <= r * r
-    cov = inside.reshape(v1 - v0, q, u1 - u0, q).mean(axis=(1, 3), dtype=np.float32)
+    xs = (np.arange(u0 * q, u1 * q) + 0.5) / q
+    half = np.sqrt(np.maximum(r * r - (xs - cu) ** 2, 0.0))
+    rows = np.arange(v0, v1, dtype=float)[:, None]
+    overlap = np.clip(np.minimum(cv + half, rows + 1) - np.maximum(cv - half, rows), 0.0, None)
+    cov = overlap.reshape(v1 - v0, u1 - u0, q).mean(axis=2).astype(np.float32)
     return v0, u0, cov
 
 

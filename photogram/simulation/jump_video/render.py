@@ -57,8 +57,9 @@ def _hidden(settings, station, exposure):
             if st == station and a <= exposure + 1 <= b}
 
 
-def _project_parts(parts: Parts, camera, discs_grey) -> tuple[list, list]:
-    """Image shapes and discs of 3D parts in one camera."""
+def _project_parts(parts: Parts, camera, discs_grey) -> tuple[list, list, float]:
+    """Image shapes and discs of 3D parts in one camera, and their mean
+    depth (dm)."""
     n = len(parts.A)
     pts = [parts.A, parts.B, parts.disc_centres.reshape(-1, 3)] + parts.solids
     X = np.vstack(pts)
@@ -75,7 +76,7 @@ def _project_parts(parts: Parts, camera, discs_grey) -> tuple[list, list]:
     d0 = 2 * n
     discs = [Disc(xy[d0 + j], parts.disc_radius * f[d0 + j], discs_grey)
              for j in range(len(parts.disc_centres))]
-    return shapes, discs
+    return shapes, discs, float(depth.mean()) if len(depth) else np.inf
 
 
 def _sub_times(settings):
@@ -97,7 +98,8 @@ def _groups(station, frame, settings, motion):
         parts = []
         for dt in dts:
             P, tail, tip = motion.pose(e, dt)
-            parts.append(jumper_parts(P, tail, tip, settings.marker_radius, hidden))
+            parts.append(jumper_parts(P, tail, tip, settings.marker_radius, hidden,
+                                      body=settings.body))
         groups.append((parts, MARKER_GREY))
     return groups
 
@@ -111,13 +113,12 @@ def render_frame(station: str, frame: int, settings: VideoSettings, camera, stat
     groups = []
     for parts_list, grey in _groups(station, frame, settings, motion):
         proj = [_project_parts(p, camera, grey) for p in parts_list]
-        depth = np.mean([s.depth for sh, _ in proj for s in sh])
-        groups.append((depth, proj))
+        groups.append((np.nanmean([p[2] for p in proj]), [p[:2] for p in proj]))
     for _, proj in sorted(groups, key=lambda g: -g[0]):
-        pts = np.vstack([s.outline for sh, _ in proj for s in sh]
-                        + [d.centre[None] + d.radius for _, ds in proj for d in ds]
-                        + [d.centre[None] - d.radius for _, ds in proj for d in ds])
-        box = bounding_box(pts, IMAGE_SIZE)
+        pts = ([s.outline for sh, _ in proj for s in sh]
+               + [d.centre[None] + d.radius for _, ds in proj for d in ds]
+               + [d.centre[None] - d.radius for _, ds in proj for d in ds])
+        box = bounding_box(np.vstack(pts), IMAGE_SIZE) if pts else None
         if box is None:
             continue
         acc = np.zeros((box[3] - box[1], box[2] - box[0]))

@@ -63,6 +63,9 @@ class VideoSettings:
         Standard deviation (px, each axis) of the simulated seed clicks.
     seed : int
         Seed of every random draw (noise, texture, clicks).
+    body : bool
+        False draws the jumper as its four markers only, on the static
+        scene (tests of the marker discs, debugging a tracker).
     """
 
     lead_in: int = 12
@@ -79,6 +82,7 @@ class VideoSettings:
     target_radius: float = 1.0
     click_sigma: float = 0.7
     seed: int = VIDEO_SEED
+    body: bool = True
 
     def offset(self, station: str) -> int:
         """Frames by which ``station``'s video starts late."""
