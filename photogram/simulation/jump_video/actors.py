@@ -128,8 +128,8 @@ def jumper_parts(P, tail, tip, marker_radius: float, hidden=(), body: bool = Tru
 
 #: Walks of the bystanders: start (X, Y) in dm, heading (unit, in X-Y),
 #: speed dm/s, gait phase. On the far side of the landing slope (Y < 0,
-#: beyond the flight path from the cameras), crossing the images of the
-#: flight path in S1 and S2.
+#: beyond the flight path from the cameras): seen by all three cameras, near
+#: the images of the flight path in S2 and S3.
 WALKS = (
     ((470.0, -150.0), (0.8, 0.6), 13.0, 0.0),
     ((505.0, -175.0), (-1.0, 0.15), 11.0, 1.3),

@@ -51,12 +51,14 @@ class VideoSettings:
         not drawn in that station for the exposures first..last (numbered
         from 1 as "001".."024", inclusive), as if hidden behind an arm.
     bystanders : int
-        People walking in the background (0, 1 or 2; the walks are fixed,
-        chosen to cross the images of the flight path in S1 and S2). Each has
-        a small bright reflective patch on the jacket, marker-like.
+        People walking in the background (0, 1 or 2; the walks are fixed:
+        far side of the slope, near the images of the flight path in S2 and
+        S3). Each has a small bright reflective patch on the jacket,
+        marker-like.
     marker_radius : float
         Radius (dm) of the reflective marker balls: 0.5 dm gives discs of
-        2.5-3.5 px diameter in S1 and S2 (50-60 m), ~3.5 px in S3 (80 m).
+        2.4-2.7 px diameter in S1, 2.5-3.0 px in S2 (50-60 m), 3.1 px in S3
+        (80 m, longer lens).
     target_radius : float
         Radius (dm) of the static ball targets of the field.
     click_sigma : float
@@ -112,8 +114,8 @@ def harsh_settings(seed: int = VIDEO_SEED + 1) -> VideoSettings:
     """The harsher set the trackers were NOT tuned on.
 
     Noise 5 grey levels, JPEG quality 60, a 1/200 s shutter (2.5x the blur:
-    3-4 px streaks), defocus 0.8 px, two bystanders in the background of S1
-    and S2 with bright jacket patches, three short marker occlusions in S2
+    3-4 px streaks), defocus 0.8 px, two bystanders in the background (near
+    the jumper's images in S2 and S3) with bright jacket patches, three short marker occlusions in S2
     (P2 at 006-007, P3 at 012-014, P1 at 019), and S3's video starting one
     frame late (a sync lag the tracker has to detect or tolerate).
     """
