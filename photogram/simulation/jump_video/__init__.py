@@ -36,8 +36,11 @@ grey), one video per camera:
   the moving objects' bounding box, markers as area-sampled discs (16 x 16
   samples per pixel), averaged to pixels; motion blur = the mean of
   ``subframes`` such renders spread over the ``shutter`` around the frame
-  time; then defocus blur, Gaussian noise, 8-bit rounding and JPEG at
-  ``jpeg_quality`` (:func:`photogram.measure.render.degrade`).
+  time; then defocus blur, Gaussian noise and 8-bit rounding
+  (:func:`photogram.measure.render.degrade`) and JPEG at ``jpeg_quality``.
+  The AVI files written by :func:`write_jump_videos` hold these JPEGs
+  unchanged: OpenCV's MJPEG reader decodes exactly the rendered frames,
+  FFmpeg's (OpenCV's default backend) within 1 grey level.
 
 Pixel convention
 ----------------

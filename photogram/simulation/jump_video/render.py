@@ -16,7 +16,7 @@ from photogram.simulation.jump_video.scene import static_image
 from photogram.simulation.jump_video.settings import (
     IMAGE_SIZE, MARKERS, SKIS, STATIONS, VideoSettings)
 
-__all__ = ["JumpVideos", "render_jump_videos", "render_frame", "frame_time"]
+__all__ = ["JumpVideos", "render_jump_videos", "render_frame", "frame_time", "compress"]
 
 
 @dataclass
@@ -34,11 +34,25 @@ class JumpVideos:
     truth_targets: pd.DataFrame
     settings: VideoSettings
     offsets: dict = field(default_factory=dict)
+    encoded: dict = field(default_factory=dict)   # station -> JPEG bytes per frame (or None)
 
     @property
     def n_frames(self) -> int:
         """Frames per video (all stations have the same number)."""
         return len(next(iter(self.frames.values())))
+
+
+def compress(raw: np.ndarray, quality: int) -> tuple[np.ndarray, bytes]:
+    """JPEG-compress a uint8 grey frame: (decoded frame, JPEG bytes).
+    ``quality`` 0 keeps the frame and encodes it at quality 100 (the bytes
+    then only serve the AVI file)."""
+    import cv2
+    q = int(quality) if quality else 100
+    ok, buf = cv2.imencode(".jpg", raw, [cv2.IMWRITE_JPEG_QUALITY, q])
+    if not ok:
+        raise RuntimeError("JPEG encoding failed")
+    data = buf.tobytes()
+    return (cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE) if quality else raw), data
 
 
 def _cameras():
@@ -219,24 +233,26 @@ def render_jump_videos(settings: VideoSettings | None = None, *, n_exposures: in
     exposure_frames = {st: settings.lead_in + np.arange(n_exposures) - settings.offset(st)
                        for st in STATIONS}
     w, h = IMAGE_SIZE
-    out = {}
+    out, encoded = {}, {}
     for si, st in enumerate(STATIONS):
         if st not in stations:
             continue
         static = static_image(cameras[st], IMAGE_SIZE, target_radius=settings.target_radius,
                               seed=settings.seed)
         video = np.zeros((n_frames, h, w), np.float32 if ideal else np.uint8)
+        encoded[st] = [None] * n_frames
         todo = range(n_frames) if frames is None else frames
         for k in todo:
             img = render_frame(st, k, settings, cameras[st], static, motion)
             if ideal:
                 video[k] = img
-            else:
-                video[k] = degrade(img, blur=settings.blur, noise=settings.noise,
-                                   seed=[settings.seed, si, k], jpeg=settings.jpeg_quality)
+                continue
+            raw = degrade(img, blur=settings.blur, noise=settings.noise,
+                          seed=[settings.seed, si, k])
+            video[k], encoded[st][k] = compress(raw, settings.jpeg_quality)
         out[st] = video
     markers, skis = _truth_tables(cameras, settings, motion, exposure_frames)
     return JumpVideos(frames=out, fps=FPS, exposure_frames=exposure_frames, cameras=cameras,
                       truth_markers=markers, truth_skis=skis, seeds=_seeds(markers, settings),
                       truth_targets=_targets(cameras), settings=settings,
-                      offsets={st: settings.offset(st) for st in STATIONS})
+                      offsets={st: settings.offset(st) for st in STATIONS}, encoded=encoded)
