@@ -83,7 +83,8 @@ def jumper_parts(P, tail, tip, marker_radius: float, hidden=(), body: bool = Tru
     """The jumper's body, skis and markers for one pose.
 
     Joints from the four points (dm): the ankles 1.2 above the bindings
-    (perpendicular to the skis), hips 0.9 either side of P2, shoulders 5.2
+    (perpendicular to the skis), boots 2.6 long and ~1.3 thick around the
+    bindings (the binding markers sit on them), hips 0.9 either side of P2, shoulders 5.2
     along P2->P1 and 1.7 either side, knees a little bent, arms along the
     body pointing back; the helmet a ball of radius 1.25 at P1. The skis are
     boxes 1.0 wide and 0.3 thick centred on their axes. ``hidden`` names
@@ -109,14 +110,14 @@ def jumper_parts(P, tail, tip, marker_radius: float, hidden=(), body: bool = Tru
         hip = P2 + 0.9 * s * right
         ankle = bind + 1.2 * up
         knee = 0.5 * (hip + ankle) + 0.35 * up
-        toe = bind + 1.4 * ax + 0.45 * up
-        heel = bind - 1.0 * ax + 0.55 * up
+        toe = bind + 1.5 * ax + 0.25 * up
+        heel = bind - 1.1 * ax + 0.35 * up
         shoulder = sh + 1.7 * s * right
         hand = shoulder - 6.2 * trunk + 0.5 * s * right - 0.6 * up
         elbow = 0.5 * (shoulder + hand) + 0.2 * s * right
         grey = SUIT if s < 0 else SUIT_DARK       # the far (right) side a little darker
         caps += [(hip, knee, 0.8, 0.6, grey), (knee, ankle, 0.55, 0.45, grey),
-                 (heel, toe, 0.5, 0.45, BOOT), (ankle, heel, 0.5, 0.5, BOOT),
+                 (heel, toe, 0.7, 0.6, BOOT), (ankle, heel, 0.6, 0.65, BOOT),
                  (shoulder, elbow, 0.45, 0.4, grey), (elbow, hand, 0.4, 0.35, grey)]
     caps += [(P2, sh, 1.3, 1.45, SUIT), (sh, P1 - 0.6 * trunk, 0.5, 0.5, SUIT),
              (P1, P1, 1.25, 1.25, HELMET)]
