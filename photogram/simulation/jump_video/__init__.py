@@ -73,8 +73,11 @@ coverage of a rendered marker disc matches the exact area-sampled disc
 within 0.005 (tests/test_jump_video.py); its centroid, before blur, noise
 and compression, is the truth within 0.03 px on a uniform background (the
 pixel locking of area sampling a ~2.7 px disc; motion blur reduces it to
-~0.01 px) and within ~0.05-0.14 px on the body, where the disc covers
-suit, boot and ski edges of different grey. P3 and P4
+~0.01 px). On the body the centroid of (frame - frame without the
+marker) / (245 - frame without the marker) is within 0.04 px (S1) to
+0.14 px (S2, S3) of the truth without blur, up to 0.29 px with the harsh
+1/200 s blur: edges of suit, boots and skis of different grey pass under
+the disc. P3 and P4
 are 2.4 dm apart across the jumper and image 1-3 px apart, so their discs
 overlap in most frames. ``truth_skis`` (station, frame, exposure, ski,
 x_tail, y_tail, x_tip, y_tip): images of the ends of the ski axis (ski L1 =
