@@ -10,7 +10,7 @@ import pandas as pd
 from photogram.measure.render import degrade
 from photogram.simulation.jump import FPS, N_EXPOSURES
 from photogram.simulation.jump_video.actors import (
-    MARKER_GREY, PATCH, WALKS, JumperMotion, Parts, bystander_parts, jumper_parts)
+    MARKER_GREY, PATCH, JumperMotion, Parts, bystander_parts, jumper_parts)
 from photogram.simulation.jump_video.raster import Disc, Shape, bounding_box, capsule_outline, paint
 from photogram.simulation.jump_video.scene import static_image
 from photogram.simulation.jump_video.settings import (

@@ -111,7 +111,6 @@ def _background(camera, size, rng, ss: int = 2) -> np.ndarray:
 
 def _target_shapes(camera, ids, X, radius):
     """Shapes of the ball targets, their poles, masts and post."""
-    Xs = [X]
     foot = X.copy()
     foot[:, 2] = slope_height(X[:, 0])
     parts = []                                       # (A, B, r, grey)

@@ -115,9 +115,10 @@ def harsh_settings(seed: int = VIDEO_SEED + 1) -> VideoSettings:
 
     Noise 5 grey levels, JPEG quality 60, a 1/200 s shutter (2.5x the blur:
     3-4 px streaks), defocus 0.8 px, two bystanders in the background (near
-    the jumper's images in S2 and S3) with bright jacket patches, three short marker occlusions in S2
-    (P2 at 006-007, P3 at 012-014, P1 at 019), and S3's video starting one
-    frame late (a sync lag the tracker has to detect or tolerate).
+    the jumper's images in S2 and S3) with bright jacket patches, three
+    short marker occlusions in S2 (P2 at 006-007, P3 at 012-014, P1 at
+    019), and S3's video starting one frame late (a sync lag the tracker
+    has to detect or tolerate).
     """
     return replace(VideoSettings(), shutter=1 / 200, subframes=10, noise=5.0, jpeg_quality=60,
                    blur=0.8, offsets={"S3": 1},
