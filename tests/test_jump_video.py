@@ -225,11 +225,15 @@ def test_seeds_are_clicks_near_the_truth():
         tr = t.loc[(r.station, r.frame, r.marker)]
         assert tr.visible
         assert np.hypot(r.x - tr.x, r.y - tr.y) < 4 * v.settings.click_sigma
-    # each station's clicks are in its first exposure with all four visible
+    # all clicks in one frame number: the first where every station shows
+    # all four markers; with S3 one frame late that is another exposure there
     tm = v.truth_markers
-    for st, g in v.seeds.groupby("station"):
-        full = tm[tm.station == st].groupby("frame").visible.all()
-        assert set(g.frame) == {full[full].index.min()}
+    frames = [set(tm[(tm.station == st)].groupby("frame").visible.all().pipe(
+        lambda f: f[f].index)) for st in ("S1", "S2", "S3")]
+    assert set(v.seeds.frame) == {min(frames[0] & frames[1] & frames[2])}
+    f = v.seeds.frame.iloc[0]
+    shown = tm[tm.frame == f].groupby("station").exposure.first()
+    assert int(shown["S3"]) == int(shown["S1"]) + v.settings.offset("S3")
 
 
 def test_harsh_settings():

@@ -83,8 +83,11 @@ overlap in most frames. ``truth_skis`` (station, frame, exposure, ski,
 x_tail, y_tail, x_tip, y_tip): images of the ends of the ski axis (ski L1 =
 right = index 0, L2 = left = index 1, as ``projects/jumps``). ``seeds``
 (station, frame, marker, x, y): one simulated click per marker and station,
-in the first exposure where all four markers are visible there, the truth
-plus N(0, ``click_sigma`` = 0.7 px) per axis.
+as a user would give them: all in one frame number of the three videos (the
+first in which every station shows all four markers visible; with a sync
+lag that frame shows a later exposure in the late camera, and the click is
+where the marker is in that frame), the truth plus N(0, ``click_sigma`` =
+0.7 px) per axis.
 
 Settings
 --------

@@ -170,20 +170,33 @@ def _truth_tables(cameras, settings, motion, exposure_frames):
     return markers, skis
 
 
+def _seed_frame(markers):
+    """The first video frame number in which every station shows all four
+    markers visible (None if there is none)."""
+    full = markers.groupby(["frame", "station"]).visible.all().unstack()
+    ok = full.notna().all(axis=1) & full.fillna(False).astype(bool).all(axis=1)
+    return int(ok[ok].index.min()) if ok.any() else None
+
+
 def _seeds(markers, settings):
-    """One click per marker and station: in the first exposure where all
-    four markers are visible (else each marker's first visible one), the
-    truth plus N(0, click_sigma) per axis."""
+    """One click per marker and station, as a user would give them: all in
+    the same frame number of the three videos (:func:`_seed_frame`; with a
+    sync lag that frame shows another exposure in the late camera, and the
+    click is where the marker is in that frame), the truth plus
+    N(0, click_sigma) per axis. Without a common frame: each station's
+    first frame with all four visible, else each marker's first visible."""
     rng = np.random.default_rng([settings.seed, 3])
+    common = _seed_frame(markers)
     rows = []
     for st in STATIONS:
         m = markers[markers.station == st]
-        full = m.groupby("exposure").visible.all()
-        first = full[full].index.min() if full.any() else None
+        full = m.groupby("frame").visible.all()
+        first = common if common is not None else (full[full].index.min() if full.any()
+                                                     else None)
         for name in MARKERS:
             mm = m[(m.marker == name) & m.visible]
             if first is not None:
-                mm = mm[mm.exposure == first]
+                mm = mm[mm.frame == first]
             if len(mm) == 0:
                 continue
             r = mm.iloc[0]
