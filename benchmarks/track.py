@@ -114,11 +114,12 @@ def main():
         cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         best = min(best, cpu)
     ev = evaluate(res.table, truth, args.wrong)
-    fps_core = n_frames / len(frames) / best
+    fps_core = n_frames / best          # camera frames per CPU second
     print(f"{folder}: {len(frames)} cameras x {n_frames // len(frames)} frames, "
           f"{fps:g} fps; decode {decode:.2f} s CPU")
     print(f"tracking: CPU {best:.2f} s (wall {wall:.2f} s): {fps_core:.1f} frames/s per "
-          f"camera per core")
+          f"camera per core ({n_frames} camera frames / CPU s; "
+          f"{n_frames / len(frames) / best:.1f} synchronized {len(frames)}-camera frame sets/s)")
     if res.sync is not None:
         print("sync offsets estimated:\n" + res.sync.summary())
     print(f"offsets used {res.offsets}, truth {true_off}")

@@ -13,21 +13,24 @@ Per frame, all at once (no loop over candidates):
    dark suit in front of white snow is not), and the bright snow between
    dark limbs would join a marker into one region. Maxima on a ridge (such
    a gap of snow) are dropped by the ratio of the principal curvatures
-   (``max_edge``; Lowe 2004, sec. 4.1). Where the background has bright
-   details of its own (ball targets, texture: :attr:`Background.static`)
-   a maximum counts only if the frame differs from the background there by
-   ``k_change`` sigmas: the static targets are no candidates. And a
-   candidate must be in the foreground: within ``near`` px of a pixel that
-   differs from the background by ``k_change`` sigmas (the marker itself
-   may not: the suit around it does).
+   (``max_edge``; Lowe 2004, sec. 4.1). And the spot must be *new*: the
+   band-pass of the frame minus that of the median background (the
+   band-pass of the difference image: the foreground) must exceed the
+   threshold too, so the static targets and the snow's texture are no
+   candidates while a marker on the suit is (the suit around it is the
+   change).
 2. **Duplicates**: of maxima closer than ``duplicate`` px only the
    brightest stays.
 3. **Subpixel centre**: all windows of ``(2 half + 1)^2`` px around the
    maxima of the white top-hat ``I - open(I)`` (a ``tophat`` square;
    Soille, *Morphological Image Analysis*, 2nd ed., sec. 4.4.2), the grey
    values above the local background (the suit behind the marker, not the
-   arena), are gathered into one array, less the median of the window's
-   border (the top-hat of noise is positive); the centre the *iteratively Gaussian-weighted centroid* of the
+   arena) less those of the background's top-hat where the frame shows the
+   background (a static target beside the marker does not pull its
+   centre), are gathered into one array, less
+   the median of the window's border (the top-hat of noise is positive);
+   the centre is the
+   *iteratively Gaussian-weighted centroid* of the
    background-subtracted grey values ``max(I - b, 0)``: weights
    ``exp(-|x - c|^2 / (2 s^2))`` about the current centre ``c``, repeated
    (the iterative weighted centroid of star trackers; Shortis, Clarke &
@@ -61,7 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from photogram.track.background import Background, difference
+from photogram.track.background import Background, band_pass, band_pass_gain
 
 __all__ = ["Candidates", "detect_markers", "PIXEL_OFFSET"]
 
@@ -112,21 +115,11 @@ def _windows(img: np.ndarray, centres: np.ndarray, half: int) -> np.ndarray:
     return img[rows[:, :, None], cols[:, None, :]].astype(np.float32)
 
 
-def _dog_gain(s1: float, s2: float) -> float:
-    """Noise sigma of the difference of Gaussians for unit white noise:
-    the 2-norm of its kernel."""
-    import cv2
-    r = int(np.ceil(4 * s2))
-    k1 = cv2.getGaussianKernel(2 * r + 1, s1)
-    k2 = cv2.getGaussianKernel(2 * r + 1, s2)
-    return float(np.linalg.norm(k1 @ k1.T - k2 @ k2.T))
-
-
 def detect_markers(frame: np.ndarray, background: Background, *, k: float = 5.0,
-                   k_change: float = 4.0, scales: tuple = (1.0, 2.0), max_edge: float = 6.0,
+                   scales: tuple = (1.0, 2.0), max_edge: float = 6.0,
                    half: int = 3, tophat: int = 7, gauss_sigma: float = 1.2, n_iter: int = 6,
                    sigma_floor: float = 0.03, method: str = "gaussian",
-                   duplicate: float = 1.5, near: int = 3,
+                   duplicate: float = 1.5,
                    pixel_offset: float = PIXEL_OFFSET) -> Candidates:
     """Bright marker candidates of one frame (module doc).
 
@@ -138,9 +131,6 @@ def detect_markers(frame: np.ndarray, background: Background, *, k: float = 5.0,
     k : float
         Candidates are maxima of the difference of Gaussians above ``k``
         times its noise sigma.
-    k_change : float
-        On the background's static details, the frame must differ from the
-        background by more than ``k_change`` noise sigmas.
     scales : (float, float)
         Sigmas (px) of the two Gaussians.
     max_edge : float
@@ -160,9 +150,6 @@ def detect_markers(frame: np.ndarray, background: Background, *, k: float = 5.0,
         Added in quadrature to the propagated centre sigma (px).
     duplicate : float
         Of candidates closer than this (px) only the brightest is kept.
-    near : int
-        A candidate must lie within ``near`` px (a square) of a pixel that
-        differs from the background by ``k_change`` sigmas: the foreground.
     pixel_offset : float
         Added to the array indices: 0.5 gives photogram's image frame (the
         first pixel's centre at (0.5, 0.5), as ``photogram measure``
@@ -182,22 +169,26 @@ def detect_markers(frame: np.ndarray, background: Background, *, k: float = 5.0,
     if g.dtype != np.uint8:
         g = np.clip(np.rint(g), 0, 255).astype(np.uint8)
     noise = background.noise
-    f32 = g.astype(np.float32)
-    dog = cv2.GaussianBlur(f32, (0, 0), scales[0]) - cv2.GaussianBlur(f32, (0, 0), scales[1])
-    thr = (k * _dog_gain(*scales)) * noise
+    dog = band_pass(g, scales)
+    key = ("dog_threshold", k, tuple(scales))
+    thr = background.cache.get(key)
+    if thr is None:
+        thr = background.cache[key] = (k * band_pass_gain(scales)) * noise
     peak = (dog > thr) & (dog >= cv2.dilate(dog, np.ones((3, 3), np.uint8)))
-    changed = np.abs(difference(g, background)) > k_change * noise
-    if background.static is not None:
-        # a static detail counts only where the frame differs from the background
-        peak &= ~background.static | changed
-    # the foreground: only near pixels that differ from the background
-    r = 2 * near + 1
-    peak &= cv2.dilate(changed.view(np.uint8), np.ones((r, r), np.uint8)).view(bool)
-    rows, cols = np.nonzero(peak[1:-1, 1:-1])
-    rows += 1
-    cols += 1
-    if len(rows) == 0:
+    # new spots only: the band-pass of the frame minus that of the background
+    # (the band-pass of the difference image) above the threshold as well
+    bkey = ("band_pass", tuple(scales))
+    dog_bg = background.cache.get(bkey)
+    if dog_bg is None:
+        dog_bg = background.cache[bkey] = band_pass(background.median, scales)
+    peak &= (dog - dog_bg) > thr
+    peak[[0, -1], :] = False
+    peak[:, [0, -1]] = False
+    nz = cv2.findNonZero(peak.view(np.uint8))
+    if nz is None:
         return Candidates.empty()
+    nz = nz.reshape(-1, 2)
+    cols, rows = nz[:, 0].astype(np.intp), nz[:, 1].astype(np.intp)
     # principal curvatures of the DoG at the maxima (Lowe 2004, eq. 4-5)
     dxx = dog[rows, cols + 1] + dog[rows, cols - 1] - 2 * dog[rows, cols]
     dyy = dog[rows + 1, cols] + dog[rows - 1, cols] - 2 * dog[rows, cols]
@@ -209,8 +200,20 @@ def detect_markers(frame: np.ndarray, background: Background, *, k: float = 5.0,
     if len(rows) == 0:
         return Candidates.empty()
     c0 = np.column_stack([cols, rows])
-    th = cv2.morphologyEx(g, cv2.MORPH_TOPHAT, np.ones((tophat, tophat), np.uint8))
-    win = _windows(th, c0, half)                                  # (n, S, S)
+    se = np.ones((tophat, tophat), np.uint8)
+    tkey = ("tophat", tophat)
+    th_bg = background.cache.get(tkey)
+    if th_bg is None:
+        med8 = np.clip(np.rint(background.median), 0, 255).astype(np.uint8)
+        th_bg = background.cache[tkey] = cv2.morphologyEx(med8, cv2.MORPH_TOPHAT, se)
+    # the new small bright details: the frame's top-hat less the background's
+    # (a static target beside the marker does not pull its centre)
+    # where the frame shows the background (unchanged within 3 sigmas; not
+    # where the suit hides the snow's texture)
+    th = _windows(cv2.morphologyEx(g, cv2.MORPH_TOPHAT, se), c0, half)
+    same = np.abs(_windows(g, c0, half) - _windows(background.median, c0, half)) \
+        <= 3.0 * _windows(noise, c0, half)
+    win = th - _windows(th_bg, c0, half) * same                   # (n, S, S)
     # the top-hat of noise is positive (the noise above its local minimum,
     # about two sigmas): its level from the window's border, at most 3 sigmas
     border = np.concatenate([win[:, 0, :], win[:, -1, :], win[:, 1:-1, 0],

@@ -209,6 +209,10 @@ def _fill_3d(cams, tr, cands, offsets, X, markers, s: TrackSettings, sizes: dict
                 taken = [markers[k] for k in range(M) if k != i and st.cand[f, k] == j]
                 near = [markers[k] for k, qk in q.items()
                         if k != i and np.hypot(*(c.xy[j] - qk)) < gate]
+                dn = np.hypot(*(c.xy - c.xy[j]).T)
+                dn[j] = np.inf
+                if dn.min(initial=np.inf) < s.min_separation:
+                    continue
                 ratio = c.flux[j] / st.flux[i] if np.isfinite(st.flux[i]) else 1.0
                 if taken or near or ratio > s.merge_flux or ratio < s.low_flux \
                         or c.elongation[j] > s.max_elongation:

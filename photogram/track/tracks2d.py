@@ -30,6 +30,9 @@ backwards to the first. In every frame, for all markers at once:
      (the blob, or the flux-weighted centre of the blobs in the gate,
      still carries the prediction on: two markers that image as one blob
      or as a pair of blobs stay tracked as a group, never labelled);
+   - another blob within ``min_separation`` px of the chosen one (2-4 px
+     discs that close overlap and pull each other's centres by tenths of
+     a pixel): ``ambiguous``;
    - a blob much fainter than the marker so far (``low_flux``: partly
      hidden, its centre is off): ``lost``;
    - otherwise ``ok``.
@@ -65,6 +68,7 @@ class TrackSettings:
     max_coast: int = 5             # frames predicted without a blob, then lost for good
     clear_ratio: float = 2.0       # a second blob within ratio x best distance ...
     clear_margin: float = 2.0      # ... or best + margin px makes it ambiguous
+    min_separation: float = 4.0    # px: a blob this close to another one is not ok
     merge_flux: float = 1.6        # flux / the marker's flux above: merged blobs
     low_flux: float = 0.4          # below: partly hidden
     max_elongation: float = 1.8    # RMS radius ratio above: merged blobs
@@ -180,10 +184,16 @@ def track_station(cands: list[Candidates], seeds: dict, markers: list[str],
         shared = [k for k, (g, jj) in snapped.items() if g == f and jj == j and k != i]
         c = cands[f]
         xy[f, i], sig[f, i], cidx[f, i] = c.xy[j], c.sigma[j], j
+        dn = np.hypot(*(c.xy - c.xy[j]).T)
+        dn[j] = np.inf
         if shared:
             status[f, i] = AMBIGUOUS
             reason[f, i] = "seed on one blob with " + ", ".join(markers[k] for k in shared)
             flux[i] = c.flux[j] / (len(shared) + 1)
+        elif dn.min(initial=np.inf) < s.min_separation:
+            status[f, i] = AMBIGUOUS
+            reason[f, i] = f"seed on a blob {dn.min():.1f} px from another one"
+            flux[i] = c.flux[j]
         else:
             status[f, i], reason[f, i] = OK, "seed"
             flux[i] = c.flux[j]
@@ -259,9 +269,15 @@ def _pass(cands, snapped, markers, direction, s, xy, sig, status, reason, cidx, 
             others = [markers[ids[b]] for b in range(len(ids)) if b != a and best[b] == j]
             xy[t, i], sig[t, i], cidx[t, i] = c.xy[j], c.sigma[j], j
             ratio = c.flux[j] / np.median(fluxes[i][-10:])
+            dn = np.hypot(*(c.xy - c.xy[j]).T)
+            dn[j] = np.inf
             if others:
                 status[t, i] = AMBIGUOUS
                 reason[t, i] = "one blob with " + ", ".join(others) + " (merged)"
+            elif dn.min(initial=np.inf) < s.min_separation:
+                status[t, i] = AMBIGUOUS
+                reason[t, i] = (f"another blob {dn.min():.1f} px away: the centres of "
+                                "overlapping blobs are off")
             elif ratio > s.merge_flux or c.elongation[j] > s.max_elongation:
                 status[t, i] = AMBIGUOUS
                 reason[t, i] = (f"blob {ratio:.1f}x the marker's flux, elongation "
