@@ -54,8 +54,9 @@ def render_views(cameras, X, *, visible=None, offsets=None, noise=2.0, seed=1,
     """Frames per station of markers at X (T, M, 3).
 
     ``visible`` (station -> (T, M) bool) hides markers; ``offsets``
-    (station -> int) shifts a station's video: its frame ``t + offset``
-    shows instant ``t`` (frames outside 0..T-1 show the background only).
+    (station -> int): that camera started ``offset`` frames late, its
+    frame ``f`` shows instant ``f + offset`` (frames outside 0..T-1 show the
+    background only; photogram.track's convention).
     Returns frames (station -> (T, H, W) uint8) and the true image
     positions (station -> (T, M, 2), in that station's frame numbers, NaN
     where hidden or outside).
@@ -71,7 +72,7 @@ def render_views(cameras, X, *, visible=None, offsets=None, noise=2.0, seed=1,
         stack = np.empty((T, *shape), np.uint8)
         tru = np.full((T, M, 2), np.nan)
         for f in range(T):
-            t = f - off
+            t = f + off
             img = bg.copy()
             if 0 <= t < T:
                 q = cam.project(X[t])

@@ -29,10 +29,13 @@ own; ``lost`` when no blob is (reason: hidden, outside the image, the track
 ended), ``ambiguous`` when more than one could be (two blobs in the gate,
 two markers on one blob, views that disagree). The rows' ``reason`` says
 which. Bad input raises :class:`photogram.errors.InputError`: a seed click
-far from every blob (station, frame, marker), a camera without a single
-candidate blob in any frame (the camera: a wrong or blank video); a
-marker without seed in one camera is not an error (it is ``lost`` there
-unless the 3D prediction finds it).
+far from every blob (station, frame, marker); a camera that sees no marker
+(none of its seed clicks is near a new bright spot, or no candidate in any
+frame: the camera is named; a wrong or blank video). A camera that sees
+the markers at the seeds and loses them later is not an error: its rows
+are ``lost`` while the other cameras go on. A marker without a seed in one
+camera is not an error either (it is ``lost`` there unless the 3D
+prediction finds it).
 """
 
 from __future__ import annotations

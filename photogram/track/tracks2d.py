@@ -149,7 +149,10 @@ def track_station(cands: list[Candidates], seeds: dict, markers: list[str],
     Raises
     ------
     InputError
-        A seed more than ``seed_radius`` px from every candidate of its frame.
+        A seed more than ``seed_radius`` px from every candidate of its
+        frame (naming station, frame, marker); when that holds for every
+        seed of the camera, naming the camera (it sees no marker: a wrong
+        or blank video).
     """
     s = settings or TrackSettings()
     F, M = len(cands), len(markers)
@@ -159,7 +162,7 @@ def track_station(cands: list[Candidates], seeds: dict, markers: list[str],
     reason = np.full((F, M), "no seed in this camera", dtype=object)
     cidx = np.full((F, M), -1, int)
     flux = np.full(M, np.nan)
-    snapped = {}
+    snapped, failed = {}, []
     for m, (f, p) in seeds.items():
         if m not in markers:
             raise InputError(f"seed for unknown marker {m!r} in {station}",
@@ -173,10 +176,21 @@ def track_station(cands: list[Candidates], seeds: dict, markers: list[str],
         if d[j] > s.seed_radius:
             near = "no bright blob in this frame" if not np.isfinite(d[j]) \
                 else f"the nearest bright blob is {d[j]:.1f} px away"
-            raise InputError(f"seed of {m} in {station} frame {f} at ({p[0]:.1f}, "
-                             f"{p[1]:.1f}): {near} (more than {s.seed_radius:g} px)",
-                             hint="click on the marker itself in a frame where it is visible")
+            failed.append(InputError(
+                f"seed of {m} in {station} frame {f} at ({p[0]:.1f}, {p[1]:.1f}): {near} "
+                f"(more than {s.seed_radius:g} px)",
+                hint="click on the marker itself in a frame where it is visible"))
+            continue
         snapped[markers.index(m)] = (f, j)
+    if failed and not snapped:
+        frames_ = sorted({f for f, _ in seeds.values()})
+        raise InputError(f"camera {station} sees none of the markers at its seed clicks "
+                         f"(frame {', '.join(map(str, frames_))}): no bright new spot within "
+                         f"{s.seed_radius:g} px of any",
+                         hint="check that the video is the right one and not blank, that "
+                              "the seeds' frames are this camera's, or leave the camera out")
+    if failed:
+        raise failed[0]
     for i in range(M):
         if i not in snapped:
             continue
