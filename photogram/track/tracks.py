@@ -50,7 +50,8 @@ from photogram.track.background import estimate_background
 from photogram.track.markers import detect_markers
 from photogram.track.rays import reprojection_residuals, triangulate
 from photogram.track.sync import SyncResult, estimate_offsets
-from photogram.track.tracks2d import AMBIGUOUS, LOST, OK, STATUS, TrackSettings, track_station
+from photogram.track.tracks2d import (AMBIGUOUS, LOST, OK, STATUS, TrackSettings,
+                                      neighbour_distance, track_station)
 
 __all__ = ["COLUMNS", "TrackResult", "track_markers", "exposure_frames", "seed_clicks"]
 
@@ -212,9 +213,8 @@ def _fill_3d(cams, tr, cands, offsets, X, markers, s: TrackSettings, sizes: dict
                 taken = [markers[k] for k in range(M) if k != i and st.cand[f, k] == j]
                 near = [markers[k] for k, qk in q.items()
                         if k != i and np.hypot(*(c.xy[j] - qk)) < gate]
-                dn = np.hypot(*(c.xy - c.xy[j]).T)
-                dn[j] = np.inf
-                if dn.min(initial=np.inf) < s.min_separation:
+                dn = neighbour_distance(c, j, s.neighbour_flux)
+                if dn < s.min_separation:
                     continue
                 ratio = c.flux[j] / st.flux[i] if np.isfinite(st.flux[i]) else 1.0
                 if taken or near or ratio > s.merge_flux or ratio < s.low_flux \

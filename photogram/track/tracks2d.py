@@ -19,7 +19,8 @@ backwards to the first. In every frame, for all markers at once:
    validation gate that grows while the track coasts).
 3. **Decision**, never a guess:
 
-   - no candidate in the gate: ``lost`` (the marker coasts on its
+   - no candidate in the gate, or only ones fainter than ``low_flux``
+     times the marker's typical flux: ``lost`` (the marker coasts on its
      prediction, for at most ``max_coast`` frames);
    - a second candidate in the gate nearly as close as the best one
      (closer than ``clear_ratio`` times and ``clear_margin`` px beyond
@@ -30,11 +31,10 @@ backwards to the first. In every frame, for all markers at once:
      (the blob, or the flux-weighted centre of the blobs in the gate,
      still carries the prediction on: two markers that image as one blob
      or as a pair of blobs stay tracked as a group, never labelled);
-   - another blob within ``min_separation`` px of the chosen one (2-4 px
-     discs that close overlap and pull each other's centres by tenths of
-     a pixel): ``ambiguous``;
-   - a blob much fainter than the marker so far (``low_flux``: partly
-     hidden, its centre is off): ``lost``;
+   - another blob of at least ``neighbour_flux`` times its flux within
+     ``min_separation`` px of the chosen one (2-4 px discs that close
+     overlap and pull each other's centres by tenths of a pixel):
+     ``ambiguous``;
    - otherwise ``ok``.
 
 Statuses per frame and marker: 0 ok, 1 lost, 2 ambiguous, with a reason.
@@ -49,7 +49,7 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.track.markers import Candidates
 
-__all__ = ["TrackSettings", "Track2D", "track_station", "OK", "LOST", "AMBIGUOUS", "STATUS"]
+__all__ = ["TrackSettings", "Track2D", "track_station", "neighbour_distance", "OK", "LOST", "AMBIGUOUS", "STATUS"]
 
 OK, LOST, AMBIGUOUS = 0, 1, 2
 STATUS = ("ok", "lost", "ambiguous")
@@ -68,7 +68,8 @@ class TrackSettings:
     max_coast: int = 5             # frames predicted without a blob, then lost for good
     clear_ratio: float = 2.0       # a second blob within ratio x best distance ...
     clear_margin: float = 2.0      # ... or best + margin px makes it ambiguous
-    min_separation: float = 4.0    # px: a blob this close to another one is not ok
+    min_separation: float = 4.0    # px: a blob this close to another one is not ok ...
+    neighbour_flux: float = 0.25   # ... if the other has this fraction of its flux
     merge_flux: float = 1.6        # flux / the marker's flux above: merged blobs
     low_flux: float = 0.4          # below: partly hidden
     max_elongation: float = 1.8    # RMS radius ratio above: merged blobs
@@ -104,6 +105,17 @@ def _predict(hist: list, t: int) -> np.ndarray:
     V = np.vander(tt, deg + 1)
     coef, *_ = np.linalg.lstsq(V, ps, rcond=None)
     return coef[-1]                                   # the value at tt = 0
+
+
+def neighbour_distance(c: Candidates, j: int, min_flux: float) -> float:
+    """Distance (px) from candidate ``j`` to the nearest other candidate with
+    at least ``min_flux`` times its flux (inf if none): a fainter one pulls
+    the Gaussian-weighted centre by less than its flux ratio times its
+    weight, negligible below a quarter of the flux at 3-4 px."""
+    d = np.hypot(*(c.xy - c.xy[j]).T)
+    d[j] = np.inf
+    d[c.flux < min_flux * c.flux[j]] = np.inf
+    return float(d.min(initial=np.inf))
 
 
 def _vote(p0: np.ndarray, cand: Candidates, dt: int, s: TrackSettings):
@@ -198,15 +210,14 @@ def track_station(cands: list[Candidates], seeds: dict, markers: list[str],
         shared = [k for k, (g, jj) in snapped.items() if g == f and jj == j and k != i]
         c = cands[f]
         xy[f, i], sig[f, i], cidx[f, i] = c.xy[j], c.sigma[j], j
-        dn = np.hypot(*(c.xy - c.xy[j]).T)
-        dn[j] = np.inf
+        dn = neighbour_distance(c, j, s.neighbour_flux)
         if shared:
             status[f, i] = AMBIGUOUS
             reason[f, i] = "seed on one blob with " + ", ".join(markers[k] for k in shared)
             flux[i] = c.flux[j] / (len(shared) + 1)
-        elif dn.min(initial=np.inf) < s.min_separation:
+        elif dn < s.min_separation:
             status[f, i] = AMBIGUOUS
-            reason[f, i] = f"seed on a blob {dn.min():.1f} px from another one"
+            reason[f, i] = f"seed on a blob {dn:.1f} px from another one"
             flux[i] = c.flux[j]
         else:
             status[f, i], reason[f, i] = OK, "seed"
@@ -261,10 +272,15 @@ def _pass(cands, snapped, markers, direction, s, xy, sig, status, reason, cidx, 
         best = np.full(len(ids), -1)
         for a, i in enumerate(ids):
             inside = np.nonzero(D[a] < gate[i])[0]
-            if not len(inside):
+            # blobs far fainter than the marker are not it (not even partly)
+            bright = inside[c.flux[inside] >= s.low_flux * np.median(fluxes[i][-10:])]
+            if not len(bright):
                 status[t, i] = LOST
-                reason[t, i] = f"no blob within {gate[i]:.1f} px of the prediction"
+                reason[t, i] = (f"no blob within {gate[i]:.1f} px of the prediction"
+                                if not len(inside) else
+                                f"only faint blobs within {gate[i]:.1f} px of the prediction")
                 continue
+            inside = bright
             order = inside[np.argsort(D[a, inside])]
             d1 = D[a, order[0]]
             if len(order) > 1 and D[a, order[1]] < max(s.clear_ratio * d1, d1 + s.clear_margin):
@@ -283,22 +299,18 @@ def _pass(cands, snapped, markers, direction, s, xy, sig, status, reason, cidx, 
             others = [markers[ids[b]] for b in range(len(ids)) if b != a and best[b] == j]
             xy[t, i], sig[t, i], cidx[t, i] = c.xy[j], c.sigma[j], j
             ratio = c.flux[j] / np.median(fluxes[i][-10:])
-            dn = np.hypot(*(c.xy - c.xy[j]).T)
-            dn[j] = np.inf
+            dn = neighbour_distance(c, j, s.neighbour_flux)
             if others:
                 status[t, i] = AMBIGUOUS
                 reason[t, i] = "one blob with " + ", ".join(others) + " (merged)"
-            elif dn.min(initial=np.inf) < s.min_separation:
+            elif dn < s.min_separation:
                 status[t, i] = AMBIGUOUS
-                reason[t, i] = (f"another blob {dn.min():.1f} px away: the centres of "
+                reason[t, i] = (f"another blob {dn:.1f} px away: the centres of "
                                 "overlapping blobs are off")
             elif ratio > s.merge_flux or c.elongation[j] > s.max_elongation:
                 status[t, i] = AMBIGUOUS
                 reason[t, i] = (f"blob {ratio:.1f}x the marker's flux, elongation "
                                 f"{c.elongation[j]:.1f} (merged?)")
-            elif ratio < s.low_flux:
-                status[t, i] = LOST
-                reason[t, i] = f"blob {ratio:.2f}x the marker's flux (partly hidden)"
             else:
                 status[t, i], reason[t, i] = OK, "tracked"
                 fluxes[i].append(c.flux[j])
