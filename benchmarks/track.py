@@ -14,7 +14,10 @@ status ok; a *wrong* row is an ok row more than ``--wrong`` px (default 1)
 from its marker's true position or whose marker is hidden in the truth;
 flagged rows are counted per status. With ``--perturb S`` the cameras are
 the true ones with their angles disturbed by N(0, S gon) and positions by
-N(0, S dm) (an estimated orientation); default 0: the true views.
+N(0, S dm) (an estimated orientation); default 0: the true views. With
+``--cameras RESULTS`` the orientation a field bundle estimated
+(``photogram orient projects/field/field.prj``: stations.csv, cameras.toml
+of its results folder; ``make demo`` writes one).
 
 Run: .venv/bin/python benchmarks/track.py [/work/jumpvideo/normal] [--repeat 2]
 """
@@ -71,6 +74,24 @@ def cameras(perturb: float, seed: int = 5):
     return out
 
 
+def estimated_cameras(results: Path):
+    """The orientation a field bundle estimated (``photogram orient
+    projects/field/field.prj``: stations.csv in gon and dm, cameras.toml)."""
+    import tomllib
+    from photogram.geometry import camera_model
+    st = pd.read_csv(results / "stations.csv")
+    cams = tomllib.loads((results / "cameras.toml").read_text())["cameras"]
+    out = {}
+    for r in st.itertuples():
+        c = cams[r.camera]
+        names = camera_model(c["model"]).parameter_names
+        io = [c[p]["value"] for p in names]
+        ang = np.array([r.omega, r.phi, r.kappa]) * np.pi / 200
+        out[r.station] = ViewCamera.from_angles(ang, [r.X0, r.Y0, r.Z0], io, c["model"],
+                                                r.station)
+    return out
+
+
 def evaluate(table: pd.DataFrame, truth: pd.DataFrame, wrong_px: float):
     t = truth.set_index(["exposure", "station", "marker"])
     m = table.join(t[["x", "y", "visible"]], on=["exposure", "station", "marker"],
@@ -97,13 +118,17 @@ def main():
     ap.add_argument("folder", nargs="?", default="/work/jumpvideo/normal")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--perturb", type=float, default=0.0)
+    ap.add_argument("--cameras", default="true",
+                    help="true, or a results folder of the field bundle (stations.csv, "
+                         "cameras.toml) for an estimated orientation")
     ap.add_argument("--given-offsets", action="store_true")
     ap.add_argument("--wrong", type=float, default=1.0)
     args = ap.parse_args()
     cv2.setNumThreads(1)
     folder = Path(args.folder)
     frames, fps, seeds, expo, truth, true_off, decode = load(folder)
-    cams = cameras(args.perturb)
+    cams = cameras(args.perturb) if args.cameras == "true" \
+        else estimated_cameras(Path(args.cameras))
     n_frames = sum(len(f) for f in frames.values())
     best = np.inf
     for _ in range(args.repeat):

@@ -168,6 +168,32 @@ def test_perturbed_orientation_gives_no_wrong_label(cams, separate):
     assert (res.table.status == "ok").mean() > 0.9
 
 
+def _perturbed(cams, gon, dm, seed=2):
+    from photogram.geometry import matrix_to_opk
+    rng = np.random.default_rng(seed)
+    return {n: ViewCamera.from_angles(matrix_to_opk(c.R) + rng.normal(0, gon * np.pi / 200, 3),
+                                      c.X0 + rng.normal(0, dm, 3), c.io, c.model, n)
+            for n, c in cams.items()}
+
+
+def test_poor_orientation_bias_is_compensated_and_sync_refused(cams, separate):
+    """Angles 0.3 gon off (reprojections several px off): with the offsets
+    given, the systematic error is estimated and the labels stay right;
+    asked to estimate the offsets, the tracker refuses instead of guessing."""
+    _, frames, truth = separate
+    est = _perturbed(cams, 0.3, 1.0, seed=3)
+    X = separate[0]
+    off = max(np.hypot(*(est[n].project(X[15]) - cams[n].project(X[15])).T).max()
+              for n in cams)
+    assert off > 3.0                       # the orientation error is real
+    res = track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO, offsets=OFFSETS)
+    _, wrong = _evaluate(res.table, truth, OFFSETS)
+    assert not wrong
+    assert (res.table.status == "ok").mean() > 0.9
+    with pytest.raises(InputError, match="sync offset of camera S[23] is not clear"):
+        track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO)
+
+
 def test_seed_far_from_any_marker_names_station_frame_marker(cams, separate):
     _, frames, truth = separate
     seeds = _seeds(truth, OFFSETS)

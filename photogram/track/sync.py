@@ -14,8 +14,19 @@ markers and frames seen in both is computed, and the smallest wins. The
 jumper moves 10-25 px per frame, so one frame off costs pixels where the
 right offset costs the orientation's error (the median ignores a few wrong
 detections). The offset is *clear* when the next best costs at least
-``clear_factor`` times as much; a pair with fewer than ``min_pairs``
-markers seen in both cameras gives no offset.
+``clear_factor`` times as much and the best at most ``max_cost`` px; a
+pair with fewer than ``min_pairs`` markers seen in both cameras gives no
+offset.
+
+The estimate needs a good orientation. A time offset moves every marker by
+its image velocity, nearly a constant vector over a few frames, and so
+does an orientation error: with the true views or the field bundle's
+estimate the right offset costs 0.02-0.2 px against 2.4-6.5 px for the
+next (the rendered sets), but angles 0.2 gon off make a wrong offset the
+clear minimum at 1.3 px. Hence ``max_cost``: a best cost above it means
+the orientation does not fit the markers at any offset, and
+:func:`photogram.track.tracks.track_markers` refuses to guess (give the
+offsets).
 """
 
 from __future__ import annotations
@@ -59,7 +70,8 @@ class SyncResult:
 
 
 def estimate_offsets(tracks: dict, cameras: dict, max_offset: int = 10,
-                     min_pairs: int = 8, clear_factor: float = 2.0) -> SyncResult:
+                     min_pairs: int = 8, clear_factor: float = 2.0,
+                     max_cost: float = 1.0) -> SyncResult:
     """Integer offset of every camera against the first (module doc).
 
     Parameters
@@ -71,6 +83,9 @@ def estimate_offsets(tracks: dict, cameras: dict, max_offset: int = 10,
         the cost).
     max_offset : int
         Offsets ``-max_offset..max_offset`` are tried.
+    clear_factor, max_cost : float
+        The choice is clear when the runner-up costs ``clear_factor`` times
+        as much and the best costs at most ``max_cost`` px.
 
     Returns
     -------
@@ -110,5 +125,6 @@ def estimate_offsets(tracks: dict, cameras: dict, max_offset: int = 10,
         out.offsets[s] = best
         out.cost[s] = costs
         out.n_pairs[s] = counts[best]
-        out.clear[s] = len(ranked) == 1 or costs[ranked[1]] >= clear_factor * costs[best]
+        out.clear[s] = costs[best] <= max_cost and (
+            len(ranked) == 1 or costs[ranked[1]] >= clear_factor * costs[best])
     return out

@@ -58,7 +58,7 @@ STATUS = ("ok", "lost", "ambiguous")
 @dataclass
 class TrackSettings:
     """Tuning of the tracker (px unless noted); the defaults were set on
-    the normal rendered set (docs/track.md)."""
+    the normal rendered set (benchmarks/track.py), never on the harsh one."""
 
     seed_radius: float = 5.0       # a seed click must be this close to a blob
     max_speed: float = 45.0        # px/frame: the search right after a seed
@@ -73,10 +73,12 @@ class TrackSettings:
     merge_flux: float = 1.6        # flux / the marker's flux above: merged blobs
     low_flux: float = 0.4          # below: partly hidden
     max_elongation: float = 1.8    # RMS radius ratio above: merged blobs
-    epipolar_tol: float = 3.0      # px: reprojection residual of a correct correspondence
+    epipolar_tol: float = 3.0      # px: residual of a correct correspondence (less the bias)
+    fill_gate: float = 2.0         # px: search radius at the 3D prediction (less the bias)
     ballistic_window: int = 6      # frames each side for the 3D prediction through gaps
     k_sigma: float = 5.0           # candidate threshold (DoG noise sigmas)
     max_offset: int = 10           # frames: sync offsets searched
+    sync_tol: float = 1.0          # px: largest median epipolar distance of a sync offset
     pixel_offset: float = 0.5      # image frame: 0.5 photogram's (corner), 0 OpenCV's
 
 
