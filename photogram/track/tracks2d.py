@@ -49,7 +49,8 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.track.markers import Candidates
 
-__all__ = ["TrackSettings", "Track2D", "track_station", "neighbour_distance", "OK", "LOST", "AMBIGUOUS", "STATUS"]
+__all__ = ["TrackSettings", "Track2D", "track_station", "neighbour_distance", "OK", "LOST",
+           "AMBIGUOUS", "STATUS"]
 
 OK, LOST, AMBIGUOUS = 0, 1, 2
 STATUS = ("ok", "lost", "ambiguous")
