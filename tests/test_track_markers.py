@@ -11,7 +11,7 @@ cv2 = pytest.importorskip("cv2")
 from track_scenes import blob_image, textured_background  # noqa: E402
 
 from photogram.errors import InputError  # noqa: E402
-from photogram.track.background import estimate_background  # noqa: E402
+from photogram.track.background import estimate_background, foreground  # noqa: E402
 from photogram.track.markers import detect_markers  # noqa: E402
 
 SHAPE = (120, 160)
@@ -51,6 +51,11 @@ def test_background_median_and_noise_level():
     assert np.median(bg.noise) == pytest.approx(3.0, rel=0.15)
     with pytest.raises(InputError):
         estimate_background(frames[:2])
+    # the foreground: the markers, not the static discs, hardly any noise
+    fg = foreground(frames[7], bg)
+    for x, y in _moving(7):
+        assert fg[int(y), int(x)]
+    assert fg.sum() < 60
 
 
 def test_candidates_centres_and_sigmas_against_truth():
