@@ -269,3 +269,16 @@ def test_rendered_harsh_reported_with_a_looser_bound():
     assert wrong.sum() == 0
     assert np.sqrt(np.mean(err ** 2)) <= 0.3
     assert res.offsets["S3"] == 1
+
+
+def test_scatter_sigma_measures_the_track_noise():
+    from photogram.track.tracks2d import scatter_sigma
+    t = np.arange(300, dtype=float) / 5
+    xy = np.column_stack([400 - 18 * t + 0.02 * t ** 2, 80 + 9 * t + 0.15 * t ** 2])
+    ok = np.ones(300, bool)
+    ok[[10, 11, 30]] = False                       # gaps are fine
+    assert scatter_sigma(xy, ok) < 1e-6            # a smooth track has none
+    rng = np.random.default_rng(1)
+    noisy = xy + rng.normal(0, 0.2, xy.shape)
+    assert scatter_sigma(noisy, ok) == pytest.approx(0.2, rel=0.15)
+    assert np.isnan(scatter_sigma(noisy, np.arange(300) < 5))

@@ -18,7 +18,10 @@
    not ``ok`` is searched again at the projection of its 3D point (from the
    other views, or from its ballistic 3D track): labels survive short
    occlusions in one camera;
-5. the table of the exposures.
+5. the sigmas: a marker's centre sigma is at least the scatter of its own
+   track about a local quadratic in time
+   (:func:`photogram.track.tracks2d.scatter_sigma`);
+6. the table of the exposures.
 
 Nothing is guessed: a marker is ``ok`` only when one blob is clearly its
 own; ``lost`` when no blob is (reason: hidden, outside the image, the track
@@ -45,7 +48,7 @@ from photogram.errors import InputError
 from photogram.track.background import estimate_background
 from photogram.track.markers import detect_markers
 from photogram.track.sync import SyncResult, estimate_offsets
-from photogram.track.tracks2d import OK, STATUS, TrackSettings, track_station
+from photogram.track.tracks2d import OK, STATUS, TrackSettings, scatter_sigma, track_station
 from photogram.track.tracks3d import check_3d, fill_3d, view_bias
 
 __all__ = ["COLUMNS", "TrackResult", "track_markers", "exposure_frames", "seed_clicks"]
@@ -185,6 +188,13 @@ def track_markers(frames: dict, cameras: dict, seeds: pd.DataFrame, markers,
     X = check_3d(cams, tr, offsets, F, len(markers), s.epipolar_tol, bias)
     sizes = {n: (frames[n].shape[2], frames[n].shape[1]) for n in names}
     fill_3d(cams, tr, cands, offsets, X, markers, s, sizes, bias)
+    # the sigma of a track is at least its own scatter (tracks2d.scatter_sigma)
+    for n in names:
+        for i in range(len(markers)):
+            ok = tr[n].status[:, i] == OK
+            emp = scatter_sigma(tr[n].xy[:, i], ok)
+            if np.isfinite(emp):
+                tr[n].sigma[ok, i] = np.maximum(tr[n].sigma[ok, i], emp)
     rows = []
     for e, t in expo.items():
         for n in names:

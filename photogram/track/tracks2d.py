@@ -50,7 +50,7 @@ from photogram.errors import InputError
 from photogram.track.markers import Candidates
 
 __all__ = ["TrackSettings", "Track2D", "track_station", "neighbour_distance", "OK", "LOST",
-           "AMBIGUOUS", "STATUS"]
+           "AMBIGUOUS", "STATUS", "scatter_sigma"]
 
 OK, LOST, AMBIGUOUS = 0, 1, 2
 STATUS = ("ok", "lost", "ambiguous")
@@ -327,3 +327,36 @@ def _pass(cands, snapped, markers, direction, s, xy, sig, status, reason, cidx, 
                     reason[u, i] = f"track ended: no blob for {s.max_coast} frames"
     for i in snapped:
         flux[i] = np.median(fluxes[i])
+
+
+def scatter_sigma(xy: np.ndarray, ok: np.ndarray, half: int = 3,
+                  min_points: int = 8) -> float:
+    """Empirical sigma (px, per coordinate) of a marker's track: the robust
+    scatter of its ok positions about a quadratic in time through its
+    neighbours within ``half`` frames (leave-one-out prediction residuals,
+    ``1.4826 MAD``, divided by ``sqrt(1 + h)`` with ``h`` the variance
+    factor of the prediction). The flight and the body's motion are smooth
+    over a quarter of a second; what is left is the measurement's own
+    noise, JPEG and motion blur included, that the propagated noise sigma
+    of :func:`photogram.track.markers.detect_markers` does not know. NaN
+    with fewer than ``min_points`` usable positions.
+
+    Parameters
+    ----------
+    xy : (F, 2)
+    ok : (F,) bool
+    """
+    t_ok = np.nonzero(ok)[0]
+    res, fac = [], []
+    for t in t_ok:
+        nb = t_ok[(np.abs(t_ok - t) <= half) & (t_ok != t)]
+        if len(nb) < 4 or not ((nb < t).any() and (nb > t).any()):
+            continue
+        V = np.vander((nb - t).astype(float), 3)
+        coef, *_ = np.linalg.lstsq(V, xy[nb], rcond=None)
+        res.append(xy[t] - coef[-1])
+        fac.append(1.0 + np.linalg.inv(V.T @ V)[-1, -1])
+    if len(res) < min_points:
+        return float("nan")
+    r = np.asarray(res) / np.sqrt(np.asarray(fac))[:, None]
+    return float(1.4826 * np.median(np.abs(r - np.median(r, axis=0))))
