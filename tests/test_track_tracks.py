@@ -1,0 +1,284 @@
+"""photogram.track.tracks (and tracks2d, sync, rays): the marker table from
+synchronized videos. Synthetic videos drawn here (tests/track_scenes.py:
+Gaussian markers moving with the simulated jump over a textured arena seen
+by the three true field views), and the rendered jump videos when the
+renderer is there (issue 19). The goals: every ok row right (no wrong
+label in any exposure), centres to 0.2 px RMS, lost or ambiguous markers
+flagged instead of guessed."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+pytest.importorskip("cv2")
+
+from track_scenes import blob_image, jump_markers, render_views  # noqa: E402
+
+from photogram.errors import InputError  # noqa: E402
+from photogram.lines.views import ViewCamera  # noqa: E402
+from photogram.simulation.ski_lines import field_cameras  # noqa: E402
+from photogram.track.tracks import COLUMNS, track_markers  # noqa: E402
+from photogram.track.tracks2d import TrackSettings  # noqa: E402
+
+MARKERS = ["P1", "P2", "P3", "P4"]
+T = 40
+EXPO = {f"{k + 1:03d}": 8 + k for k in range(24)}        # reference frames 8..31
+OFFSETS = {"S1": 0, "S2": 2, "S3": -1}                    # frames started late
+
+
+def _seeds(truth, offsets, frame=6, click=0.6, markers=MARKERS):
+    rng = np.random.default_rng(4)
+    rows = []
+    for st, tr in truth.items():
+        f = frame - offsets.get(st, 0)
+        for i, m in enumerate(markers):
+            rows.append((st, f, m, *(tr[f, i] + rng.normal(0, click / np.sqrt(2), 2))))
+    return pd.DataFrame(rows, columns=["station", "frame", "marker", "x", "y"])
+
+
+def _evaluate(table, truth, offsets, wrong_px=1.0):
+    """Errors of the ok rows; rows that are wrong (off by more than wrong_px,
+    or a hidden marker reported)."""
+    errs, wrong = [], []
+    for r in table.itertuples():
+        f = EXPO[r.exposure] - offsets[r.station]
+        t = truth[r.station][f, MARKERS.index(r.marker)]
+        if r.status == "ok":
+            e = np.hypot(r.x - t[0], r.y - t[1]) if np.isfinite(t).all() else np.inf
+            errs.append(e)
+            if e > wrong_px:
+                wrong.append(r)
+    return np.array(errs), wrong
+
+
+@pytest.fixture(scope="module")
+def cams():
+    return field_cameras()
+
+
+@pytest.fixture(scope="module")
+def separate(cams):
+    """Bindings moved apart (every marker its own blob), P1 hidden in S2 for
+    three frames, S2 two frames late, S3 one frame early."""
+    X = jump_markers(T, separate_bindings=True)
+    vis = {"S2": np.ones((T, 4), bool)}
+    vis["S2"][18:21, 0] = False
+    frames, truth = render_views(cams, X, visible=vis, offsets=OFFSETS)
+    return X, frames, truth
+
+
+@pytest.fixture(scope="module")
+def separate_result(cams, separate):
+    _, frames, truth = separate
+    return track_markers(frames, cams, _seeds(truth, OFFSETS), MARKERS, EXPO)
+
+
+def test_precondition_bindings_are_apart(cams, separate):
+    X = separate[0]
+    for cam in cams.values():
+        q = np.stack([cam.project(X[:, k]) for k in range(4)], 1)
+        d = np.linalg.norm(q[:, :, None] - q[:, None], axis=3)
+        d[:, range(4), range(4)] = np.inf
+        assert d.min() > 5.0
+
+
+def test_table_has_exactly_the_columns_and_rows(separate_result):
+    tab = separate_result.table
+    assert list(tab.columns) == COLUMNS
+    assert len(tab) == 24 * 3 * 4
+    assert list(dict.fromkeys(tab.exposure)) == list(EXPO)
+    assert set(tab.status) <= {"ok", "lost", "ambiguous"}
+    bad = tab.status != "ok"
+    assert tab.loc[bad, ["x", "y", "sigma"]].isna().all().all()
+    assert tab.loc[~bad, ["x", "y", "sigma"]].notna().all().all()
+    assert (tab.reason.str.len() > 0).all()
+
+
+def test_sync_offsets_are_estimated(separate_result):
+    assert separate_result.offsets == OFFSETS
+    assert all(separate_result.sync.clear.values())
+
+
+def test_separate_markers_are_tracked_right(separate_result, separate):
+    _, _, truth = separate
+    tab = separate_result.table
+    errs, wrong = _evaluate(tab, truth, OFFSETS)
+    assert not wrong
+    assert np.sqrt(np.mean(errs ** 2)) < 0.1
+    # P1 hidden in S2 at instants 18..20 (exposures 011-013): flagged, not guessed
+    hidden = tab[(tab.station == "S2") & (tab.marker == "P1")
+                 & tab.exposure.isin(["011", "012", "013"])]
+    assert (hidden.status != "ok").all()
+    assert (hidden.status == "lost").sum() >= 2
+    # and tracked again after the occlusion
+    after = tab[(tab.station == "S2") & (tab.marker == "P1") & (tab.exposure >= "015")]
+    assert (after.status == "ok").mean() > 0.9
+    # nearly everything else ok
+    assert (tab.status == "ok").sum() >= len(tab) - 3 - 6
+
+
+def test_merged_bindings_are_flagged_never_guessed(cams):
+    """The true jump: P3 and P4 image 0.6-3 px apart (one blob or two
+    touching ones): their rows are ambiguous, P1 and P2 ok."""
+    X = jump_markers(T)
+    frames, truth = render_views(cams, X, offsets=OFFSETS, seed=7)
+    res = track_markers(frames, cams, _seeds(truth, OFFSETS), MARKERS, EXPO,
+                        offsets=OFFSETS)
+    tab = res.table
+    errs, wrong = _evaluate(tab, truth, OFFSETS)
+    assert not wrong
+    bind = tab[tab.marker.isin(["P3", "P4"])]
+    assert (bind.status != "ok").all()
+    assert (bind.status == "ambiguous").mean() > 0.5
+    head = tab[tab.marker.isin(["P1", "P2"])]
+    assert (head.status == "ok").mean() > 0.95
+
+
+def test_a_distractor_in_the_gate_makes_it_ambiguous(cams, separate):
+    """A second bright spot 2 px from P2 in S1 for three frames: P2 is
+    ambiguous there (two blobs in the gate), right elsewhere."""
+    X, frames, truth = separate
+    fr = {k: v.copy() for k, v in frames.items()}
+    for f in (20, 21, 22):
+        img = fr["S1"][f].astype(np.float32)
+        img += blob_image(img.shape, truth["S1"][f, 1:2] + [2.0, 0.0], 150.0)
+        fr["S1"][f] = np.clip(img, 0, 255).astype(np.uint8)
+    res = track_markers(fr, cams, _seeds(truth, OFFSETS), MARKERS, EXPO, offsets=OFFSETS)
+    tab = res.table
+    _, wrong = _evaluate(tab, truth, OFFSETS)
+    assert not wrong
+    hit = tab[(tab.station == "S1") & (tab.marker == "P2")
+              & tab.exposure.isin(["013", "014", "015"])]
+    assert (hit.status == "ambiguous").all()
+
+
+def test_perturbed_orientation_gives_no_wrong_label(cams, separate):
+    """An estimated orientation (angles off by 0.03 gon, centres by 0.5 dm):
+    the checks use its tolerance, labels stay right."""
+    from photogram.geometry import matrix_to_opk
+    rng = np.random.default_rng(2)
+    est = {n: ViewCamera.from_angles(matrix_to_opk(c.R) + rng.normal(0, 0.03 * np.pi / 200, 3),
+                                     c.X0 + rng.normal(0, 0.5, 3), c.io, c.model, n)
+           for n, c in cams.items()}
+    _, frames, truth = separate
+    res = track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO)
+    assert res.offsets == OFFSETS
+    errs, wrong = _evaluate(res.table, truth, OFFSETS)
+    assert not wrong
+    assert (res.table.status == "ok").mean() > 0.9
+
+
+def _perturbed(cams, gon, dm, seed=2):
+    from photogram.geometry import matrix_to_opk
+    rng = np.random.default_rng(seed)
+    return {n: ViewCamera.from_angles(matrix_to_opk(c.R) + rng.normal(0, gon * np.pi / 200, 3),
+                                      c.X0 + rng.normal(0, dm, 3), c.io, c.model, n)
+            for n, c in cams.items()}
+
+
+def test_poor_orientation_bias_is_compensated_and_sync_refused(cams, separate):
+    """Angles 0.3 gon off (reprojections several px off): with the offsets
+    given, the systematic error is estimated and the labels stay right;
+    asked to estimate the offsets, the tracker refuses instead of guessing."""
+    _, frames, truth = separate
+    est = _perturbed(cams, 0.3, 1.0, seed=3)
+    X = separate[0]
+    off = max(np.hypot(*(est[n].project(X[15]) - cams[n].project(X[15])).T).max()
+              for n in cams)
+    assert off > 3.0                       # the orientation error is real
+    res = track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO, offsets=OFFSETS)
+    _, wrong = _evaluate(res.table, truth, OFFSETS)
+    assert not wrong
+    assert (res.table.status == "ok").mean() > 0.9
+    with pytest.raises(InputError, match="sync offset of camera S[23] is not clear"):
+        track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO)
+
+
+def test_seed_far_from_any_marker_names_station_frame_marker(cams, separate):
+    _, frames, truth = separate
+    seeds = _seeds(truth, OFFSETS)
+    k = seeds.index[(seeds.station == "S2") & (seeds.marker == "P2")][0]
+    seeds.loc[k, "x"] += 25.0
+    with pytest.raises(InputError, match=r"P2 in S2 frame 4") as e:
+        track_markers(frames, cams, seeds, MARKERS, EXPO, offsets=OFFSETS)
+    assert "\n" not in str(e.value)
+
+
+def test_blank_camera_is_named(cams, separate):
+    _, frames, truth = separate
+    fr = dict(frames)
+    rng = np.random.default_rng(0)
+    fr["S3"] = np.clip(rng.normal(120, 2, frames["S3"].shape), 0, 255).astype(np.uint8)
+    with pytest.raises(InputError, match="camera S3 sees none of the markers") as e:
+        track_markers(fr, cams, _seeds(truth, OFFSETS), MARKERS, EXPO, offsets=OFFSETS)
+    assert "\n" not in str(e.value)
+
+
+def test_bad_tables_are_input_errors(cams, separate):
+    _, frames, truth = separate
+    seeds = _seeds(truth, OFFSETS)
+    with pytest.raises(InputError, match="unknown station S9"):
+        track_markers(frames, cams, seeds.replace({"station": {"S3": "S9"}}), MARKERS, EXPO)
+    with pytest.raises(InputError, match="two seed clicks for P1 in S1"):
+        track_markers(frames, cams, pd.concat([seeds, seeds.iloc[:1]]), MARKERS, EXPO)
+    with pytest.raises(InputError, match="exposure, frame"):
+        track_markers(frames, cams, seeds, MARKERS, pd.DataFrame({"e": [1]}))
+
+
+# ----------------------------------------------------------------------------
+# the rendered jump videos (photogram.simulation.jump_video, colleague's branch)
+
+def _rendered(settings):
+    jv = pytest.importorskip("photogram.simulation.jump_video")
+    v = jv.render_jump_videos(settings)
+    return v
+
+
+def _run_rendered(v):
+    expo = pd.DataFrame({"exposure": [f"{e + 1:03d}" for e in range(24)],
+                         "frame": [v.exposure_frames["S1"][e] + 0 for e in range(24)]})
+    # the renderer's frame: pixel centres at integers
+    res = track_markers(v.frames, v.cameras, v.seeds, MARKERS, expo,
+                        settings=TrackSettings(pixel_offset=0.0))
+    t = v.truth_markers.set_index(["exposure", "station", "marker"])
+    m = res.table.join(t[["x", "y", "visible"]], on=["exposure", "station", "marker"],
+                       rsuffix="_true")
+    ok = m[m.status == "ok"]
+    err = np.hypot(ok.x - ok.x_true, ok.y - ok.y_true)
+    wrong = (err > 1.0) | (ok.visible.astype(str) != "True")
+    return res, m, err, wrong
+
+
+def test_rendered_normal_meets_the_goals():
+    jv = pytest.importorskip("photogram.simulation.jump_video")
+    res, m, err, wrong = _run_rendered(_rendered(jv.VideoSettings()))
+    assert wrong.sum() == 0
+    assert np.sqrt(np.mean(err ** 2)) <= 0.2
+    vis = m.visible.astype(str) == "True"
+    head = m[vis & m.marker.isin(["P1", "P2"])]
+    assert (head.status == "ok").mean() > 0.9
+    assert all(v == 0 for v in res.offsets.values())
+
+
+def test_rendered_harsh_reported_with_a_looser_bound():
+    """Not tuned on: no wrong label allowed still, the centres to 0.3 px."""
+    jv = pytest.importorskip("photogram.simulation.jump_video")
+    res, m, err, wrong = _run_rendered(_rendered(jv.harsh_settings()))
+    print("harsh:", res.offsets, m.status.value_counts().to_dict(),
+          "rms", float(np.sqrt(np.mean(err[~wrong] ** 2))), "wrong", int(wrong.sum()))
+    assert wrong.sum() == 0
+    assert np.sqrt(np.mean(err ** 2)) <= 0.3
+    assert res.offsets["S3"] == 1
+
+
+def test_scatter_sigma_measures_the_track_noise():
+    from photogram.track.tracks2d import scatter_sigma
+    t = np.arange(300, dtype=float) / 5
+    xy = np.column_stack([400 - 18 * t + 0.02 * t ** 2, 80 + 9 * t + 0.15 * t ** 2])
+    ok = np.ones(300, bool)
+    ok[[10, 11, 30]] = False                       # gaps are fine
+    assert scatter_sigma(xy, ok) < 1e-6            # a smooth track has none
+    rng = np.random.default_rng(1)
+    noisy = xy + rng.normal(0, 0.2, xy.shape)
+    assert scatter_sigma(noisy, ok) == pytest.approx(0.2, rel=0.15)
+    assert np.isnan(scatter_sigma(noisy, np.arange(300) < 5))
