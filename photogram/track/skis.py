@@ -1,0 +1,315 @@
+"""Ski lines tracked in synchronized videos (issue 19, item 4).
+
+Per exposure and station the two skis are predicted from the binding
+markers (P3 right, P4 left) and the previous exposure's axes (at the first
+exposure, or after a loss, from a search over directions through the
+bindings, oriented towards the helmet), fitted jointly as two dark bars in a
+band around the prediction (:func:`photogram.track.ski_edges.fit_ski_pair`),
+labelled by the binding each axis passes closer to, and sampled as points
+along each axis, tail to tip: the ``ski_lines.csv`` observations whose image
+lines ``photogram intersect`` fits by eq. (C11) and intersects into 3D ski
+lines. Across the three views the labels are checked by the line-transfer
+test (:func:`photogram.lines.skis.check_ski_labels`); swaps are corrected
+(:func:`photogram.lines.skis.swap_labels`) and reported. A ski that is not
+found (no binding marker, no dark bar, axis far from its binding, outside
+the image) is flagged, never guessed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from photogram.errors import GeometryError, InputError
+from photogram.lines.skis import check_ski_labels
+from photogram.track.ski_edges import (BarLine, best_split, extent_along, fit_ski_pair,
+                                       noise_sigma, sample_axis, search_direction)
+
+__all__ = ["SkiTracking", "track_skis", "exposure_labels"]
+
+TABLE_COLUMNS = ["exposure", "station", "line", "x", "y", "sigma"]
+CHECK_COLUMNS = ["exposure", "status", "swapped", "detail", "check"]
+FLAG_COLUMNS = ["exposure", "station", "line", "reason"]
+
+
+@dataclass
+class SkiTracking:
+    """Result of :func:`track_skis`.
+
+    Attributes
+    ----------
+    table : DataFrame
+        ``exposure, station, line, x, y, sigma``: points along each ski axis
+        (measured pixels, tail to tip; ``sigma`` the a-priori sigma of each
+        coordinate, px), the format of ``ski_lines.csv`` plus sigma. Labels
+        are after the three-view check (swaps corrected).
+    checks : DataFrame
+        ``exposure, status, swapped, detail, check``: ``status`` "ok",
+        "swapped" (labels interchanged in the stations ``swapped``, corrected
+        in ``table``) or "flagged" (the check could not confirm the labels:
+        fewer than three views with both skis, no assignment fits, or the
+        views disagree without a majority); ``check`` the status of
+        :class:`photogram.lines.skis.SkiCheck` and ``detail`` its message.
+    flags : DataFrame
+        ``exposure, station, line, reason``: skis not found or ambiguous in
+        one image (no rows for them in ``table``).
+    lines : dict
+        ``{(exposure, station): {label: BarLine}}`` the fitted axes.
+    """
+
+    table: pd.DataFrame
+    checks: pd.DataFrame
+    flags: pd.DataFrame
+    lines: dict = field(default_factory=dict)
+
+
+def exposure_labels(markers: pd.DataFrame, n: int) -> list:
+    """The exposure names of the marker table in exposure order: its sorted
+    distinct ``exposure`` values, which must be ``n`` (or a subset of
+    ``range(n)`` / ``range(1, n + 1)``, the exposure index)."""
+    values = sorted(pd.unique(markers["exposure"]))
+    if len(values) == n:
+        return list(values)
+    try:
+        ints = {int(v) for v in values}
+    except (TypeError, ValueError):
+        ints = None
+    if ints is not None and ints <= set(range(n)):
+        return list(range(n))
+    if ints is not None and ints <= set(range(1, n + 1)):
+        return list(range(1, n + 1))
+    raise InputError(f"ski tracking: the markers name {len(values)} exposures, "
+                     f"exposure_frames has {n}", hint="one marker exposure per frame index")
+
+
+def _marker_lookup(markers):
+    ok = markers["status"].astype(str) == "ok" if "status" in markers else True
+    m = markers[ok]
+    return {(e, s, p): np.array([x, y], float)
+            for e, s, p, x, y in zip(m["exposure"], m["station"], m["marker"], m["x"], m["y"])}
+
+
+def _initial_search(frame, background, D, bindings, toward, sigma_noise, binding_fraction,
+                    width, radius, span_deg, exclude):
+    """The initial pair (first exposure or after a loss) from a search over
+    directions through the bindings and a grid over the two axes' turns
+    (:func:`photogram.track.ski_edges.best_split`), or None."""
+    mid = np.mean(bindings, 0)
+    u, score = search_direction(D, mid, toward, radius=radius)
+    if score < 5 * sigma_noise:
+        return None
+    back, fwd = extent_along(D, mid, u, 0.5 * score)
+    tail = -back
+    if tail < 3:
+        return None
+    # the tip side is often on the suit: its length from the tail's
+    tip = max(fwd, tail * (1 - binding_fraction) / binding_fraction)
+    pair = [BarLine(b, u, np.array([(mid - b) @ u - tail, (mid - b) @ u + tip]), width,
+                    np.nan) for b in bindings]
+    return [best_split(frame, background, pair, sigma_noise=sigma_noise, span_deg=span_deg,
+                       width=width, exclude=exclude)]
+
+
+def _predict(prev, bindings, prev_bindings):
+    """The previous exposure's axes moved with their bindings."""
+    out = []
+    for l, b, pb in zip(prev, bindings, prev_bindings):
+        out.append(BarLine(l.point + (b - pb), l.direction.copy(), l.ends.copy(), l.width,
+                           l.contrast))
+    return out
+
+
+def _point_sigma(line, pts, floor):
+    """A-priori sigma per coordinate of the n points sampled along a fitted
+    axis: ``n`` collinear points with sigma ``s`` fix a line whose mean
+    variance across, over the points, is ``2 s^2 / n``; matched to the fit's
+    (its covariance of angle and shift), with ``floor`` added in quadrature
+    (model error)."""
+    t = (pts - line.point) @ line.direction
+    v = np.mean(line.sigma_across(t) ** 2)
+    s = np.sqrt(len(pts) / 2 * v) if np.isfinite(v) else np.nan
+    return float(np.hypot(s, floor)) if np.isfinite(s) else float(floor * 10)
+
+
+def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
+               skis={"L1": "P3", "L2": "P4"}, ski_length=26.3, binding_fraction=0.43,
+               points_per_ski=15, offsets=None, helmet="P1", hip="P2",
+               ski_width=1.5, search_radius=15.0, split_deg=8.0,
+               max_binding_distance=3.0, sigma_floor=0.1, marker_mask=4.0, check=True,
+               **fit_options) -> SkiTracking:
+    """Track both ski lines through the exposures of synchronized videos.
+
+    Parameters
+    ----------
+    frames : dict {station: ndarray (F, H, W) uint8}
+    backgrounds : dict {station: ndarray (H, W) float}
+        Median background of each video.
+    cameras : dict {station: ViewCamera}
+        Estimated orientation (for the three-view label check).
+    markers : DataFrame
+        ``exposure, station, marker, x, y, sigma, status, reason`` (marker
+        tracker); only rows with status "ok" are used.
+    exposure_frames : array_like (E,) or dict {station: array_like (E,)}
+        Frame index of each exposure (plus ``offsets[station]`` if given),
+        the same for every station or per station.
+    skis : dict {line label: binding marker}
+        Right ski first by convention (L1 on P3, L2 on P4).
+    ski_length : float
+        Ski length (object units; only its ratio to the binding position
+        is used in 2D).
+    binding_fraction : float
+        Binding position from the tail, as a fraction of the ski length:
+        the tip side of the first prediction is ``(1 - f) / f`` times the
+        tail side (the tail side is free of the body).
+    points_per_ski : int
+        Points sampled along each axis.
+    offsets : dict {station: int}, optional
+        Frame offset of each station.
+    helmet, hip : str
+        Markers the skis' tips point towards (first prediction).
+    ski_width : float
+        Initial bar width (px).
+    search_radius : float
+        Length of the rays of the direction search (px).
+    split_deg : float
+        After a search, each axis is turned by up to this (deg) to find the
+        pair that fits best (the skis' V seen in the image).
+    max_binding_distance : float
+        An axis farther than this (px) from its binding marker is not that
+        ski: flagged.
+    marker_mask : float
+        Radius (px) around every marker left out of the fit (the bright
+        marker discs are drawn over the skis).
+    sigma_floor : float
+        Model error of a sampled point (px), added in quadrature to the
+        fit's precision.
+    check : bool
+        Run the three-view label check.
+    **fit_options
+        Passed to :func:`photogram.track.ski_edges.fit_ski_pair`.
+
+    Returns
+    -------
+    SkiTracking
+    """
+    labels = list(skis)
+    if len(labels) != 2:
+        raise InputError(f"ski tracking: two skis expected, got {labels}")
+    bind_names = [skis[lab] for lab in labels]
+    offsets = offsets or {}
+    stations = list(frames)
+    if isinstance(exposure_frames, dict):
+        frame_of = {st: np.asarray(exposure_frames[st], dtype=int) + offsets.get(st, 0)
+                    for st in stations}
+    else:
+        ef = np.asarray(exposure_frames, dtype=int)
+        frame_of = {st: ef + offsets.get(st, 0) for st in stations}
+    E = len(next(iter(frame_of.values())))
+    names = exposure_labels(markers, E)
+    lookup = _marker_lookup(markers)
+    rows, checks, flags, fitted = [], [], [], {}
+    prev: dict = {}
+
+    def flag(e, st, lab, reason):
+        for la in ([lab] if lab else labels):
+            flags.append((e, st, la, reason))
+
+    for i, e in enumerate(names):
+        by_view, sig_view, axes_view = {}, {}, {}
+        for st in stations:
+            F = frames[st]
+            fi = int(frame_of[st][i])
+            if not 0 <= fi < len(F):
+                flag(e, st, None, f"frame {fi} outside the video")
+                prev.pop(st, None)
+                continue
+            img = F[fi].astype(float)
+            bgd = np.asarray(backgrounds[st], float)
+            D = bgd - img
+            sn = noise_sigma(D)
+            bind = [lookup.get((e, st, b)) for b in bind_names]
+            if all(b is None for b in bind):
+                flag(e, st, None, "no binding marker")
+                prev.pop(st, None)
+                continue
+            bind = [b if b is not None else bind[1 - k] for k, b in enumerate(bind)]
+            toward = lookup.get((e, st, helmet), lookup.get((e, st, hip)))
+            discs = [(xy, marker_mask) for (e_, s_, _), xy in lookup.items()
+                     if e_ == e and s_ == st]
+            if st in prev:
+                candidates = [_predict(prev[st][0], bind, prev[st][1])]
+            else:
+                candidates = _initial_search(img, bgd, D, bind, toward, sn, binding_fraction,
+                                             ski_width, search_radius, split_deg, discs)
+                if candidates is None:
+                    flag(e, st, None, "no dark bar through the bindings")
+                    continue
+            fits = [fit_ski_pair(img, bgd, c, sigma_noise=sn, exclude=discs, **fit_options)
+                    for c in candidates]
+            good = [f for f in fits if f.ok]
+            if not good:
+                flag(e, st, None, fits[0].reason)
+                prev.pop(st, None)
+                continue
+            fit = min(good, key=lambda f: f.rms)
+            lines = list(fit.lines)
+            # labels: each axis through its own binding
+            dist = np.abs([[l.distance(b)[0] for l in lines] for b in bind])
+            if dist[0, 1] + dist[1, 0] < dist[0, 0] + dist[1, 1]:
+                lines = lines[::-1]
+            prev[st] = (lines, bind)
+            pts_view, sig = {}, {}
+            for k, lab in enumerate(labels):
+                d = abs(lines[k].distance(bind[k])[0])
+                if d > max_binding_distance:
+                    flag(e, st, lab, f"axis {d:.2g} px from binding {bind_names[k]}")
+                    continue
+                pts = sample_axis(lines[k], points_per_ski, D.shape)
+                if len(pts) < 2:
+                    flag(e, st, lab, "ski outside the image")
+                    continue
+                pts_view[lab] = pts
+                sig[lab] = _point_sigma(lines[k], pts, sigma_floor)
+            fitted[(e, st)] = dict(zip(labels, lines))
+            if pts_view:
+                by_view[st], sig_view[st], axes_view[st] = pts_view, sig, lines
+
+        status, swapped, detail, raw = "flagged", [], "", ""
+        complete = [st for st in by_view if len(by_view[st]) == 2]
+        if check and len(complete) >= 3:
+            try:
+                res = check_ski_labels({st: by_view[st] for st in complete}, cameras,
+                                       {st: float(np.mean(list(sig_view[st].values())))
+                                        for st in complete},
+                                       labels=tuple(labels), exposure=e, fix=True)
+                raw, detail = res.status, res.message
+                if res.status == "swapped":
+                    status, swapped = "swapped", list(res.swapped)
+                    for st in swapped:
+                        by_view[st] = res.corrected[st]
+                        sig_view[st] = dict(zip(labels, [sig_view[st][labels[1]],
+                                                         sig_view[st][labels[0]]]))
+                        lines, bind = prev.get(st, (axes_view[st], None))
+                        prev[st] = (lines[::-1], bind[::-1] if bind else bind)
+                        fitted[(e, st)] = dict(zip(labels, axes_view[st][::-1]))
+                elif res.status == "ok" or (
+                        res.status == "ambiguous" and res.costs["as measured"] <= res.threshold
+                        and res.costs["as measured"] - min(res.costs.values()) < res.margin):
+                    # ambiguous only where a view cannot separate the skis (e.g.
+                    # they coincide in it): the labels as measured fit as well as any
+                    status = "ok"
+            except (GeometryError, InputError) as exc:
+                raw, detail = "error", str(exc)
+        elif check:
+            detail = f"both skis found in {len(complete)} view(s); the check needs 3"
+        for st, v in by_view.items():
+            for lab, pts in v.items():
+                for x, y in pts:
+                    rows.append((e, st, lab, x, y, sig_view[st][lab]))
+        checks.append((e, status, ",".join(swapped), detail, raw))
+
+    return SkiTracking(pd.DataFrame(rows, columns=TABLE_COLUMNS),
+                       pd.DataFrame(checks, columns=CHECK_COLUMNS),
+                       pd.DataFrame(flags, columns=FLAG_COLUMNS), fitted)
