@@ -47,7 +47,8 @@ class BarLine:
     ``point`` (2,) is on the axis, ``direction`` (2,) its unit direction
     (tail to tip), ``ends`` (2,) the positions of tail and tip along the
     direction from ``point``; ``width`` of the bar and ``contrast``: its
-    grey (the bar replaces the background there); ``cov``
+    grey (the bar replaces the background there); ``support`` the share of
+    the bar's area seen in used pixels apart from the other bar (0..1); ``cov``
     (2, 2) the covariance of (angle [rad], shift across [px] at ``point``).
     """
 
@@ -57,6 +58,7 @@ class BarLine:
     width: float
     contrast: float
     cov: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
+    support: float = np.nan
 
     @property
     def tail(self) -> np.ndarray:
@@ -235,7 +237,8 @@ class _Window:
         return binary_dilation(self.band & (self.frame < G - margin_g), iterations=1)
 
 
-def _window(frame, background, initial, margin, exclude, mask_level, sigma_noise):
+def _window(frame, background, initial, margin, exclude, mask_level, sigma_noise,
+            body_gap=None):
     bgi = np.asarray(background, dtype=float)
     frame = np.asarray(frame, dtype=float)
     H, W = frame.shape
@@ -259,6 +262,15 @@ def _window(frame, background, initial, margin, exclude, mask_level, sigma_noise
     fr = frame[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
     bgw = bgi[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
     img = bgw - fr
+    # the body, whatever its grey: dark pixels away from both predicted axes
+    # (by more than half a width + body_gap), grown by one pixel
+    if body_gap is not None:
+        near = np.zeros(xx.shape, bool)
+        for l in initial:
+            rel = np.stack([xx - l.point[0], yy - l.point[1]], -1)
+            near |= np.abs(rel @ l.normal) <= l.width / 2 + body_gap
+        level = max(mask_level * sigma_noise, 0.3 * np.percentile(img[band], 95))
+        band &= ~binary_dilation(band & (img > level) & ~near, iterations=1)
     # bright things (reflective markers, patches) and the given discs
     band &= ~binary_dilation(img < -mask_level * sigma_noise, iterations=1)
     for c, r in exclude:
@@ -319,7 +331,7 @@ def _turn(u, deg):
 
 def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: float = 5.0,
                  mask_level: float = 4.0, iterations: int = 3, blur: float = 0.7,
-                 max_turn_deg: float = 3.0,
+                 body_gap: float | None = 2.5, max_turn_deg: float = 3.0,
                  max_shift: float = 4.0, exclude=()) -> PairFit:
     """Fit two dark bars (eqs. (1), (2)) to the background difference ``D``.
 
@@ -343,6 +355,11 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
         one-pixel margin, and the fit repeated up to ``iterations`` times.
     blur : float
         Initial edge blur (px).
+    body_gap : float or None
+        Dark pixels farther than half a ski width plus this from both
+        predicted axes are the body (a suit lighter than the skis is not
+        caught by the grey rule): masked with a one-pixel margin. None:
+        off.
     max_turn_deg, max_shift : float
         Bounds of each axis' turn (deg) and shift (px) from its prediction.
     exclude : iterable of (xy, radius)
@@ -353,7 +370,8 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     -------
     PairFit
     """
-    win = _window(frame, background, initial, margin, exclude, mask_level, sigma_noise)
+    win = _window(frame, background, initial, margin, exclude, mask_level, sigma_noise,
+                  body_gap)
     if win is None:
         return PairFit(list(initial), np.nan, 1.0, False, "outside the image")
     xx, yy, img, bgw, fr, band = win.xx, win.yy, win.img, win.bg, win.frame, win.band
@@ -363,11 +381,19 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
         [l.contrast for l in initial]).any() else win.G0
     w = np.mean([l.width for l in initial])
     theta0 = np.concatenate([theta0, [np.clip(w, 1.0, 12.0), np.clip(G, 1.0, 254.0), blur]])
+    # bounds: turn, shift and ends near the prediction; the grey within half
+    # the predicted contrast (else the fit may take the suit for a ski)
     da, dc = np.radians(max_turn_deg), max_shift
-    lower = np.array([-da, -dc, -np.inf, -np.inf] * 2 + [0.3, 0.0, 0.3])
-    upper = np.array([da, dc, np.inf, np.inf] * 2 + [15.0, 255.0, 3.0])
-    lower[[0, 1, 4, 5]] += theta0[[0, 1, 4, 5]]
-    upper[[0, 1, 4, 5]] += theta0[[0, 1, 4, 5]]
+    de = np.array([0.25 * l.length + 3.0 for l in initial])
+    contrast = max(np.median(bgw[band]) - theta0[_G], 5 * sigma_noise)
+    lower = np.array([-da, -dc, -de[0], -de[0], -da, -dc, -de[1], -de[1],
+                      0.3, -0.5 * contrast, 0.3])
+    upper = np.array([da, dc, de[0], de[0], da, dc, de[1], de[1],
+                      15.0, 0.5 * contrast, 3.0])
+    lower[:_G + 1] += theta0[:_G + 1]
+    upper[:_G + 1] += theta0[:_G + 1]
+    lower[_W] = 0.3
+    upper[_W] = 15.0
     theta0 = np.clip(theta0, lower + 1e-9, upper - 1e-9)
 
     def suit(G):
@@ -405,6 +431,13 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     except np.linalg.LinAlgError:
         cov = None
     lines = [_to_bar(theta, k, ref, u0, cov) for k in (0, 1)]
+    # support: area of each bar in used pixels, not covered by the other
+    x, y = xx[use], yy[use]
+    cs = [_coverage(x, y, theta[4 * k:4 * k + 4], theta[_W], theta[_BLUR], ref, u0)
+          for k in (0, 1)]
+    for k, l in enumerate(lines):
+        area = max(theta[_W], 1.0) * max(l.length, 1.0)
+        l.support = float(np.sum(cs[k] * (1 - cs[1 - k])) / area)
     rms = float(np.sqrt(np.mean(r ** 2)))
     masked = float(1.0 - use.sum() / max(band.sum(), 1))
     ok, reason = True, ""

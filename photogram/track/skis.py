@@ -137,7 +137,7 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
                skis={"L1": "P3", "L2": "P4"}, ski_length=26.3, binding_fraction=0.43,
                points_per_ski=15, offsets=None, helmet="P1", hip="P2",
                ski_width=1.5, search_radius=15.0, split_deg=8.0,
-               max_binding_distance=3.0, sigma_floor=0.1, marker_mask=4.0, check=True,
+               track_turn_deg=3.0, max_binding_distance=3.0, min_support=0.15, sigma_floor=0.1, marker_mask=4.0, check=True,
                **fit_options) -> SkiTracking:
     """Track both ski lines through the exposures of synchronized videos.
 
@@ -176,6 +176,12 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
     split_deg : float
         After a search, each axis is turned by up to this (deg) to find the
         pair that fits best (the skis' V seen in the image).
+    track_turn_deg : float
+        Largest turn (deg) of an axis from the previous exposure's.
+    min_support : float
+        A ski whose fitted bar is seen apart from the other ski (and not
+        masked as body) over less than this share of its area is flagged
+        as ambiguous.
     max_binding_distance : float
         An axis farther than this (px) from its binding marker is not that
         ski: flagged.
@@ -246,7 +252,10 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
                 if candidates is None:
                     flag(e, st, None, "no dark bar through the bindings")
                     continue
-            fits = [fit_ski_pair(img, bgd, c, sigma_noise=sn, exclude=discs, **fit_options)
+            opts = dict(fit_options)
+            if st in prev:
+                opts.setdefault("max_turn_deg", track_turn_deg)
+            fits = [fit_ski_pair(img, bgd, c, sigma_noise=sn, exclude=discs, **opts)
                     for c in candidates]
             good = [f for f in fits if f.ok]
             if not good:
@@ -263,6 +272,10 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             pts_view, sig = {}, {}
             for k, lab in enumerate(labels):
                 d = abs(lines[k].distance(bind[k])[0])
+                if lines[k].support < min_support:
+                    flag(e, st, lab, f"ski not seen apart from the other ski and the body "
+                                     f"(support {lines[k].support:.2f})")
+                    continue
                 if d > max_binding_distance:
                     flag(e, st, lab, f"axis {d:.2g} px from binding {bind_names[k]}")
                     continue
