@@ -17,13 +17,14 @@ the image) is flagged, never guessed.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from photogram.errors import GeometryError, InputError
-from photogram.lines.skis import check_ski_labels
+from photogram.lines.skis import SkiCheck, check_ski_labels
 from photogram.track.ski_edges import (BarLine, best_split, extent_along, fit_ski_pair,
                                        noise_sigma, sample_axis, search_direction)
 
@@ -108,8 +109,8 @@ def _initial_search(frame, background, D, bindings, toward, sigma_noise, binding
     tip = max(fwd, tail * (1 - binding_fraction) / binding_fraction)
     pair = [BarLine(b, u, np.array([(mid - b) @ u - tail, (mid - b) @ u + tip]), width,
                     np.nan) for b in bindings]
-    return [best_split(frame, background, pair, sigma_noise=sigma_noise, span_deg=span_deg,
-                       width=width, exclude=exclude)]
+    return best_split(frame, background, pair, sigma_noise=sigma_noise, span_deg=span_deg,
+                      width=width, exclude=exclude)
 
 
 def _predict(prev, bindings, prev_bindings):
@@ -137,7 +138,8 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
                skis={"L1": "P3", "L2": "P4"}, ski_length=26.3, binding_fraction=0.43,
                points_per_ski=15, offsets=None, helmet="P1", hip="P2",
                ski_width=1.5, search_radius=15.0, split_deg=8.0,
-               track_turn_deg=3.0, max_binding_distance=3.0, min_support=0.15, sigma_floor=0.1, marker_mask=4.0, check=True,
+               track_turn_deg=3.0, max_binding_distance=3.0, min_support=0.15,
+               sigma_floor=0.15, marker_mask=4.0, two_pass=True, check=True,
                **fit_options) -> SkiTracking:
     """Track both ski lines through the exposures of synchronized videos.
 
@@ -191,6 +193,11 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
     sigma_floor : float
         Model error of a sampled point (px), added in quadrature to the
         fit's precision.
+    two_pass : bool
+        Track forward, then backward from the last exposure's state; per
+        exposure the views' results (forward or backward, where they
+        differ) are chosen by the three-view check (most views with both
+        skis, then the smallest chi-square).
     check : bool
         Run the three-view label check.
     **fit_options
@@ -215,108 +222,126 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
     E = len(next(iter(frame_of.values())))
     names = exposure_labels(markers, E)
     lookup = _marker_lookup(markers)
-    rows, checks, flags, fitted = [], [], [], {}
+
+    def one_image(i, st, prev):
+        """Fit both skis in one image; updates ``prev`` (the tracking
+        state of the station); returns a _Seen."""
+        e = names[i]
+        seen = _Seen()
+        F = frames[st]
+        fi = int(frame_of[st][i])
+        if not 0 <= fi < len(F):
+            seen.flags.append((None, f"frame {fi} outside the video"))
+            prev.pop(st, None)
+            return seen
+        img = F[fi].astype(float)
+        bgd = np.asarray(backgrounds[st], float)
+        D = bgd - img
+        sn = noise_sigma(D)
+        bind = [lookup.get((e, st, b)) for b in bind_names]
+        if all(b is None for b in bind):
+            seen.flags.append((None, "no binding marker"))
+            prev.pop(st, None)
+            return seen
+        bind = [b if b is not None else bind[1 - k] for k, b in enumerate(bind)]
+        toward = lookup.get((e, st, helmet), lookup.get((e, st, hip)))
+        discs = [(xy, marker_mask) for (e_, s_, _), xy in lookup.items()
+                 if e_ == e and s_ == st]
+        opts = dict(fit_options)
+        if st in prev:
+            initial = _predict(prev[st][0], bind, prev[st][1])
+            opts.setdefault("max_turn_deg", track_turn_deg)
+        else:
+            initial = _initial_search(img, bgd, D, bind, toward, sn, binding_fraction,
+                                      ski_width, search_radius, split_deg, discs)
+            if initial is None:
+                seen.flags.append((None, "no dark bar through the bindings"))
+                return seen
+        fit = fit_ski_pair(img, bgd, initial, sigma_noise=sn, exclude=discs, **opts)
+        if not fit.ok:
+            seen.flags.append((None, fit.reason))
+            prev.pop(st, None)
+            return seen
+        lines = list(fit.lines)
+        # labels: each axis through its own binding
+        dist = np.abs([[l.distance(b)[0] for l in lines] for b in bind])
+        if dist[0, 1] + dist[1, 0] < dist[0, 0] + dist[1, 1]:
+            lines = lines[::-1]
+        prev[st] = (lines, bind)
+        seen.lines = lines
+        for k, lab in enumerate(labels):
+            d = abs(lines[k].distance(bind[k])[0])
+            if lines[k].support < min_support:
+                seen.flags.append((lab, "ski not seen apart from the other ski and the body "
+                                        f"(support {lines[k].support:.2f})"))
+                continue
+            if d > max_binding_distance:
+                seen.flags.append((lab, f"axis {d:.2g} px from binding {bind_names[k]}"))
+                continue
+            pts = sample_axis(lines[k], points_per_ski, D.shape)
+            if len(pts) < 2:
+                seen.flags.append((lab, "ski outside the image"))
+                continue
+            seen.pts[lab] = pts
+            seen.sig[lab] = _point_sigma(lines[k], pts, sigma_floor)
+        return seen
+
+    # two passes, forward and backward (the backward one starts from the
+    # forward one's last state: the first exposures get a tracked prediction)
     prev: dict = {}
+    forward = {(i, st): one_image(i, st, prev) for i in range(E) for st in stations}
+    backward = {}
+    if two_pass:
+        for i in reversed(range(E)):
+            for st in stations:
+                backward[(i, st)] = one_image(i, st, prev)
 
-    def flag(e, st, lab, reason):
-        for la in ([lab] if lab else labels):
-            flags.append((e, st, la, reason))
-
+    rows, checks, flags, fitted = [], [], [], {}
     for i, e in enumerate(names):
-        by_view, sig_view, axes_view = {}, {}, {}
+        options = []
         for st in stations:
-            F = frames[st]
-            fi = int(frame_of[st][i])
-            if not 0 <= fi < len(F):
-                flag(e, st, None, f"frame {fi} outside the video")
-                prev.pop(st, None)
-                continue
-            img = F[fi].astype(float)
-            bgd = np.asarray(backgrounds[st], float)
-            D = bgd - img
-            sn = noise_sigma(D)
-            bind = [lookup.get((e, st, b)) for b in bind_names]
-            if all(b is None for b in bind):
-                flag(e, st, None, "no binding marker")
-                prev.pop(st, None)
-                continue
-            bind = [b if b is not None else bind[1 - k] for k, b in enumerate(bind)]
-            toward = lookup.get((e, st, helmet), lookup.get((e, st, hip)))
-            discs = [(xy, marker_mask) for (e_, s_, _), xy in lookup.items()
-                     if e_ == e and s_ == st]
-            if st in prev:
-                candidates = [_predict(prev[st][0], bind, prev[st][1])]
-            else:
-                candidates = _initial_search(img, bgd, D, bind, toward, sn, binding_fraction,
-                                             ski_width, search_radius, split_deg, discs)
-                if candidates is None:
-                    flag(e, st, None, "no dark bar through the bindings")
-                    continue
-            opts = dict(fit_options)
-            if st in prev:
-                opts.setdefault("max_turn_deg", track_turn_deg)
-            fits = [fit_ski_pair(img, bgd, c, sigma_noise=sn, exclude=discs, **opts)
-                    for c in candidates]
-            good = [f for f in fits if f.ok]
-            if not good:
-                flag(e, st, None, fits[0].reason)
-                prev.pop(st, None)
-                continue
-            fit = min(good, key=lambda f: f.rms)
-            lines = list(fit.lines)
-            # labels: each axis through its own binding
-            dist = np.abs([[l.distance(b)[0] for l in lines] for b in bind])
-            if dist[0, 1] + dist[1, 0] < dist[0, 0] + dist[1, 1]:
-                lines = lines[::-1]
-            prev[st] = (lines, bind)
-            pts_view, sig = {}, {}
-            for k, lab in enumerate(labels):
-                d = abs(lines[k].distance(bind[k])[0])
-                if lines[k].support < min_support:
-                    flag(e, st, lab, f"ski not seen apart from the other ski and the body "
-                                     f"(support {lines[k].support:.2f})")
-                    continue
-                if d > max_binding_distance:
-                    flag(e, st, lab, f"axis {d:.2g} px from binding {bind_names[k]}")
-                    continue
-                pts = sample_axis(lines[k], points_per_ski, D.shape)
-                if len(pts) < 2:
-                    flag(e, st, lab, "ski outside the image")
-                    continue
-                pts_view[lab] = pts
-                sig[lab] = _point_sigma(lines[k], pts, sigma_floor)
-            fitted[(e, st)] = dict(zip(labels, lines))
-            if pts_view:
-                by_view[st], sig_view[st], axes_view[st] = pts_view, sig, lines
-
+            f, b = forward[(i, st)], backward.get((i, st))
+            options.append([f] if b is None or _same(f, b) else [f, b])
+        best = None
+        for combo in itertools.product(*options):
+            views = dict(zip(stations, combo))
+            res = _check(views, cameras, labels, e) if check else None
+            n_found = sum(len(v.pts) for v in views.values())
+            n_complete = sum(len(v.pts) == 2 for v in views.values())
+            cost = min(res.costs.values()) if isinstance(res, SkiCheck) else np.inf
+            key = (-n_complete, cost, -n_found)
+            if best is None or key < best[0]:
+                best = (key, views, res)
+        _, views, res = best
+        by_view = {st: dict(v.pts) for st, v in views.items() if v.pts}
+        sig_view = {st: dict(v.sig) for st, v in views.items() if v.pts}
+        for st, v in views.items():
+            for lab, reason in v.flags:
+                for la in ([lab] if lab else labels):
+                    flags.append((e, st, la, reason))
+            if v.lines is not None:
+                fitted[(e, st)] = dict(zip(labels, v.lines))
         status, swapped, detail, raw = "flagged", [], "", ""
-        complete = [st for st in by_view if len(by_view[st]) == 2]
-        if check and len(complete) >= 3:
-            try:
-                res = check_ski_labels({st: by_view[st] for st in complete}, cameras,
-                                       {st: float(np.mean(list(sig_view[st].values())))
-                                        for st in complete},
-                                       labels=tuple(labels), exposure=e, fix=True)
-                raw, detail = res.status, res.message
-                if res.status == "swapped":
-                    status, swapped = "swapped", list(res.swapped)
-                    for st in swapped:
-                        by_view[st] = res.corrected[st]
-                        sig_view[st] = dict(zip(labels, [sig_view[st][labels[1]],
-                                                         sig_view[st][labels[0]]]))
-                        lines, bind = prev.get(st, (axes_view[st], None))
-                        prev[st] = (lines[::-1], bind[::-1] if bind else bind)
-                        fitted[(e, st)] = dict(zip(labels, axes_view[st][::-1]))
-                elif res.status == "ok" or (
-                        res.status == "ambiguous" and res.costs["as measured"] <= res.threshold
-                        and res.costs["as measured"] - min(res.costs.values()) < res.margin):
-                    # ambiguous only where a view cannot separate the skis (e.g.
-                    # they coincide in it): the labels as measured fit as well as any
-                    status = "ok"
-            except (GeometryError, InputError) as exc:
-                raw, detail = "error", str(exc)
+        if isinstance(res, SkiCheck):
+            raw, detail = res.status, res.message
+            if res.status == "swapped":
+                status, swapped = "swapped", list(res.swapped)
+                for st in swapped:
+                    by_view[st] = res.corrected[st]
+                    sig_view[st] = dict(zip(labels, [sig_view[st][labels[1]],
+                                                     sig_view[st][labels[0]]]))
+                    fitted[(e, st)] = dict(zip(labels, views[st].lines[::-1]))
+            elif res.status == "ok" or (
+                    res.status == "ambiguous" and res.costs["as measured"] <= res.threshold
+                    and res.costs["as measured"] - min(res.costs.values()) < res.margin):
+                # ambiguous only where a view cannot separate the skis (e.g.
+                # they coincide in it): the labels as measured fit as well as any
+                status = "ok"
+        elif isinstance(res, str):
+            raw, detail = "error", res
         elif check:
-            detail = f"both skis found in {len(complete)} view(s); the check needs 3"
+            n = sum(len(v) == 2 for v in by_view.values())
+            detail = f"both skis found in {n} view(s); the check needs 3"
         for st, v in by_view.items():
             for lab, pts in v.items():
                 for x, y in pts:
@@ -326,3 +351,40 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
     return SkiTracking(pd.DataFrame(rows, columns=TABLE_COLUMNS),
                        pd.DataFrame(checks, columns=CHECK_COLUMNS),
                        pd.DataFrame(flags, columns=FLAG_COLUMNS), fitted)
+
+
+@dataclass
+class _Seen:
+    """One image in one tracking pass: the axes (label order), the sampled
+    points and their sigma per label, and flags (label or None, reason)."""
+
+    lines: list | None = None
+    pts: dict = field(default_factory=dict)
+    sig: dict = field(default_factory=dict)
+    flags: list = field(default_factory=list)
+
+
+def _same(a, b, tol_deg=0.02, tol_px=0.05):
+    """Two passes found the same axes (and the same skis) in an image."""
+    if set(a.pts) != set(b.pts) or [f[1] for f in a.flags] != [f[1] for f in b.flags]:
+        return False
+    for lab in a.pts:
+        d = a.pts[lab] - b.pts[lab]
+        if np.abs(d).max() > tol_px:
+            return False
+    return True
+
+
+def _check(views, cameras, labels, exposure):
+    """The three-view label check of the views' points (SkiCheck), None
+    when fewer than three views have both skis, or the error message."""
+    complete = [st for st, v in views.items() if len(v.pts) == 2]
+    if len(complete) < 3:
+        return None
+    try:
+        return check_ski_labels({st: views[st].pts for st in complete}, cameras,
+                                {st: float(np.mean(list(views[st].sig.values())))
+                                 for st in complete},
+                                labels=tuple(labels), exposure=exposure, fix=True)
+    except (GeometryError, InputError) as exc:
+        return str(exc)
