@@ -139,7 +139,8 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
                points_per_ski=15, offsets=None, helmet="P1", hip="P2",
                ski_width=1.5, search_radius=15.0, split_deg=8.0,
                track_turn_deg=3.0, max_binding_distance=3.0, min_support=0.15,
-               sigma_floor=0.15, marker_mask=4.0, two_pass=True, check=True,
+               sigma_floor=0.15, marker_mask=4.0, label_margin=1.0, two_pass=True,
+               check=True,
                **fit_options) -> SkiTracking:
     """Track both ski lines through the exposures of synchronized videos.
 
@@ -193,6 +194,10 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
     sigma_floor : float
         Model error of a sampled point (px), added in quadrature to the
         fit's precision.
+    label_margin : float
+        A tracked axis takes the other label only if both bindings together
+        are closer to the interchanged axes by more than this (px); at a
+        first prediction the bindings alone decide.
     two_pass : bool
         Track forward, then backward from the last exposure's state; per
         exposure the views' results (forward or backward, where they
@@ -248,7 +253,8 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
         discs = [(xy, marker_mask) for (e_, s_, _), xy in lookup.items()
                  if e_ == e and s_ == st]
         opts = dict(fit_options)
-        if st in prev:
+        tracked = st in prev
+        if tracked:
             initial = _predict(prev[st][0], bind, prev[st][1])
             opts.setdefault("max_turn_deg", track_turn_deg)
         else:
@@ -263,9 +269,12 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             prev.pop(st, None)
             return seen
         lines = list(fit.lines)
-        # labels: each axis through its own binding
+        # labels: each axis through its own binding; a tracked axis keeps its
+        # label unless the bindings say otherwise by more than label_margin
+        # (where the skis nearly coincide the bindings cannot tell them apart)
         dist = np.abs([[l.distance(b)[0] for l in lines] for b in bind])
-        if dist[0, 1] + dist[1, 0] < dist[0, 0] + dist[1, 1]:
+        gain = dist[0, 0] + dist[1, 1] - dist[0, 1] - dist[1, 0]
+        if gain > (label_margin if tracked else 0.0):
             lines = lines[::-1]
         prev[st] = (lines, bind)
         seen.lines = lines
