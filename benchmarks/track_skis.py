@@ -12,7 +12,9 @@ median of the frames without the jumper.
 Per exposure and station and ski: the angle between the principal axis of
 the sampled points and the true axis (deg), and the distances of the
 points from the true axis (px); then RMS and max per station and over all,
-the flags, the label check, and the time per image.
+the flags, the label check, and the time per image. For comparison the
+same figures for OpenCV's line-segment detector (LSD) in the same bands
+(the edge segments near each found axis, their middle line).
 
 Run: .venv/bin/python benchmarks/track_skis.py [FOLDER] [--sync truth|none]
      FOLDER defaults to /work/jumpvideo/normal; --sync truth uses the
@@ -94,6 +96,46 @@ def errors(table, truth):
                                        "dist_max", "dist_other", "tail_to_tip"])
 
 
+def lsd_table(frames, ef, offsets, result, *, band=2.0, max_turn_deg=3.0, min_length=4.0):
+    """The alternative detector, for comparison: OpenCV's line-segment
+    detector (LSD) on each frame; per ski the segments (edges) within
+    ``band`` px and ``max_turn_deg`` of the axis that track_skis found (the
+    band prediction), their length-weighted total least-squares line (the
+    middle of the two edges) sampled over the same span as track_skis'
+    points. Same format as ``result.table``."""
+    lsd = cv2.createLineSegmentDetector()
+    rows = []
+    tab = result.table.groupby(["exposure", "station", "line"])
+    names = {e: i for i, e in enumerate(sorted(set(result.checks.exposure)))}
+    for (e, st, lab), g in tab:
+        line = result.lines[(e, st)][lab]
+        fi = int(ef[names[e]] + (offsets or {}).get(st, 0))
+        segs = lsd.detect(frames[st][fi])[0]
+        if segs is None:
+            continue
+        segs = segs.reshape(-1, 2, 2).astype(float)
+        v = segs[:, 1] - segs[:, 0]
+        L = np.linalg.norm(v, axis=1)
+        cosang = np.abs(v @ line.direction) / np.maximum(L, 1e-9)
+        mid = segs.mean(1)
+        keep = ((L >= min_length) & (cosang > np.cos(np.radians(max_turn_deg)))
+                & (np.abs(line.distance(mid)) <= band))
+        t_mid = (mid - line.point) @ line.direction
+        keep &= (t_mid > line.ends[0]) & (t_mid < line.ends[1])
+        if keep.sum() < 2:
+            continue
+        pts = np.concatenate([s0 + np.linspace(0, 1, max(int(l), 2))[:, None] * (s1 - s0)
+                              for (s0, s1), l in zip(segs[keep], L[keep])])
+        c = pts.mean(0)
+        d = np.linalg.eigh((pts - c).T @ (pts - c))[1][:, -1]
+        d = d if d @ line.direction > 0 else -d
+        xy = g[["x", "y"]].to_numpy()
+        t = (xy - c) @ d
+        for x, y in c + t[:, None] * d:
+            rows.append((e, st, lab, x, y))
+    return pd.DataFrame(rows, columns=["exposure", "station", "line", "x", "y"])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("folder", nargs="?", default="/work/jumpvideo/normal")
@@ -143,6 +185,13 @@ def main():
         "s_per_image": f"{dt / n_img:.3f}",
         "s_per_frame": f"{dt / len(ef):.3f}",
     }
+    # the alternative: line segments (LSD) in the same bands
+    lerr = errors(lsd_table(frames, ef, offsets, res), truth)
+    print(f"\nLSD edges in the same bands ({len(lerr)} skis): direction RMS "
+          f"{rms(lerr.angle_deg):.3f} deg, max {lerr.angle_deg.abs().max():.3f}; points "
+          f"{rms(lerr.dist_rms):.3f} px RMS from the true axis")
+    result["lsd_dir_rms_deg"] = f"{rms(lerr.angle_deg):.3f}"
+    result["lsd_dist_rms_px"] = f"{rms(lerr.dist_rms):.3f}"
     print("RESULT " + " ".join(f"{k}={v}" for k, v in result.items()))
     return 0
 
