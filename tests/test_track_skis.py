@@ -265,12 +265,28 @@ def _rendered(settings):
 def test_rendered_normal_videos():
     res, err = _rendered(lambda jv: jv.VideoSettings())
     # measured on the normal set (benchmarks/track_skis.py): direction RMS
-    # ~0.17 deg, max ~0.9 deg, points ~0.09 px RMS from the true axes; the
-    # 0.1 deg goal is met for most but not all skis (a ski along the suit's
-    # edge or behind it is seen over a short length only)
+    # 0.15 deg, max 1.1 deg, 77 % of the skis within 0.1 deg, points 0.06 px
+    # RMS from the true axes, 4 of 144 ski images flagged; the 0.1 deg goal
+    # is met for most but not all skis (a ski along the suit's edge or
+    # behind it is seen over a short length only)
     assert len(err) >= 0.8 * 24 * 3 * 2
-    assert (err.dist < err.dist_other).mean() > 0.95
+    assert len(err) + len(res.flags) == 24 * 3 * 2
+    assert (err.dist < err.dist_other).mean() > 0.9
     assert np.sqrt(np.mean(err.angle ** 2)) < 0.3
     assert (err.angle.abs() < 0.1).mean() > 0.6
     assert np.sqrt(np.mean(err.dist ** 2)) < 0.2
-    assert len(res.flags) <= 0.2 * 24 * 3 * 2
+    assert (res.checks.status != "flagged").sum() >= 15
+
+
+def test_rendered_harsh_videos():
+    # not tuned on: measured (with the true frame offsets, as here) direction
+    # RMS ~1 deg, max ~5 deg, points ~0.4 px RMS from the true axes; the label
+    # check flags about half of the exposures (chi-square above its quantile:
+    # the point sigmas do not cover the harsh set's systematic errors).
+    # Asserted: every ski image measured or flagged, most measured, labels
+    # mostly right, directions within a few degrees
+    res, err = _rendered(lambda jv: jv.harsh_settings())
+    assert len(err) + len(res.flags) == 24 * 3 * 2
+    assert len(err) >= 0.8 * 24 * 3 * 2
+    assert (err.dist < err.dist_other).mean() > 0.8
+    assert np.sqrt(np.mean(err.angle ** 2)) < 2.0

@@ -160,8 +160,10 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
     skis : dict {line label: binding marker}
         Right ski first by convention (L1 on P3, L2 on P4).
     ski_length : float
-        Ski length (object units; only its ratio to the binding position
-        is used in 2D).
+        Ski length (object units). Not used by the 2D tracking (the
+        prediction from the previous exposure's 3D lines is not
+        implemented); kept for that and for the callers' symmetry with
+        ``photogram intersect``.
     binding_fraction : float
         Binding position from the tail, as a fraction of the ski length:
         the tip side of the first prediction is ``(1 - f) / f`` times the
