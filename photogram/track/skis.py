@@ -1,18 +1,24 @@
 """Ski lines tracked in synchronized videos (issue 19, item 4).
 
 Per exposure and station the two skis are predicted from the binding
-markers (P3 right, P4 left) and the previous exposure's axes (at the first
-exposure, or after a loss, from a search over directions through the
-bindings, oriented towards the helmet), fitted jointly as two dark bars in a
-band around the prediction (:func:`photogram.track.ski_edges.fit_ski_pair`),
-labelled by the binding each axis passes closer to, and sampled as points
-along each axis, tail to tip: the ``ski_lines.csv`` observations whose image
-lines ``photogram intersect`` fits by eq. (C11) and intersects into 3D ski
-lines. Across the three views the labels are checked by the line-transfer
-test (:func:`photogram.lines.skis.check_ski_labels`); swaps are corrected
-(:func:`photogram.lines.skis.swap_labels`) and reported. A ski that is not
-found (no binding marker, no dark bar, axis far from its binding, outside
-the image) is flagged, never guessed.
+markers (P3 right, P4 left) and the previous exposure's axes in that view,
+moved with the bindings (at the first exposure, or after a loss: a search
+over directions through the bindings, oriented towards the helmet, then a
+grid over the two axes' turns), fitted jointly as two dark bars in a band
+around the prediction (:func:`photogram.track.ski_edges.fit_ski_pair`) and
+sampled as points along each axis, tail to tip: the ``ski_lines.csv``
+observations whose image lines ``photogram intersect`` fits by eq. (C11)
+and intersects into 3D ski lines. A first prediction is labelled by the
+binding each axis passes closer to; a tracked axis keeps its label unless
+the bindings clearly say otherwise (they are 1-3 px apart). The sequence is
+tracked forward and then backward; per exposure the three views' results
+(forward or backward where they differ) are chosen by the three-view
+line-transfer check (:func:`photogram.lines.skis.check_ski_labels`), which
+also finds interchanged labels: swaps are corrected (as
+:func:`photogram.lines.skis.swap_labels`) and reported. A ski that is not
+found (no binding marker, no dark bar, axis far from its binding, seen
+apart from the other ski and the body over too little of its length,
+outside the image) is flagged, never guessed.
 """
 
 from __future__ import annotations
