@@ -1,0 +1,491 @@
+"""The two skis of one image: a joint fit of two blurred dark bars in a band
+around their predicted lines (issue 19, item 4).
+
+Skis are long thin dark bars (1-5 px wide, 50-100 px long) on bright snow.
+Seen from the side the two skis of a V nearly coincide in the image: their
+axes cross near the bindings, the tips are 2-15 px apart. Edge detectors
+(Canny + Hough, OpenCV's line-segment detector) merge the two skis' edges
+with each other and with the suit's (benchmarks/track_skis.py: LSD in the
+same bands 2.2 deg RMS against 0.15 deg here, normal rendered set); we
+therefore fit both bars at once to the image, with the model
+
+    C_k(p) = [Phi((d_k + w/2) / s) - Phi((d_k - w/2) / s)]
+             [Phi((t_k - a_k) / s) - Phi((t_k - b_k) / s)]              (1)
+    B(p) - I(p) = (B(p) - G) (C_1 + C_2 - C_1 C_2)                      (2)
+
+per pixel ``p`` of the band: ``I`` the frame, ``B`` the background,
+``d_k``, ``t_k`` the signed distance across and the position along the axis
+of ski ``k`` (angle and shift per ski), ``a_k, b_k`` its ends; shared by
+both skis (the same skis at about the same distance) the width ``w``, the
+grey ``G`` and the blur ``s`` (the Gaussian edge of an antialiased, slightly
+blurred bar). Eq. (2) composes two opaque bars over the background (their
+union: no double darkening where they overlap), so the contrast follows the
+background (snow, sky, a pole behind). The ski axis is the middle line
+between the two long edges of eq. (1): the edges are fitted together, not
+detected one by one.
+
+Left out of the fit: the suit (pixels darker than the ski grey ``G``), dark
+pixels away from both predicted axes (a suit lighter than the skis), pixels
+darker than the fitted model (re-fitted up to ``iterations`` times), bright
+pixels (reflective markers) and given discs (the marker positions), each
+with a one-pixel margin. Least squares with a soft-L1 loss
+(scipy.optimize.least_squares); the covariance of each axis' angle and
+shift from the Gauss-Newton normal matrix, scaled by the robust residual
+variance.
+
+The axes become image lines measured by points (:func:`sample_axis`); eq.
+(C11) of the ski-jump paper is then fitted to these points by
+:func:`photogram.lines.views.fit_view_line`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.ndimage import binary_dilation, map_coordinates
+from scipy.optimize import least_squares
+from scipy.special import ndtr
+
+__all__ = ["BarLine", "PairFit", "noise_sigma", "search_direction", "extent_along",
+           "best_split", "fit_ski_pair", "sample_axis"]
+
+
+@dataclass
+class BarLine:
+    """One fitted ski axis in image pixels.
+
+    ``point`` (2,) is on the axis, ``direction`` (2,) its unit direction
+    (tail to tip), ``ends`` (2,) the positions of tail and tip along the
+    direction from ``point``; ``width`` of the bar and ``contrast``: its
+    grey (the bar replaces the background there); ``support`` the share of
+    the bar's area seen in used pixels apart from the other bar (0..1); ``cov``
+    (2, 2) the covariance of (angle [rad], shift across [px] at ``point``).
+    """
+
+    point: np.ndarray
+    direction: np.ndarray
+    ends: np.ndarray
+    width: float
+    contrast: float
+    cov: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
+    support: float = np.nan
+
+    @property
+    def tail(self) -> np.ndarray:
+        return self.point + self.ends[0] * self.direction
+
+    @property
+    def tip(self) -> np.ndarray:
+        return self.point + self.ends[1] * self.direction
+
+    @property
+    def length(self) -> float:
+        return float(self.ends[1] - self.ends[0])
+
+    @property
+    def normal(self) -> np.ndarray:
+        return np.array([-self.direction[1], self.direction[0]])
+
+    def distance(self, xy) -> np.ndarray:
+        """Signed distances of points (n, 2) from the axis (px)."""
+        return (np.atleast_2d(xy) - self.point) @ self.normal
+
+    def sigma_across(self, t) -> np.ndarray:
+        """Standard deviation across the axis at positions ``t`` along it
+        (from ``point``): ``sqrt(var_d + 2 t cov + t^2 var_angle)``."""
+        t = np.asarray(t, dtype=float)
+        c = self.cov
+        return np.sqrt(np.maximum(c[1, 1] + 2 * t * c[0, 1] + t * t * c[0, 0], 0.0))
+
+
+@dataclass
+class PairFit:
+    """Result of :func:`fit_ski_pair`: the two axes (in the order of the
+    initial lines), the RMS residual, the share of masked pixels and a
+    success flag with its reason."""
+
+    lines: list
+    rms: float
+    masked: float
+    ok: bool
+    reason: str = ""
+    n_pixels: int = 0
+
+
+def noise_sigma(diff: np.ndarray) -> float:
+    """Robust standard deviation (1.4826 MAD) of a background difference
+    image: the image noise where nothing moves."""
+    d = np.asarray(diff, dtype=float)[::2, ::2].ravel()
+    return float(1.4826 * np.median(np.abs(d - np.median(d)))) + 1e-6
+
+
+def _sample(img, xy):
+    """Bilinear samples of ``img`` at points xy (..., 2) (x = column, y = row);
+    0 outside."""
+    xy = np.asarray(xy, dtype=float)
+    return map_coordinates(img, [xy[..., 1].ravel(), xy[..., 0].ravel()], order=1,
+                           mode="constant", cval=0.0).reshape(xy.shape[:-1])
+
+
+def search_direction(D, binding, toward=None, *, radius: float = 15.0,
+                     step_deg: float = 0.5) -> tuple[np.ndarray, float]:
+    """Direction of a dark bar through ``binding``: the angle whose two rays
+    (forward and backward, 2..``radius`` px) are both dark.
+
+    The score of a direction is the smaller of the two rays' mean darkness,
+    so a leg (dark only on one side of the binding) does not win. The
+    result is oriented towards ``toward`` (e.g. the helmet: the jumper leans
+    over the tips).
+
+    Returns
+    -------
+    direction : ndarray (2,)
+    score : float
+        The winning score (darkness units of ``D``).
+    """
+    phi = np.radians(np.arange(0.0, 180.0, step_deg))
+    u = np.stack([np.cos(phi), np.sin(phi)], -1)
+    r = np.arange(2.0, radius + 0.5, 0.5)
+    b = np.asarray(binding, dtype=float)
+    fwd = _sample(D, b + r[None, :, None] * u[:, None, :]).mean(1)
+    back = _sample(D, b - r[None, :, None] * u[:, None, :]).mean(1)
+    score = np.minimum(fwd, back)
+    # smooth over +-1 step (noise), then the best direction
+    score = (np.roll(score, 1) + 2 * score + np.roll(score, -1)) / 4
+    i = int(np.argmax(score))
+    d = u[i]
+    if toward is not None and np.dot(np.asarray(toward, float) - b, d) < 0:
+        d = -d
+    return d, float(score[i])
+
+
+def extent_along(D, point, direction, level, *, max_length: float = 200.0,
+                 half_width: float = 2.0, gap: int = 3) -> tuple[float, float]:
+    """Positions (back, forward) along a line where the dark bar ends: the
+    profile (largest darkness within ``half_width`` across) drops below
+    ``level`` for ``gap`` consecutive pixels."""
+    p = np.asarray(point, float)
+    u = np.asarray(direction, float)
+    n = np.array([-u[1], u[0]])
+    t = np.arange(0.0, max_length, 1.0)
+    s = np.linspace(-half_width, half_width, 5)
+    out = []
+    for sign in (-1.0, 1.0):
+        xy = p + sign * t[:, None, None] * u + s[None, :, None] * n
+        prof = _sample(D, xy).max(1)
+        below = prof < level
+        run = np.convolve(below.astype(int), np.ones(gap, int), "valid") >= gap
+        k = int(np.argmax(run)) if run.any() else len(t) - gap
+        out.append(sign * t[max(k, 1)])
+    return out[0], out[1]
+
+
+# parameters: per ski (4 each) the angle (rad, from the reference
+# direction), the shift along the reference normal (px, at the reference
+# point) and the ends a, b (px along); shared by both skis (same skis at
+# about the same distance) the width (px), the grey and the blur (px)
+_PER_SKI = 4
+_W, _G, _BLUR = 8, 9, 10
+
+
+def _coverage(x, y, par, w, blur, ref, u0):
+    """Coverage eq. (1) of one bar at pixel centres (x, y)."""
+    ang, c, a, b = par
+    ca, sa = np.cos(ang), np.sin(ang)
+    u = np.array([u0[0] * ca - u0[1] * sa, u0[0] * sa + u0[1] * ca])
+    n = np.array([-u[1], u[0]])
+    n0 = np.array([-u0[1], u0[0]])
+    p = ref + c * n0
+    dx, dy = x - p[0], y - p[1]
+    d = dx * n[0] + dy * n[1]
+    t = dx * u[0] + dy * u[1]
+    across = ndtr((d + w / 2) / blur) - ndtr((d - w / 2) / blur)
+    along = ndtr((t - a) / blur) - ndtr((t - b) / blur)
+    return across * along
+
+
+def _model(theta, x, y, bg, ref, u0):
+    w, G, blur = theta[_W], theta[_G], theta[_BLUR]
+    c1 = _coverage(x, y, theta[:4], w, blur, ref, u0)
+    c2 = _coverage(x, y, theta[4:8], w, blur, ref, u0)
+    # eq. (2): two bars of grey G over the background bg (union)
+    return (bg - G) * (c1 + c2 - c1 * c2)
+
+
+def _to_bar(theta, k, ref, u0, cov):
+    ang, c, a, b = theta[k * _PER_SKI:(k + 1) * _PER_SKI]
+    ca, sa = np.cos(ang), np.sin(ang)
+    u = np.array([u0[0] * ca - u0[1] * sa, u0[0] * sa + u0[1] * ca])
+    n0 = np.array([-u0[1], u0[0]])
+    p = ref + c * n0
+    # (angle, shift along n0 at ref) -> (angle, shift across the axis at p):
+    # p does not move with the angle; a shift c along n0 is c cos(ang) across
+    i = k * _PER_SKI
+    C = cov[np.ix_([i, i + 1], [i, i + 1])] if cov is not None else np.full((2, 2), np.nan)
+    J = np.array([[1.0, 0.0], [0.0, ca]])
+    return BarLine(p, u, np.array([a, b]), float(theta[_W]), float(theta[_G]), J @ C @ J.T)
+
+
+@dataclass
+class _Window:
+    """Pixels of the band around two predicted axes (bounding box arrays)."""
+
+    xx: np.ndarray
+    yy: np.ndarray
+    img: np.ndarray          # background - frame
+    bg: np.ndarray
+    frame: np.ndarray
+    band: np.ndarray         # usable pixels of the box
+    ref: np.ndarray
+    u0: np.ndarray
+    G0: float                # the skis' grey from their tail halves
+
+    def suit(self, G, level):
+        """The suit: darker than the ski (grey ``G``) by ``level`` or a
+        quarter of the ski's contrast, grown by one pixel."""
+        margin_g = max(level, 0.25 * (np.median(self.bg[self.band]) - G))
+        return binary_dilation(self.band & (self.frame < G - margin_g), iterations=1)
+
+
+def _window(frame, background, initial, margin, exclude, mask_level, sigma_noise,
+            body_gap=None):
+    bgi = np.asarray(background, dtype=float)
+    frame = np.asarray(frame, dtype=float)
+    H, W = frame.shape
+    l1, l2 = initial
+    ref = (l1.point + l2.point) / 2
+    u0 = l1.direction + l2.direction
+    u0 = u0 / np.linalg.norm(u0)
+    # band: pixels near either predicted axis, between the ends (+margin)
+    ends = np.array([l.point + e * l.direction for l in initial for e in l.ends])
+    lo = np.maximum(np.floor(ends.min(0) - margin).astype(int), 0)
+    hi = np.minimum(np.ceil(ends.max(0) + margin).astype(int), [W - 1, H - 1])
+    if np.any(hi - lo < 3):
+        return None
+    yy, xx = np.mgrid[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1].astype(float)
+    band = np.zeros(xx.shape, bool)
+    for l in initial:
+        rel = np.stack([xx - l.point[0], yy - l.point[1]], -1)
+        t = rel @ l.direction
+        d = rel @ l.normal
+        band |= (np.abs(d) <= margin) & (t >= l.ends[0] - margin) & (t <= l.ends[1] + margin)
+    fr = frame[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
+    bgw = bgi[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
+    img = bgw - fr
+    # the body, whatever its grey: dark pixels away from both predicted axes
+    # (by more than half a width + body_gap), grown by one pixel
+    if body_gap is not None:
+        near = np.zeros(xx.shape, bool)
+        for l in initial:
+            rel = np.stack([xx - l.point[0], yy - l.point[1]], -1)
+            near |= np.abs(rel @ l.normal) <= l.width / 2 + body_gap
+        level = max(mask_level * sigma_noise, 0.3 * np.percentile(img[band], 95))
+        band &= ~binary_dilation(band & (img > level) & ~near, iterations=1)
+    # bright things (reflective markers, patches) and the given discs
+    band &= ~binary_dilation(img < -mask_level * sigma_noise, iterations=1)
+    for c, r in exclude:
+        band &= (xx - c[0]) ** 2 + (yy - c[1]) ** 2 > r * r
+    tails = [l.point + np.linspace(l.ends[0], 0.0, 12)[:, None] * l.direction
+             for l in initial]
+    G0 = float(np.median(_sample(frame, np.concatenate(tails))))
+    return _Window(xx, yy, img, bgw, fr, band, ref, u0, G0)
+
+
+def _axes_parameters(lines, ref, u0):
+    """Angle, shift along the reference normal and ends of each axis
+    relative to (ref, u0): the first 8 parameters of the model."""
+    n0 = np.array([-u0[1], u0[0]])
+    out = []
+    for l in lines:
+        ang = np.arctan2(u0[0] * l.direction[1] - u0[1] * l.direction[0], u0 @ l.direction)
+        # the axis meets the line ref + c n0 at c (the new point on the axis)
+        c = ((l.point - ref) @ l.normal) / (n0 @ l.normal)
+        shift = (l.point - (ref + c * n0)) @ l.direction
+        out += [ang, c, l.ends[0] + shift, l.ends[1] + shift]
+    return np.array(out)
+
+
+def best_split(frame, background, initial, *, sigma_noise: float, span_deg: float = 8.0,
+               step_deg: float = 1.0, width: float = 1.5, blur: float = 0.7,
+               mask_level: float = 4.0, exclude=()):
+    """The two axes' directions by a grid search: each predicted axis is
+    turned about its point by -span..span (deg) and every pair scored by
+    the soft-L1 cost of eq. (2) with a fixed width, blur and grey (from the
+    tails). For the first exposure, where the two skis are not yet told
+    apart. Returns the turned pair (list of BarLine)."""
+    margin = span_deg / 57.3 * max(l.length for l in initial) / 2 + 4
+    win = _window(frame, background, initial, margin, exclude, mask_level, sigma_noise)
+    if win is None:
+        return list(initial)
+    use = win.band & ~win.suit(win.G0, mask_level * sigma_noise)
+    x, y, v, bv = win.xx[use], win.yy[use], win.img[use], win.bg[use]
+    turns = np.arange(-span_deg, span_deg + 1e-9, step_deg)
+    cand, cov = [], []
+    for l in initial:
+        cand.append([BarLine(l.point, _turn(l.direction, t), l.ends, width, win.G0)
+                     for t in turns])
+        cov.append(np.stack([_coverage(x, y, _axes_parameters([c], win.ref, win.u0), width,
+                                       blur, win.ref, win.u0) for c in cand[-1]]))
+    c1, c2 = cov[0][:, None, :], cov[1][None, :, :]
+    r = (bv - win.G0) * (c1 + c2 - c1 * c2) - v
+    z2 = (r / (3 * sigma_noise)) ** 2
+    cost = (np.sqrt(1 + z2) - 1).sum(-1)
+    i, j = np.unravel_index(np.argmin(cost), cost.shape)
+    return [cand[0][i], cand[1][j]]
+
+
+def _turn(u, deg):
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
+
+
+def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: float = 5.0,
+                 mask_level: float = 4.0, iterations: int = 3, blur: float = 0.7,
+                 body_gap: float | None = 2.5, max_turn_deg: float = 3.0,
+                 max_shift: float = 4.0, exclude=()) -> PairFit:
+    """Fit two dark bars (eqs. (1), (2) of the module docstring) in a band
+    around two predicted axes.
+
+    Parameters
+    ----------
+    frame : ndarray (H, W)
+        The image.
+    background : ndarray (H, W)
+        Its background (nothing moving): ``D = background - frame``.
+    initial : pair of BarLine
+        Predicted axes with ends and widths (``contrast``: the ski's grey,
+        may be nan: taken from the image).
+    sigma_noise : float
+        Image noise (grey levels), :func:`noise_sigma`.
+    margin : float
+        Half-width of the band around the predicted axes and the margin
+        beyond their ends (px).
+    mask_level : float
+        Pixels darker than the model by more than this many noise sigmas
+        (and by a fifth of the ski contrast) are masked, with a one-pixel
+        margin, and the fit repeated up to ``iterations`` times; so are
+        pixels darker than the ski grey (the suit) and brighter than the
+        background by this many sigmas (markers).
+    blur : float
+        Initial edge blur (px).
+    body_gap : float or None
+        Dark pixels farther than half a ski width plus this from both
+        predicted axes are the body (a suit lighter than the skis is not
+        caught by the grey rule): masked with a one-pixel margin. None:
+        off.
+    max_turn_deg, max_shift : float
+        Bounds of each axis' turn (deg) and shift (px) from its prediction.
+    exclude : iterable of (xy, radius)
+        Discs of pixels left out (e.g. the binding markers drawn over the
+        skis).
+
+    Returns
+    -------
+    PairFit
+    """
+    win = _window(frame, background, initial, margin, exclude, mask_level, sigma_noise,
+                  body_gap)
+    if win is None:
+        return PairFit(list(initial), np.nan, 1.0, False, "outside the image")
+    xx, yy, img, bgw, fr, band = win.xx, win.yy, win.img, win.bg, win.frame, win.band
+    ref, u0 = win.ref, win.u0
+    theta0 = _axes_parameters(initial, ref, u0)
+    G = np.nanmean([l.contrast for l in initial]) if np.isfinite(
+        [l.contrast for l in initial]).any() else win.G0
+    w = np.mean([l.width for l in initial])
+    theta0 = np.concatenate([theta0, [np.clip(w, 1.0, 12.0), np.clip(G, 1.0, 254.0), blur]])
+    # bounds: turn, shift and ends near the prediction; the grey within half
+    # the predicted contrast (else the fit may take the suit for a ski)
+    da, dc = np.radians(max_turn_deg), max_shift
+    de = np.array([0.25 * l.length + 3.0 for l in initial])
+    contrast = max(np.median(bgw[band]) - theta0[_G], 5 * sigma_noise)
+    lower = np.array([-da, -dc, -de[0], -de[0], -da, -dc, -de[1], -de[1],
+                      0.3, -0.5 * contrast, 0.3])
+    upper = np.array([da, dc, de[0], de[0], da, dc, de[1], de[1],
+                      15.0, 0.5 * contrast, 3.0])
+    lower[:_G + 1] += theta0[:_G + 1]
+    upper[:_G + 1] += theta0[:_G + 1]
+    lower[_W] = 0.3
+    upper[_W] = 15.0
+    theta0 = np.clip(theta0, lower + 1e-9, upper - 1e-9)
+
+    def suit(G):
+        return win.suit(G, mask_level * sigma_noise)
+
+    use = band & ~suit(theta0[_G])
+    theta = theta0
+    res = None
+    for _ in range(iterations):
+        x, y, v, bv = xx[use], yy[use], img[use], bgw[use]
+        if len(v) < 20:
+            return PairFit(list(initial), np.nan, 1.0, False, "no pixels left in the band")
+
+        def fun(th):
+            return _model(th, x, y, bv, ref, u0) - v
+
+        res = least_squares(fun, theta, bounds=(lower, upper), loss="soft_l1",
+                            f_scale=3 * sigma_noise, x_scale="jac", max_nfev=60,
+                            xtol=1e-6, ftol=1e-8)
+        theta = res.x
+        r = img - _model(theta, xx, yy, bgw, ref, u0)
+        A = np.median(bgw[use]) - theta[_G]
+        dark = band & (r > max(mask_level * sigma_noise, 0.2 * A))
+        new = band & ~binary_dilation(dark, iterations=1) & ~suit(theta[_G])
+        if np.array_equal(new, use):
+            break
+        use = new
+    # covariance of the parameters (Gauss-Newton, unit weights scaled by the
+    # robust residual variance of the used pixels)
+    r = res.fun
+    s2 = (1.4826 * np.median(np.abs(r))) ** 2 + 1e-12
+    J = res.jac
+    try:
+        cov = s2 * np.linalg.pinv(J.T @ J)
+    except np.linalg.LinAlgError:
+        cov = None
+    lines = [_to_bar(theta, k, ref, u0, cov) for k in (0, 1)]
+    # support: area of each bar in used pixels, not covered by the other
+    x, y = xx[use], yy[use]
+    cs = [_coverage(x, y, theta[4 * k:4 * k + 4], theta[_W], theta[_BLUR], ref, u0)
+          for k in (0, 1)]
+    for k, l in enumerate(lines):
+        area = max(theta[_W], 1.0) * max(l.length, 1.0)
+        l.support = float(np.sum(cs[k] * (1 - cs[1 - k])) / area)
+    rms = float(np.sqrt(np.mean(r ** 2)))
+    masked = float(1.0 - use.sum() / max(band.sum(), 1))
+    ok, reason = True, ""
+    bmed = np.median(bgw[use])
+    for k, l in enumerate(lines):
+        if bmed - l.contrast < 5 * sigma_noise:
+            ok, reason = False, (f"ski {k + 1}: contrast {bmed - l.contrast:.3g} below 5 "
+                                 "noise sigmas")
+        elif l.length < 5:
+            ok, reason = False, f"ski {k + 1}: {l.length:.3g} px long"
+    if ok and res.status < 0:
+        ok, reason = False, f"fit failed ({res.message})"
+    return PairFit(lines, rms, masked, ok, reason, int(use.sum()))
+
+
+def sample_axis(line: BarLine, n: int, shape, *, inset: float = 0.05,
+                border: float = 2.0) -> np.ndarray:
+    """``n`` points (n, 2) equally spaced along the visible part of an axis,
+    tail to tip, ``inset`` of the length inside the ends and ``border`` px
+    inside the image (``shape`` = (H, W)); empty when no part is visible."""
+    H, W = shape
+    a, b = line.ends
+    L = b - a
+    a, b = a + inset * L, b - inset * L
+    p, u = line.point, line.direction
+    # clip [a, b] to the image rectangle shrunk by border
+    for k, (lo_, hi_) in enumerate(((border, W - 1 - border), (border, H - 1 - border))):
+        if abs(u[k]) < 1e-12:
+            if not lo_ <= p[k] <= hi_:
+                return np.empty((0, 2))
+            continue
+        t1, t2 = (lo_ - p[k]) / u[k], (hi_ - p[k]) / u[k]
+        a, b = max(a, min(t1, t2)), min(b, max(t1, t2))
+    if b - a < 0.2 * L:
+        return np.empty((0, 2))
+    t = np.linspace(a, b, n)
+    return p + t[:, None] * u

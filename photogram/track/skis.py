@@ -1,0 +1,407 @@
+"""Ski lines tracked in synchronized videos (issue 19, item 4).
+
+Per exposure and station the two skis are predicted from the binding
+markers (P3 right, P4 left) and the previous exposure's axes in that view,
+moved with the bindings (at the first exposure, or after a loss: a search
+over directions through the bindings, oriented towards the helmet, then a
+grid over the two axes' turns), fitted jointly as two dark bars in a band
+around the prediction (:func:`photogram.track.ski_edges.fit_ski_pair`) and
+sampled as points along each axis, tail to tip: the ``ski_lines.csv``
+observations whose image lines ``photogram intersect`` fits by eq. (C11)
+and intersects into 3D ski lines. A first prediction is labelled by the
+binding each axis passes closer to; a tracked axis keeps its label unless
+the bindings clearly say otherwise (they are 1-3 px apart). The sequence is
+tracked forward and then backward; per exposure the three views' results
+(forward or backward where they differ) are chosen by the three-view
+line-transfer check (:func:`photogram.lines.skis.check_ski_labels`), which
+also finds interchanged labels: swaps are corrected (as
+:func:`photogram.lines.skis.swap_labels`) and reported. A ski that is not
+found (no binding marker, no dark bar, axis far from its binding, seen
+apart from the other ski and the body over too little of its length,
+outside the image) is flagged, never guessed.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from photogram.errors import GeometryError, InputError
+from photogram.lines.skis import SkiCheck, check_ski_labels
+from photogram.track.ski_edges import (BarLine, best_split, extent_along, fit_ski_pair,
+                                       noise_sigma, sample_axis, search_direction)
+
+__all__ = ["SkiTracking", "track_skis", "exposure_labels"]
+
+TABLE_COLUMNS = ["exposure", "station", "line", "x", "y", "sigma"]
+CHECK_COLUMNS = ["exposure", "status", "swapped", "detail", "check"]
+FLAG_COLUMNS = ["exposure", "station", "line", "reason"]
+
+
+@dataclass
+class SkiTracking:
+    """Result of :func:`track_skis`.
+
+    Attributes
+    ----------
+    table : DataFrame
+        ``exposure, station, line, x, y, sigma``: points along each ski axis
+        (measured pixels, tail to tip; ``sigma`` the a-priori sigma of each
+        coordinate, px), the format of ``ski_lines.csv`` plus sigma. Labels
+        are after the three-view check (swaps corrected).
+    checks : DataFrame
+        ``exposure, status, swapped, detail, check``: ``status`` "ok",
+        "swapped" (labels interchanged in the stations ``swapped``, corrected
+        in ``table``) or "flagged" (the check could not confirm the labels:
+        fewer than three views with both skis, no assignment fits, or the
+        views disagree without a majority); ``check`` the status of
+        :class:`photogram.lines.skis.SkiCheck` and ``detail`` its message.
+    flags : DataFrame
+        ``exposure, station, line, reason``: skis not found or ambiguous in
+        one image (no rows for them in ``table``).
+    lines : dict
+        ``{(exposure, station): {label: BarLine}}`` the fitted axes.
+    """
+
+    table: pd.DataFrame
+    checks: pd.DataFrame
+    flags: pd.DataFrame
+    lines: dict = field(default_factory=dict)
+
+
+def exposure_labels(markers: pd.DataFrame, n: int) -> list:
+    """The exposure names of the marker table in exposure order: its sorted
+    distinct ``exposure`` values, which must be ``n`` (or a subset of
+    ``range(n)`` / ``range(1, n + 1)``, the exposure index)."""
+    values = sorted(pd.unique(markers["exposure"]))
+    if len(values) == n:
+        return list(values)
+    try:
+        ints = {int(v) for v in values}
+    except (TypeError, ValueError):
+        ints = None
+    if ints is not None and ints <= set(range(n)):
+        return list(range(n))
+    if ints is not None and ints <= set(range(1, n + 1)):
+        return list(range(1, n + 1))
+    raise InputError(f"ski tracking: the markers name {len(values)} exposures, "
+                     f"exposure_frames has {n}", hint="one marker exposure per frame index")
+
+
+def _marker_lookup(markers):
+    ok = markers["status"].astype(str) == "ok" if "status" in markers else True
+    m = markers[ok]
+    return {(e, s, p): np.array([x, y], float)
+            for e, s, p, x, y in zip(m["exposure"], m["station"], m["marker"], m["x"], m["y"])}
+
+
+def _initial_search(frame, background, D, bindings, toward, sigma_noise, binding_fraction,
+                    width, radius, span_deg, exclude):
+    """The initial pair (first exposure or after a loss) from a search over
+    directions through the bindings and a grid over the two axes' turns
+    (:func:`photogram.track.ski_edges.best_split`), or None."""
+    mid = np.mean(bindings, 0)
+    u, score = search_direction(D, mid, toward, radius=radius)
+    if score < 5 * sigma_noise:
+        return None
+    back, fwd = extent_along(D, mid, u, 0.5 * score)
+    tail = -back
+    if tail < 3:
+        return None
+    # the tip side is often on the suit: its length from the tail's
+    tip = max(fwd, tail * (1 - binding_fraction) / binding_fraction)
+    pair = [BarLine(b, u, np.array([(mid - b) @ u - tail, (mid - b) @ u + tip]), width,
+                    np.nan) for b in bindings]
+    return best_split(frame, background, pair, sigma_noise=sigma_noise, span_deg=span_deg,
+                      width=width, exclude=exclude)
+
+
+def _predict(prev, bindings, prev_bindings):
+    """The previous exposure's axes moved with their bindings."""
+    out = []
+    for l, b, pb in zip(prev, bindings, prev_bindings):
+        out.append(BarLine(l.point + (b - pb), l.direction.copy(), l.ends.copy(), l.width,
+                           l.contrast))
+    return out
+
+
+def _point_sigma(line, pts, floor):
+    """A-priori sigma per coordinate of the n points sampled along a fitted
+    axis: ``n`` collinear points with sigma ``s`` fix a line whose mean
+    variance across, over the points, is ``2 s^2 / n``; matched to the fit's
+    (its covariance of angle and shift), with ``floor`` added in quadrature
+    (model error)."""
+    t = (pts - line.point) @ line.direction
+    v = np.mean(line.sigma_across(t) ** 2)
+    s = np.sqrt(len(pts) / 2 * v) if np.isfinite(v) else np.nan
+    return float(np.hypot(s, floor)) if np.isfinite(s) else float(floor * 10)
+
+
+def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
+               skis={"L1": "P3", "L2": "P4"}, ski_length=26.3, binding_fraction=0.43,
+               points_per_ski=15, offsets=None, helmet="P1", hip="P2",
+               ski_width=1.5, search_radius=15.0, split_deg=8.0,
+               track_turn_deg=3.0, max_binding_distance=3.0, min_support=0.15,
+               sigma_floor=0.15, marker_mask=4.0, label_margin=1.0, two_pass=True,
+               check=True,
+               **fit_options) -> SkiTracking:
+    """Track both ski lines through the exposures of synchronized videos.
+
+    Parameters
+    ----------
+    frames : dict {station: ndarray (F, H, W) uint8}
+    backgrounds : dict {station: ndarray (H, W) float}
+        Median background of each video.
+    cameras : dict {station: ViewCamera}
+        Estimated orientation (for the three-view label check).
+    markers : DataFrame
+        ``exposure, station, marker, x, y, sigma, status, reason`` (marker
+        tracker); only rows with status "ok" are used.
+    exposure_frames : array_like (E,) or dict {station: array_like (E,)}
+        Frame index of each exposure (plus ``offsets[station]`` if given),
+        the same for every station or per station.
+    skis : dict {line label: binding marker}
+        Right ski first by convention (L1 on P3, L2 on P4).
+    ski_length : float
+        Ski length (object units). Not used by the 2D tracking (the
+        prediction from the previous exposure's 3D lines is not
+        implemented); kept for that and for the callers' symmetry with
+        ``photogram intersect``.
+    binding_fraction : float
+        Binding position from the tail, as a fraction of the ski length:
+        the tip side of the first prediction is ``(1 - f) / f`` times the
+        tail side (the tail side is free of the body).
+    points_per_ski : int
+        Points sampled along each axis.
+    offsets : dict {station: int}, optional
+        Frame offset of each station.
+    helmet, hip : str
+        Markers the skis' tips point towards (first prediction).
+    ski_width : float
+        Initial bar width (px).
+    search_radius : float
+        Length of the rays of the direction search (px).
+    split_deg : float
+        After a search, each axis is turned by up to this (deg) to find the
+        pair that fits best (the skis' V seen in the image).
+    track_turn_deg : float
+        Largest turn (deg) of an axis from the previous exposure's.
+    min_support : float
+        A ski whose fitted bar is seen apart from the other ski (and not
+        masked as body) over less than this share of its area is flagged
+        as ambiguous.
+    max_binding_distance : float
+        An axis farther than this (px) from its binding marker is not that
+        ski: flagged.
+    marker_mask : float
+        Radius (px) around every marker left out of the fit (the bright
+        marker discs are drawn over the skis).
+    sigma_floor : float
+        Model error of a sampled point (px), added in quadrature to the
+        fit's precision.
+    label_margin : float
+        A tracked axis takes the other label only if both bindings together
+        are closer to the interchanged axes by more than this (px); at a
+        first prediction the bindings alone decide.
+    two_pass : bool
+        Track forward, then backward from the last exposure's state; per
+        exposure the views' results (forward or backward, where they
+        differ) are chosen by the three-view check (most views with both
+        skis, then the smallest chi-square).
+    check : bool
+        Run the three-view label check.
+    **fit_options
+        Passed to :func:`photogram.track.ski_edges.fit_ski_pair`.
+
+    Returns
+    -------
+    SkiTracking
+    """
+    labels = list(skis)
+    if len(labels) != 2:
+        raise InputError(f"ski tracking: two skis expected, got {labels}")
+    bind_names = [skis[lab] for lab in labels]
+    offsets = offsets or {}
+    stations = list(frames)
+    if isinstance(exposure_frames, dict):
+        frame_of = {st: np.asarray(exposure_frames[st], dtype=int) + offsets.get(st, 0)
+                    for st in stations}
+    else:
+        ef = np.asarray(exposure_frames, dtype=int)
+        frame_of = {st: ef + offsets.get(st, 0) for st in stations}
+    E = len(next(iter(frame_of.values())))
+    names = exposure_labels(markers, E)
+    lookup = _marker_lookup(markers)
+
+    def one_image(i, st, prev):
+        """Fit both skis in one image; updates ``prev`` (the tracking
+        state of the station); returns a _Seen."""
+        e = names[i]
+        seen = _Seen()
+        F = frames[st]
+        fi = int(frame_of[st][i])
+        if not 0 <= fi < len(F):
+            seen.flags.append((None, f"frame {fi} outside the video"))
+            prev.pop(st, None)
+            return seen
+        img = F[fi].astype(float)
+        bgd = np.asarray(backgrounds[st], float)
+        D = bgd - img
+        sn = noise_sigma(D)
+        bind = [lookup.get((e, st, b)) for b in bind_names]
+        if all(b is None for b in bind):
+            seen.flags.append((None, "no binding marker"))
+            prev.pop(st, None)
+            return seen
+        bind = [b if b is not None else bind[1 - k] for k, b in enumerate(bind)]
+        toward = lookup.get((e, st, helmet), lookup.get((e, st, hip)))
+        discs = [(xy, marker_mask) for (e_, s_, _), xy in lookup.items()
+                 if e_ == e and s_ == st]
+        opts = dict(fit_options)
+        tracked = st in prev
+        if tracked:
+            initial = _predict(prev[st][0], bind, prev[st][1])
+            opts.setdefault("max_turn_deg", track_turn_deg)
+        else:
+            initial = _initial_search(img, bgd, D, bind, toward, sn, binding_fraction,
+                                      ski_width, search_radius, split_deg, discs)
+            if initial is None:
+                seen.flags.append((None, "no dark bar through the bindings"))
+                return seen
+        fit = fit_ski_pair(img, bgd, initial, sigma_noise=sn, exclude=discs, **opts)
+        if not fit.ok:
+            seen.flags.append((None, fit.reason))
+            prev.pop(st, None)
+            return seen
+        lines = list(fit.lines)
+        # labels: each axis through its own binding; a tracked axis keeps its
+        # label unless the bindings say otherwise by more than label_margin
+        # (where the skis nearly coincide the bindings cannot tell them apart)
+        dist = np.abs([[l.distance(b)[0] for l in lines] for b in bind])
+        gain = dist[0, 0] + dist[1, 1] - dist[0, 1] - dist[1, 0]
+        if gain > (label_margin if tracked else 0.0):
+            lines = lines[::-1]
+        prev[st] = (lines, bind)
+        seen.lines = lines
+        for k, lab in enumerate(labels):
+            d = abs(lines[k].distance(bind[k])[0])
+            if lines[k].support < min_support:
+                seen.flags.append((lab, "ski not seen apart from the other ski and the body "
+                                        f"(support {lines[k].support:.2f})"))
+                continue
+            if d > max_binding_distance:
+                seen.flags.append((lab, f"axis {d:.2g} px from binding {bind_names[k]}"))
+                continue
+            pts = sample_axis(lines[k], points_per_ski, D.shape)
+            if len(pts) < 2:
+                seen.flags.append((lab, "ski outside the image"))
+                continue
+            seen.pts[lab] = pts
+            seen.sig[lab] = _point_sigma(lines[k], pts, sigma_floor)
+        return seen
+
+    # two passes, forward and backward (the backward one starts from the
+    # forward one's last state: the first exposures get a tracked prediction)
+    prev: dict = {}
+    forward = {(i, st): one_image(i, st, prev) for i in range(E) for st in stations}
+    backward = {}
+    if two_pass:
+        for i in reversed(range(E)):
+            for st in stations:
+                backward[(i, st)] = one_image(i, st, prev)
+
+    rows, checks, flags, fitted = [], [], [], {}
+    for i, e in enumerate(names):
+        options = []
+        for st in stations:
+            f, b = forward[(i, st)], backward.get((i, st))
+            options.append([f] if b is None or _same(f, b) else [f, b])
+        best = None
+        for combo in itertools.product(*options):
+            views = dict(zip(stations, combo))
+            res = _check(views, cameras, labels, e) if check else None
+            n_found = sum(len(v.pts) for v in views.values())
+            n_complete = sum(len(v.pts) == 2 for v in views.values())
+            cost = min(res.costs.values()) if isinstance(res, SkiCheck) else np.inf
+            key = (-n_complete, cost, -n_found)
+            if best is None or key < best[0]:
+                best = (key, views, res)
+        _, views, res = best
+        by_view = {st: dict(v.pts) for st, v in views.items() if v.pts}
+        sig_view = {st: dict(v.sig) for st, v in views.items() if v.pts}
+        for st, v in views.items():
+            for lab, reason in v.flags:
+                for la in ([lab] if lab else labels):
+                    flags.append((e, st, la, reason))
+            if v.lines is not None:
+                fitted[(e, st)] = dict(zip(labels, v.lines))
+        status, swapped, detail, raw = "flagged", [], "", ""
+        if isinstance(res, SkiCheck):
+            raw, detail = res.status, res.message
+            if res.status == "swapped":
+                status, swapped = "swapped", list(res.swapped)
+                for st in swapped:
+                    by_view[st] = res.corrected[st]
+                    sig_view[st] = dict(zip(labels, [sig_view[st][labels[1]],
+                                                     sig_view[st][labels[0]]]))
+                    fitted[(e, st)] = dict(zip(labels, views[st].lines[::-1]))
+            elif res.status == "ok" or (
+                    res.status == "ambiguous" and res.costs["as measured"] <= res.threshold
+                    and res.costs["as measured"] - min(res.costs.values()) < res.margin):
+                # ambiguous only where a view cannot separate the skis (e.g.
+                # they coincide in it): the labels as measured fit as well as any
+                status = "ok"
+        elif isinstance(res, str):
+            raw, detail = "error", res
+        elif check:
+            n = sum(len(v) == 2 for v in by_view.values())
+            detail = f"both skis found in {n} view(s); the check needs 3"
+        for st, v in by_view.items():
+            for lab, pts in v.items():
+                for x, y in pts:
+                    rows.append((e, st, lab, x, y, sig_view[st][lab]))
+        checks.append((e, status, ",".join(swapped), detail, raw))
+
+    return SkiTracking(pd.DataFrame(rows, columns=TABLE_COLUMNS),
+                       pd.DataFrame(checks, columns=CHECK_COLUMNS),
+                       pd.DataFrame(flags, columns=FLAG_COLUMNS), fitted)
+
+
+@dataclass
+class _Seen:
+    """One image in one tracking pass: the axes (label order), the sampled
+    points and their sigma per label, and flags (label or None, reason)."""
+
+    lines: list | None = None
+    pts: dict = field(default_factory=dict)
+    sig: dict = field(default_factory=dict)
+    flags: list = field(default_factory=list)
+
+
+def _same(a, b, tol_deg=0.02, tol_px=0.05):
+    """Two passes found the same axes (and the same skis) in an image."""
+    if set(a.pts) != set(b.pts) or [f[1] for f in a.flags] != [f[1] for f in b.flags]:
+        return False
+    for lab in a.pts:
+        d = a.pts[lab] - b.pts[lab]
+        if np.abs(d).max() > tol_px:
+            return False
+    return True
+
+
+def _check(views, cameras, labels, exposure):
+    """The three-view label check of the views' points (SkiCheck), None
+    when fewer than three views have both skis, or the error message."""
+    complete = [st for st, v in views.items() if len(v.pts) == 2]
+    if len(complete) < 3:
+        return None
+    try:
+        return check_ski_labels({st: views[st].pts for st in complete}, cameras,
+                                {st: float(np.mean(list(views[st].sig.values())))
+                                 for st in complete},
+                                labels=tuple(labels), exposure=exposure, fix=True)
+    except (GeometryError, InputError) as exc:
+        return str(exc)

@@ -1,0 +1,292 @@
+"""Ski lines tracked in video frames (photogram.track.skis, issue 19 item 4).
+
+Synthetic frames are drawn here: skis as antialiased dark bars (supersampled
+coverage) on bright noisy snow, the body as darker bars (the suit), the
+three field views of the simulated jump. The integration test with the
+rendered videos of photogram.simulation.jump_video runs when that module is
+there.
+"""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from photogram.track.ski_edges import BarLine, fit_ski_pair, noise_sigma, sample_axis
+from photogram.track.skis import track_skis
+
+SNOW, SKI, SUIT = 205.0, 88.0, 35.0
+
+
+def draw_bar(img, p0, p1, width, grey, ss=4):
+    """Paint an antialiased bar p0-p1 of ``width`` px and ``grey`` on img
+    (in place): the coverage of each pixel from ss x ss samples."""
+    p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
+    H, W = img.shape
+    lo = np.maximum(np.floor(np.minimum(p0, p1) - width - 2).astype(int), 0)
+    hi = np.minimum(np.ceil(np.maximum(p0, p1) + width + 2).astype(int), [W - 1, H - 1])
+    if np.any(hi < lo):
+        return
+    off = (np.arange(ss) + 0.5) / ss - 0.5
+    yy, xx = np.mgrid[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1].astype(float)
+    X = xx[..., None, None] + off[None, None, None, :]
+    Y = yy[..., None, None] + off[None, None, :, None]
+    u = p1 - p0
+    L = np.linalg.norm(u)
+    u /= L
+    t = (X - p0[0]) * u[0] + (Y - p0[1]) * u[1]
+    d = -(X - p0[0]) * u[1] + (Y - p0[1]) * u[0]
+    cov = ((t >= 0) & (t <= L) & (np.abs(d) <= width / 2)).mean((-1, -2))
+    sub = img[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
+    sub[...] = sub * (1 - cov) + grey * cov
+
+
+def finish(img, rng, noise=2.0):
+    """Light blur (3-tap binomial), noise, 8 bits."""
+    k = np.array([0.25, 0.5, 0.25])
+    img = np.apply_along_axis(lambda r: np.convolve(r, k, "same"), 1, img)
+    img = np.apply_along_axis(lambda c: np.convolve(c, k, "same"), 0, img)
+    return np.clip(np.round(img + rng.normal(0, noise, img.shape)), 0, 255).astype(np.uint8)
+
+
+def median_background(frames):
+    """Temporal median of frames (F, H, W) as float."""
+    return np.median(frames, axis=0).astype(float)
+
+
+def axis_errors(xy, tail, tip):
+    """Direction error (deg) of the principal axis of points xy against the
+    segment tail-tip, and the points' distances from it (px)."""
+    u = (tip - tail) / np.linalg.norm(tip - tail)
+    n = np.array([-u[1], u[0]])
+    c = xy - xy.mean(0)
+    d = np.linalg.eigh(c.T @ c)[1][:, -1]
+    d = d if d @ u > 0 else -d
+    ang = np.degrees(np.arctan2(u[0] * d[1] - u[1] * d[0], u @ d))
+    return ang, (xy - tail) @ n
+
+
+# ---------------------------------------------------------------- one image
+
+def _pair_scene(seed=0, body=True):
+    rng = np.random.default_rng(seed)
+    img = np.full((140, 220), SNOW)
+    img += np.linspace(-10, 10, 220)[None, :]                    # a gentle gradient
+    bg = img.copy()
+    ends = [(np.array([185.0, 70.0]), np.array([40.0, 66.0])),   # tail, tip
+            (np.array([187.0, 68.5]), np.array([35.0, 75.0]))]
+    if body:                                                     # legs and trunk, darker
+        draw_bar(img, (120, 67), (85, 50), 6.0, SUIT)
+        draw_bar(img, (85, 50), (55, 40), 7.0, SUIT)
+    for tail, tip in ends[::-1]:
+        draw_bar(img, tail, tip, 2.6, SKI)
+    return finish(img, rng), bg, ends
+
+
+def _initial(ends, turn_deg=0.6, shift=0.6):
+    out = []
+    for k, (tail, tip) in enumerate(ends):
+        u = (tip - tail) / np.linalg.norm(tip - tail)
+        a = np.radians(turn_deg * (1 - 2 * k))
+        u = np.array([np.cos(a) * u[0] - np.sin(a) * u[1], np.sin(a) * u[0] + np.cos(a) * u[1]])
+        b = tail + 0.43 * (tip - tail) + shift * np.array([-u[1], u[0]])
+        L = np.linalg.norm(tip - tail)
+        out.append(BarLine(b, u, np.array([-0.43 * L, 0.57 * L]) * 1.05, 2.0, np.nan))
+    return out
+
+
+@pytest.mark.parametrize("body", [False, True])
+def test_pair_fit_direction_and_offset(body):
+    frame, bg, ends = _pair_scene(1, body)
+    sn = noise_sigma(bg - frame)
+    fit = fit_ski_pair(frame, bg, _initial(ends), sigma_noise=sn)
+    assert fit.ok, fit.reason
+    for line, (tail, tip) in zip(fit.lines, ends):
+        pts = sample_axis(line, 15, frame.shape)
+        ang, dist = axis_errors(pts, tail, tip)
+        assert abs(ang) < 0.1                       # the issue's goal, on clean bars
+        assert np.abs(dist).max() < 0.15
+        assert abs(line.width - 2.6) < 0.6
+        assert line.direction @ (tip - tail) > 0    # oriented tail to tip
+        # tail to tip order and the ends within a few px
+        assert np.linalg.norm(line.tail - tail) < 3 and np.linalg.norm(line.tip - tip) < 3
+        assert line.support > 0.15
+        assert np.isfinite(line.cov).all() and np.sqrt(line.cov[0, 0]) < np.radians(0.1)
+
+
+def test_pair_fit_reports_a_missing_ski():
+    rng = np.random.default_rng(2)
+    bg = np.full((140, 220), SNOW)
+    frame = finish(bg.copy(), rng)                   # no skis at all
+    fit = fit_ski_pair(frame, bg, _initial(_pair_scene()[2]),
+                       sigma_noise=noise_sigma(bg - frame))
+    assert not fit.ok
+    assert "contrast" in fit.reason
+
+
+# --------------------------------------------------- three views, sequences
+
+@pytest.fixture(scope="module")
+def field():
+    from photogram.simulation.jump import jump_truth
+    from photogram.simulation.ski_lines import field_cameras
+    return field_cameras(), jump_truth()
+
+
+def _views(field, exposures, *, seed=3, missing=(), marker_swap=(), lost=()):
+    """Frames (one per exposure), backgrounds, markers and truth of the
+    field views. ``missing``: (exposure, station) drawn without skis;
+    ``marker_swap``: (exposure, station) with P3/P4 interchanged; ``lost``:
+    (exposure, station) with P3 and P4 lost."""
+    cams, T = field
+    rng = np.random.default_rng(seed)
+    frames, bgs, rows, truth = {}, {}, [], []
+    for st, cam in cams.items():
+        bg = np.full((480, 640), SNOW) + np.linspace(-8, 8, 640)[None, :]
+        F = []
+        for i, e in enumerate(exposures):
+            img = bg.copy()
+            P = cam.project(T["P"][e])
+            tail, tip = cam.project(T["ski_tail"][e]), cam.project(T["ski_tip"][e])
+            O = (P[2] + P[3]) / 2
+            draw_bar(img, O + 0.3 * (P[1] - O), P[1], 5.0, SUIT)   # thighs, from the knees
+            draw_bar(img, P[1], P[0], 6.0, SUIT)
+            if (i + 1, st) not in missing:
+                for k in (1, 0):
+                    draw_bar(img, tail[k], tip[k], 2.6, SKI)
+            F.append(finish(img, rng))
+            for j, m in enumerate(("P1", "P2", "P3", "P4")):
+                name = m
+                if (i + 1, st) in marker_swap and m in ("P3", "P4"):
+                    name = "P4" if m == "P3" else "P3"
+                status = "lost" if (i + 1, st) in lost and m in ("P3", "P4") else "ok"
+                x, y = P[j] + rng.normal(0, 0.2, 2)
+                rows.append((i + 1, st, name, x, y, 0.2, status, ""))
+            for k, lab in enumerate(("L1", "L2")):
+                truth.append((i + 1, st, lab, tail[k], tip[k]))
+        frames[st] = np.array(F)
+        bgs[st] = bg
+    markers = pd.DataFrame(rows, columns=["exposure", "station", "marker", "x", "y", "sigma",
+                                          "status", "reason"])
+    return frames, bgs, cams, markers, truth
+
+
+def _label_errors(result, truth):
+    """Per (exposure, station, line) in the table: direction error and RMS
+    distance from its own ski's true axis and from the other ski's."""
+    t = {(e, st, lab): (a, b) for e, st, lab, a, b in truth}
+    out = []
+    for (e, st, lab), g in result.table.groupby(["exposure", "station", "line"]):
+        xy = g[["x", "y"]].to_numpy()
+        other = "L2" if lab == "L1" else "L1"
+        ang, d = axis_errors(xy, *t[(e, st, lab)])
+        _, d_other = axis_errors(xy, *t[(e, st, other)])
+        out.append((e, st, lab, ang, np.sqrt(np.mean(d ** 2)), np.sqrt(np.mean(d_other ** 2)),
+                    len(g)))
+    return pd.DataFrame(out, columns=["exposure", "station", "line", "angle", "dist",
+                                      "dist_other", "n"])
+
+
+def test_track_three_views(field):
+    frames, bgs, cams, markers, truth = _views(field, [0, 1, 2, 3, 4])
+    res = track_skis(frames, bgs, cams, markers, np.arange(5))
+    assert list(res.table.columns) == ["exposure", "station", "line", "x", "y", "sigma"]
+    err = _label_errors(res, truth)
+    # every ski found or flagged, never both; 15 points each, tail to tip
+    found = set(zip(err.exposure, err.station, err.line))
+    flagged = set(zip(res.flags.exposure, res.flags.station, res.flags.line))
+    assert not found & flagged and len(found | flagged) == 5 * 3 * 2
+    assert len(found) >= 24
+    assert (err.n == 15).all()
+    # labels right (closer to their own ski), directions within a few tenths
+    assert (err.dist < err.dist_other).all()
+    assert np.sqrt(np.mean(err.angle ** 2)) < 0.3
+    assert err.dist.max() < 1.0
+    assert set(res.checks.status) <= {"ok", "swapped", "flagged"}
+    assert (res.checks.status != "flagged").sum() >= 3
+    assert (res.table.sigma > 0).all()
+
+
+def test_swapped_binding_markers_are_corrected(field):
+    swap = {(e, "S2") for e in range(1, 5)}
+    frames, bgs, cams, markers, truth = _views(field, [6, 7, 8, 9], marker_swap=swap)
+    res = track_skis(frames, bgs, cams, markers, np.arange(4))
+    err = _label_errors(res, truth)
+    # the table's labels are right in every view after the three-view check
+    assert (err.dist < err.dist_other).all()
+    checked = res.checks[res.checks.check.isin(["ok", "swapped", "ambiguous"])]
+    assert len(checked) >= 3
+    # and the swaps in S2 are reported
+    swapped = res.checks[res.checks.status == "swapped"]
+    assert len(swapped) >= 3
+    assert all("S2" in s.split(",") for s in swapped.swapped)
+
+
+def test_missing_skis_and_markers_are_flagged(field):
+    frames, bgs, cams, markers, truth = _views(field, [10, 11, 12],
+                                               missing={(2, "S1")}, lost={(3, "S3")})
+    res = track_skis(frames, bgs, cams, markers, np.arange(3))
+    f = res.flags
+    assert set(f[(f.exposure == 2) & (f.station == "S1")].line) == {"L1", "L2"}
+    lost = f[(f.exposure == 3) & (f.station == "S3")]
+    assert set(lost.line) == {"L1", "L2"} and (lost.reason == "no binding marker").all()
+    t = res.table
+    assert t[(t.exposure == 2) & (t.station == "S1")].empty
+    assert t[(t.exposure == 3) & (t.station == "S3")].empty
+    # without three views the label check cannot run: flagged, with the reason
+    c = res.checks.set_index("exposure")
+    assert c.loc[2, "status"] == "flagged" and "needs 3" in c.loc[2, "detail"]
+    # the skis are found again in S1 at exposure 3
+    assert len(t[(t.exposure == 3) & (t.station == "S1")]) == 30
+
+
+# ----------------------------------------------------- the rendered videos
+
+def _rendered(settings):
+    jv = pytest.importorskip("photogram.simulation.jump_video")
+    v = jv.render_jump_videos(settings(jv))
+    rng = np.random.default_rng(11)
+    tm = v.truth_markers
+    markers = pd.DataFrame({
+        "exposure": tm.exposure, "station": tm.station, "marker": tm.marker,
+        "x": tm.x + rng.normal(0, 0.2, len(tm)), "y": tm.y + rng.normal(0, 0.2, len(tm)),
+        "sigma": 0.2, "status": np.where(tm.visible, "ok", "lost"), "reason": ""})
+    bgs = {}
+    for st, F in v.frames.items():
+        ef = np.asarray(v.exposure_frames[st])
+        lead = np.setdiff1d(np.arange(len(F)), ef)       # the jumper is not there
+        bgs[st] = median_background(F[lead])
+    res = track_skis(v.frames, bgs, v.cameras, markers, v.exposure_frames)
+    ts = v.truth_skis
+    truth = [(e, st, lab, np.array([a, b]), np.array([c, d])) for e, st, lab, a, b, c, d in
+             zip(ts.exposure, ts.station, ts.ski, ts.x_tail, ts.y_tail, ts.x_tip, ts.y_tip)]
+    return res, _label_errors(res, truth)
+
+
+def test_rendered_normal_videos():
+    res, err = _rendered(lambda jv: jv.VideoSettings())
+    # measured on the normal set (benchmarks/track_skis.py): direction RMS
+    # 0.15 deg, max 1.1 deg, 77 % of the skis within 0.1 deg, points 0.06 px
+    # RMS from the true axes, 4 of 144 ski images flagged; the 0.1 deg goal
+    # is met for most but not all skis (a ski along the suit's edge or
+    # behind it is seen over a short length only)
+    assert len(err) >= 0.8 * 24 * 3 * 2
+    assert len(err) + len(res.flags) == 24 * 3 * 2
+    assert (err.dist < err.dist_other).mean() > 0.9
+    assert np.sqrt(np.mean(err.angle ** 2)) < 0.3
+    assert (err.angle.abs() < 0.1).mean() > 0.6
+    assert np.sqrt(np.mean(err.dist ** 2)) < 0.2
+    assert (res.checks.status != "flagged").sum() >= 15
+
+
+def test_rendered_harsh_videos():
+    # not tuned on: measured (with the true frame offsets, as here) direction
+    # RMS ~1 deg, max ~5 deg, points ~0.4 px RMS from the true axes; the label
+    # check flags about half of the exposures (chi-square above its quantile:
+    # the point sigmas do not cover the harsh set's systematic errors).
+    # Asserted: every ski image measured or flagged, most measured, labels
+    # mostly right, directions within a few degrees
+    res, err = _rendered(lambda jv: jv.harsh_settings())
+    assert len(err) + len(res.flags) == 24 * 3 * 2
+    assert len(err) >= 0.8 * 24 * 3 * 2
+    assert (err.dist < err.dist_other).mean() > 0.8
+    assert np.sqrt(np.mean(err.angle ** 2)) < 2.0
