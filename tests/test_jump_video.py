@@ -236,6 +236,19 @@ def test_seeds_are_clicks_near_the_truth():
     assert int(shown["S3"]) == int(shown["S1"]) + v.settings.offset("S3")
 
 
+def test_gain_jitter_changes_the_brightness_per_frame():
+    """The flicker scales whole frames: the lead-in frames' mean grey
+    varies by about gain_jitter x the mean, without it only by noise."""
+    means = {}
+    for g in (0.0, 0.03):
+        v = render_jump_videos(_settings(lead_in=6, gain_jitter=g, noise=0.0, jpeg_quality=0),
+                               stations=("S1",), frames=range(6))
+        means[g] = v.frames["S1"][:6].reshape(6, -1).mean(axis=1)
+    assert np.ptp(means[0.0]) < 0.01
+    rel = means[0.03] / means[0.0] - 1
+    assert 0.005 < rel.std() < 0.08
+
+
 def test_harsh_settings():
     h = harsh_settings()
     h.validate()

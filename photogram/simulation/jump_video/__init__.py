@@ -36,7 +36,8 @@ grey), one video per camera:
   the moving objects' bounding box, markers as area-sampled discs (16 x 16
   samples per pixel), averaged to pixels; motion blur = the mean of
   ``subframes`` such renders spread over the ``shutter`` around the frame
-  time; then defocus blur, Gaussian noise and 8-bit rounding
+  time; then a per-frame brightness factor (``gain_jitter``, harsh only),
+  defocus blur, Gaussian noise and 8-bit rounding
   (:func:`photogram.measure.render.degrade`) and JPEG at ``jpeg_quality``.
   The AVI files written by :func:`write_jump_videos` hold these JPEGs
   unchanged: OpenCV's MJPEG reader decodes exactly the rendered frames,
@@ -93,7 +94,8 @@ Settings
 --------
 :class:`VideoSettings` (defaults: the normal set) and :func:`harsh_settings`
 (the harsher set the trackers were not tuned on: more noise, JPEG 60, a
-longer shutter, bystanders, marker occlusions, a one-frame sync lag of S3).
+longer shutter, brightness flicker, bystanders, marker occlusions, a
+one-frame sync lag of S3).
 Everything is a pure function of the settings (seeded).
 """
 

@@ -55,6 +55,15 @@ def compress(raw: np.ndarray, quality: int) -> tuple[np.ndarray, bytes]:
     return (cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE) if quality else raw), data
 
 
+def _gain(settings: VideoSettings, station_index: int, frame: int) -> float:
+    """Brightness factor of one frame: 1 + N(0, gain_jitter) (auto
+    exposure flicker), seeded per station and frame."""
+    if not settings.gain_jitter:
+        return 1.0
+    rng = np.random.default_rng([settings.seed, 11, station_index, frame])
+    return float(1.0 + rng.normal(0.0, settings.gain_jitter))
+
+
 def _cameras():
     from photogram.simulation.ski_lines import field_cameras
     return field_cameras()
@@ -260,8 +269,8 @@ def render_jump_videos(settings: VideoSettings | None = None, *, n_exposures: in
             if ideal:
                 video[k] = img
                 continue
-            raw = degrade(img, blur=settings.blur, noise=settings.noise,
-                          seed=[settings.seed, si, k])
+            raw = degrade(img * _gain(settings, si, k), blur=settings.blur,
+                          noise=settings.noise, seed=[settings.seed, si, k])
             video[k], encoded[st][k] = compress(raw, settings.jpeg_quality)
         out[st] = video
     markers, skis = _truth_tables(cameras, settings, motion, exposure_frames)

@@ -42,6 +42,9 @@ class VideoSettings:
         JPEG quality of every frame (0: no compression).
     blur : float
         Gaussian sigma (px) of the optics' defocus blur (0: none).
+    gain_jitter : float
+        Relative standard deviation of a per-frame brightness factor (auto
+        exposure flicker; 0: none).
     offsets : dict
         Station -> frames: that camera's video starts ``offset`` frames late
         (a sync lag): exposure ``e`` is frame ``lead_in + e - offset`` there
@@ -77,6 +80,7 @@ class VideoSettings:
     noise: float = 2.0
     jpeg_quality: int = 92
     blur: float = 0.5
+    gain_jitter: float = 0.0
     offsets: dict = field(default_factory=dict)
     occlusions: list = field(default_factory=list)
     bystanders: int = 0
@@ -114,13 +118,14 @@ def harsh_settings(seed: int = VIDEO_SEED + 1) -> VideoSettings:
     """The harsher set the trackers were NOT tuned on.
 
     Noise 5 grey levels, JPEG quality 60, a 1/200 s shutter (2.5x the blur:
-    3-4 px streaks), defocus 0.8 px, two bystanders in the background (near
+    3-4 px streaks), defocus 0.8 px, a 2 % brightness flicker from frame to
+    frame, two bystanders in the background (near
     the jumper's images in S2 and S3) with bright jacket patches, three
     short marker occlusions in S2 (P2 at 006-007, P3 at 012-014, P1 at
     019), and S3's video starting one frame late (a sync lag the tracker
     has to detect or tolerate).
     """
     return replace(VideoSettings(), shutter=1 / 200, subframes=10, noise=5.0, jpeg_quality=60,
-                   blur=0.8, offsets={"S3": 1},
+                   blur=0.8, gain_jitter=0.02, offsets={"S3": 1},
                    occlusions=[("S2", "P2", 6, 7), ("S2", "P3", 12, 14), ("S2", "P1", 19, 19)],
                    bystanders=2, seed=seed)
