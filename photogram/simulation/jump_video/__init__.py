@@ -46,12 +46,15 @@ grey), one video per camera:
 Pixel convention
 ----------------
 The image coordinates are those of :meth:`ViewCamera.project
-<photogram.lines.views.ViewCamera.project>` (the frame of the project's
-image points): x to the right, y down, **the centre of the top-left pixel
-at (0, 0)** (pixel (column i, row j) covers [i - 0.5, i + 0.5] x
-[j - 0.5, j + 0.5]), as OpenCV and the still-image renderers of
-:mod:`photogram.measure.render`. A frame array ``frames[st][k]`` is indexed
-``[row, column]`` = ``[y, x]``.
+<photogram.lines.views.ViewCamera.project>` in the project's convention
+(docs/measure.md; the frame of the project's image points, of the lab
+renderer :mod:`photogram.measure.scenes` and of ``photogram measure``): x to
+the right, y down, **the top-left corner of the image at (0, 0)**, the centre
+of pixel (column i, row j) at (i + 0.5, j + 0.5). A frame array
+``frames[st][k]`` is indexed ``[row, column]`` = ``[y, x]``; the raster
+position (OpenCV's, pixel centres at integers) of an image point is its
+coordinates minus 0.5 (:func:`render.drawing_camera` paints with the
+principal point moved by -0.5 px).
 
 Timing
 ------
@@ -68,8 +71,8 @@ Truth
 ``ViewCamera.project`` of the marker ball's centre (P1..P4 of
 ``jump_truth``) at the middle of the shutter, which is the exposure time;
 ``visible`` is False when the marker is occluded (``occlusions``) or its
-centre lies outside the image (x outside [-0.5, 639.5] or y outside
-[-0.5, 479.5]; a marker near the border may still be cut). The area
+centre lies outside the image (x outside [0, 640] or y outside
+[0, 480]; a marker near the border may still be cut). The area
 coverage of a rendered marker disc matches the exact area-sampled disc
 within 0.005 (tests/test_jump_video.py); its centroid, before blur, noise
 and compression, is the truth within 0.03 px on a uniform background (the

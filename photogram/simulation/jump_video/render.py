@@ -69,6 +69,20 @@ def _cameras():
     return field_cameras()
 
 
+def drawing_camera(camera):
+    """The camera that paints into the pixel grid: image coordinates in the
+    project's convention (top-left corner of the image at (0, 0), the first
+    pixel's centre at (0.5, 0.5); docs/measure.md, as the lab renderer
+    :mod:`photogram.measure.scenes` and ``photogram measure`` use) are 0.5
+    px more than the raster's (the first pixel's centre at (0, 0)). The
+    principal point moved by -0.5 px moves every projection by exactly
+    -0.5 px (the brown correction is relative to the principal point)."""
+    from photogram.lines.views import ViewCamera
+    io = np.array(camera.io, dtype=float)
+    io[1:3] -= 0.5
+    return ViewCamera(camera.R, camera.X0, io, camera.model, camera.name)
+
+
 def frame_time(frame: int, station: str, settings: VideoSettings) -> float:
     """Time (s, 0 at the first exposure) of the middle of ``frame``'s
     shutter in ``station``'s video."""
@@ -167,7 +181,7 @@ def _truth_tables(cameras, settings, motion, exposure_frames):
             fr = int(exposure_frames[st][e])
             for m, name in enumerate(MARKERS):
                 x, y = xy[e, m]
-                inside = -0.5 <= x <= w - 0.5 and -0.5 <= y <= h - 0.5
+                inside = 0.0 <= x <= w and 0.0 <= y <= h
                 rows_m.append((st, fr, f"{e + 1:03d}", name, x, y,
                                bool(inside and name not in hidden)))
             for s, name in enumerate(SKIS):
@@ -259,13 +273,14 @@ def render_jump_videos(settings: VideoSettings | None = None, *, n_exposures: in
     for si, st in enumerate(STATIONS):
         if st not in stations:
             continue
-        static = static_image(cameras[st], IMAGE_SIZE, target_radius=settings.target_radius,
+        drawn = drawing_camera(cameras[st])
+        static = static_image(drawn, IMAGE_SIZE, target_radius=settings.target_radius,
                               seed=settings.seed)
         video = np.zeros((n_frames, h, w), np.float32 if ideal else np.uint8)
         encoded[st] = [None] * n_frames
         todo = range(n_frames) if frames is None else frames
         for k in todo:
-            img = render_frame(st, k, settings, cameras[st], static, motion)
+            img = render_frame(st, k, settings, drawn, static, motion)
             if ideal:
                 video[k] = img
                 continue
