@@ -38,8 +38,9 @@ from photogram.track.tracks2d import TrackSettings
 from photogram.track.video import read_videos
 
 MARKERS = ["P1", "P2", "P3", "P4"]
-# the rendered videos are in OpenCV's pixel frame (photogram.simulation.jump_video)
-PIXEL_OFFSET = 0.0
+# the rendered videos are in the project's pixel frame (photogram.simulation.jump_video:
+# the top-left corner of the image at (0, 0)), as photogram track's default
+PIXEL_OFFSET = 0.5
 
 
 def load(folder: Path):

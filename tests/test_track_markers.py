@@ -159,7 +159,7 @@ def test_rendered_isolated_markers_centres(rendered_normal):
         for f, grp in truth[truth.station == st].groupby("frame"):
             t = grp[["x", "y"]].to_numpy(float)
             for method in out:
-                c = detect_markers(fr[f], bg, method=method, pixel_offset=0.0)
+                c = detect_markers(fr[f], bg, method=method)   # the renderer paints in the project frame
                 d = np.linalg.norm(c.xy[:, None] - t[None], axis=2).min(axis=0)
                 out[method].extend(d)
     g, c = (np.array(out[m]) for m in ("gaussian", "centroid"))

@@ -18,8 +18,7 @@
 Offsets: ``[track] offsets = { S3 = 2 }`` means S3's video starts 2 frames
 late (its frame k shows the time of frame k + 2 of a synchronous video;
 ``frames.csv`` gives the exposures in synchronous frames). The marker
-tracker counts offsets the other way round (the frame of each camera at
-frame 0 of the first camera); :func:`_tracker_offsets` converts.
+tracker counts them against its first station (:func:`_tracker_offsets`).
 """
 
 from __future__ import annotations
@@ -97,10 +96,11 @@ class TrackingRun:
 
 
 def _tracker_offsets(offsets: dict, stations: list) -> dict:
-    """``[track]`` offsets (a video starting d frames late) -> the marker
-    tracker's (frame of each camera at frame 0 of the first camera)."""
+    """``[track]`` offsets (a video starting d frames late against a
+    synchronous one) -> the marker tracker's (frames late against the first
+    station)."""
     ref = offsets.get(stations[0], 0)
-    return {s: ref - offsets.get(s, 0) for s in stations}
+    return {s: offsets.get(s, 0) - ref for s in stations}
 
 
 def track_videos(frames, cameras, seeds, exposures: Exposures, *, markers, skis, ski_markers,
@@ -136,8 +136,9 @@ def track_videos(frames, cameras, seeds, exposures: Exposures, *, markers, skis,
                        list(markers), ex, backgrounds=backgrounds,
                        offsets=_tracker_offsets(offsets, stations) if given else None)
     timings["markers_s"] = time.perf_counter() - t
+    log.extend(mt.notes)
     # back to the [track] convention (the first station's offset stays as given)
-    used = {s: ref_offset - int(mt.offsets.get(s, 0)) for s in stations}
+    used = {s: ref_offset + int(mt.offsets.get(s, 0)) for s in stations}
     if not given:
         log.append("sync offsets estimated: " + ", ".join(f"{s} {v:+d}" for s, v in used.items())
                    + (f" ({mt.sync.summary()})" if mt.sync is not None else ""))
@@ -185,6 +186,7 @@ def track_project(project) -> TrackingRun:
     run.summary["timings"]["frames_per_s_per_camera"] = \
         n_cam_frames / max(run.summary["timings"]["total_s"], 1e-9) / len(stations)
     run.summary.update(_summary(project, run))
+    run.summary["warnings"] = [line for line in log if "not used" in line]
     if ts.truth is not None:
         from photogram.track.truth_check import compare_with_truth
         run.summary["truth"] = compare_with_truth(run, ts.truth)

@@ -79,6 +79,7 @@ class TrackResult:
     sync: SyncResult | None = None
     tracks: dict = field(default_factory=dict)
     candidates: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)     # e.g. a seed click that was not used
 
 
 def exposure_frames(exposures) -> dict:
@@ -211,4 +212,4 @@ def track_markers(frames: dict, cameras: dict, seeds: pd.DataFrame, markers,
                              float(tr[n].sigma[f, i]) if good else np.nan,
                              STATUS[code], str(tr[n].reason[f, i])))
     table = pd.DataFrame(rows, columns=COLUMNS)
-    return TrackResult(table, offsets, sync, tr, cands)
+    return TrackResult(table, offsets, sync, tr, cands, [n for t in tr.values() for n in t.notes])

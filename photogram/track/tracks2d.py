@@ -42,7 +42,7 @@ Statuses per frame and marker: 0 ok, 1 lost, 2 ambiguous, with a reason.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -88,7 +88,8 @@ class Track2D:
     """Per frame (F) and marker (M) of one camera: ``xy`` (F, M, 2) px,
     ``sigma`` (F, M), ``status`` (F, M) int8 (:data:`STATUS`), ``reason``
     (F, M) str, ``cand`` (F, M) the candidate index (-1 none), ``flux``
-    (M,) the typical flux of each marker."""
+    (M,) the typical flux of each marker; ``notes`` what the user should
+    know (a seed click that was not used)."""
 
     xy: np.ndarray
     sigma: np.ndarray
@@ -96,6 +97,7 @@ class Track2D:
     reason: np.ndarray
     cand: np.ndarray
     flux: np.ndarray
+    notes: list = field(default_factory=list)
 
 
 def _predict(hist: list, t: int) -> np.ndarray:
@@ -191,10 +193,10 @@ def track_station(cands: list[Candidates], seeds: dict, markers: list[str],
         if d[j] > s.seed_radius:
             near = "no bright blob in this frame" if not np.isfinite(d[j]) \
                 else f"the nearest bright blob is {d[j]:.1f} px away"
-            failed.append(InputError(
+            failed.append((m, f, InputError(
                 f"seed of {m} in {station} frame {f} at ({p[0]:.1f}, {p[1]:.1f}): {near} "
                 f"(more than {s.seed_radius:g} px)",
-                hint="click on the marker itself in a frame where it is visible"))
+                hint="click on the marker itself in a frame where it is visible")))
             continue
         snapped[markers.index(m)] = (f, j)
     if failed and not snapped:
@@ -204,8 +206,12 @@ def track_station(cands: list[Candidates], seeds: dict, markers: list[str],
                          f"{s.seed_radius:g} px of any",
                          hint="check that the video is the right one and not blank, that "
                               "the seeds' frames are this camera's, or leave the camera out")
-    if failed:
-        raise failed[0]
+    # a seed that misses while others of the camera hit: that marker goes
+    # without a seed in this camera (lost here unless the 3D prediction from
+    # the other cameras finds it); the reason at the seed's frame says why
+    notes = []
+    for m, f, err in failed:
+        notes.append(f"{err.args[0]}: not used, {m} has no seed in {station}")
     for i in range(M):
         if i not in snapped:
             continue
@@ -227,7 +233,7 @@ def track_station(cands: list[Candidates], seeds: dict, markers: list[str],
             flux[i] = c.flux[j]
     for direction in (1, -1):
         _pass(cands, snapped, markers, direction, s, xy, sig, status, reason, cidx, flux)
-    return Track2D(xy, sig, status, reason, cidx, flux)
+    return Track2D(xy, sig, status, reason, cidx, flux, notes)
 
 
 def _pass(cands, snapped, markers, direction, s, xy, sig, status, reason, cidx, flux):
