@@ -12,7 +12,9 @@ median of the frames without the jumper.
 Per exposure and station and ski: the angle between the principal axis of
 the sampled points and the true axis (deg), and the distances of the
 points from the true axis (px); then RMS and max per station and over all,
-the flags, the label check, and the time per image. For comparison the
+the flags, the label check, and the time per image; the 3D ski directions
+intersected from the tracked points (true cameras) against the truth. For
+comparison the
 same figures for OpenCV's line-segment detector (LSD) in the same bands
 (the edge segments near each found axis, their middle line).
 
@@ -136,6 +138,35 @@ def lsd_table(frames, ef, offsets, result, *, band=2.0, max_turn_deg=3.0, min_le
     return pd.DataFrame(rows, columns=["exposure", "station", "line", "x", "y"])
 
 
+def space_errors(table, cameras):
+    """3D ski directions intersected from the tracked points (fit_view_line,
+    eq. (C11), then intersect_line) against the true ones of jump_truth:
+    angle (deg) per exposure and ski, where the ski is in >= 2 views."""
+    from photogram.errors import GeometryError
+    from photogram.lines.space_line import intersect_line
+    from photogram.lines.views import fit_view_line
+    from photogram.simulation.jump import jump_truth
+    T = jump_truth()
+    out = []
+    exposures = sorted(table.exposure.unique())
+    for (e, lab), g in table.groupby(["exposure", "line"]):
+        lines = {st: fit_view_line(h[["x", "y"]].to_numpy(), cameras[st],
+                                   h.sigma.to_numpy(), label=lab)
+                 for st, h in g.groupby("station")}
+        if len(lines) < 2:
+            continue
+        try:
+            X = intersect_line(lines, cameras, label=lab)
+        except GeometryError:
+            continue
+        k = 0 if lab == "L1" else 1
+        i = exposures.index(e) if len(exposures) != 24 else int(e) - 1
+        d = T["ski_tip"][i, k] - T["ski_tail"][i, k]
+        c = abs(X.line.direction @ d) / np.linalg.norm(d)
+        out.append((e, lab, len(lines), np.degrees(np.arccos(min(c, 1.0)))))
+    return pd.DataFrame(out, columns=["exposure", "line", "views", "angle_deg"])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("folder", nargs="?", default="/work/jumpvideo/normal")
@@ -185,6 +216,13 @@ def main():
         "s_per_image": f"{dt / n_img:.3f}",
         "s_per_frame": f"{dt / len(ef):.3f}",
     }
+    # 3D: the skis intersected from the tracked points
+    serr = space_errors(res.table, cams)
+    print(f"\n3D ski directions from the tracked points ({len(serr)} skis, true cameras): "
+          f"RMS {rms(serr.angle_deg):.3f} deg, max {serr.angle_deg.max():.3f} "
+          f"(3 views: RMS {rms(serr.angle_deg[serr.views == 3]):.3f})")
+    result["dir3d_rms_deg"] = f"{rms(serr.angle_deg):.3f}"
+    result["dir3d_max_deg"] = f"{serr.angle_deg.max():.3f}"
     # the alternative: line segments (LSD) in the same bands
     lerr = errors(lsd_table(frames, ef, offsets, res), truth)
     print(f"\nLSD edges in the same bands ({len(lerr)} skis): direction RMS "

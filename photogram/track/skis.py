@@ -119,6 +119,15 @@ def _initial_search(frame, background, D, bindings, toward, sigma_noise, binding
                       width=width, exclude=exclude)
 
 
+def _frame_gain(img, bgd):
+    """Median ratio frame / background over the well-exposed pixels (a
+    frame's brightness change against the background: auto exposure)."""
+    ok = (bgd > 20) & (bgd < 250) & (img > 5) & (img < 250)
+    if ok.sum() < 100:
+        return 1.0
+    return float(np.median(img[ok][::7] / bgd[ok][::7]))
+
+
 def _predict(prev, bindings, prev_bindings):
     """The previous exposure's axes moved with their bindings."""
     out = []
@@ -145,8 +154,8 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
                points_per_ski=15, offsets=None, helmet="P1", hip="P2",
                ski_width=1.5, search_radius=15.0, split_deg=8.0,
                track_turn_deg=3.0, max_binding_distance=3.0, min_support=0.15,
-               sigma_floor=0.15, marker_mask=4.0, label_margin=1.0, two_pass=True,
-               check=True,
+               sigma_floor=0.15, marker_mask=4.0, label_margin=1.0, gain=True,
+               two_pass=True, check=True,
                **fit_options) -> SkiTracking:
     """Track both ski lines through the exposures of synchronized videos.
 
@@ -206,6 +215,9 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
         A tracked axis takes the other label only if both bindings together
         are closer to the interchanged axes by more than this (px); at a
         first prediction the bindings alone decide.
+    gain : bool
+        Scale the background by each frame's median brightness ratio to it
+        (auto exposure, flicker) before comparing.
     two_pass : bool
         Track forward, then backward from the last exposure's state; per
         exposure the views' results (forward or backward, where they
@@ -249,6 +261,10 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             return seen
         img = F[fi].astype(float)
         bgd = np.asarray(backgrounds[st], float)
+        if gain:
+            # brightness of this frame against the background (auto exposure):
+            # the median ratio, the jumper being a small part of the frame
+            bgd = bgd * _frame_gain(img, bgd)
         D = bgd - img
         sn = noise_sigma(D)
         bind = [lookup.get((e, st, b)) for b in bind_names]
@@ -281,8 +297,8 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
         # label unless the bindings say otherwise by more than label_margin
         # (where the skis nearly coincide the bindings cannot tell them apart)
         dist = np.abs([[l.distance(b)[0] for l in lines] for b in bind])
-        gain = dist[0, 0] + dist[1, 1] - dist[0, 1] - dist[1, 0]
-        if gain > (label_margin if tracked else 0.0):
+        better = dist[0, 0] + dist[1, 1] - dist[0, 1] - dist[1, 0]
+        if better > (label_margin if tracked else 0.0):
             lines = lines[::-1]
         prev[st] = (lines, bind)
         seen.lines = lines
