@@ -91,10 +91,17 @@ def exposure_labels(markers: pd.DataFrame, n: int) -> list:
                      f"exposure_frames has {n}", hint="one marker exposure per frame index")
 
 
+#: image coordinates (the project's convention: the top-left corner of the
+#: image at (0, 0), docs/measure.md) minus this are the raster positions the
+#: bar fit works in (OpenCV's: pixel centres at integers)
+PIXEL_OFFSET = 0.5
+
+
 def _marker_lookup(markers):
+    """Raster positions of the markers found (status ok)."""
     ok = markers["status"].astype(str) == "ok" if "status" in markers else True
     m = markers[ok]
-    return {(e, s, p): np.array([x, y], float)
+    return {(e, s, p): np.array([x, y], float) - PIXEL_OFFSET
             for e, s, p, x, y in zip(m["exposure"], m["station"], m["marker"], m["x"], m["y"])}
 
 
@@ -315,8 +322,8 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             if len(pts) < 2:
                 seen.flags.append((lab, "ski outside the image"))
                 continue
-            seen.pts[lab] = pts
             seen.sig[lab] = _point_sigma(lines[k], pts, sigma_floor)
+            seen.pts[lab] = pts + PIXEL_OFFSET          # image coordinates from here on
         return seen
 
     # two passes, forward and backward (the backward one starts from the

@@ -1,0 +1,129 @@
+"""`photogram track` end to end on the rendered jump (issue 19): the command
+writes the observation tables intersect reads, against the truth the
+markers are right or flagged, and bad input is one line with exit code 2
+and no results folder."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+JUMPS = ROOT / "projects" / "jumps"
+NEEDS = [ROOT / "projects/lab/results/cameras.toml", ROOT / "projects/field/results/stations.csv"]
+pytestmark = pytest.mark.skipif(not all(p.exists() for p in NEEDS),
+                                reason="needs make demo's lab and field results")
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    from photogram.simulation.jump_video import render_jump_videos, write_jump_videos
+    folder = tmp_path_factory.mktemp("jump") / "video"
+    write_jump_videos(render_jump_videos(), folder)
+    return folder
+
+
+def _project(tmp_path, video, **changes):
+    """A copy of projects/jumps/track.prj reading ``video``."""
+    text = (JUMPS / "track.prj").read_text().replace('"../', f'"{ROOT.as_posix()}/projects/')
+    text = text.replace('"video/', f'"{video.as_posix()}/')
+    for old, new in changes.items():
+        text = text.replace(old, new)
+    prj = tmp_path / "track.prj"
+    prj.write_text(text)
+    return prj
+
+
+def _run(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "photogram_cli", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd)
+
+
+def test_track_writes_the_tables_intersect_reads(tmp_path, rendered):
+    prj = _project(tmp_path, rendered)
+    run = _run("track", prj)
+    assert run.returncode == 0, run.stderr
+    out = tmp_path / "results-track"
+    for name in ("jumper_points.csv", "ski_lines.csv", "tracking.csv", "ski_checks.csv",
+                 "contact_sheet.png", "summary.json", "log.txt"):
+        assert (out / name).is_file(), name
+    s = json.loads((out / "summary.json").read_text())
+    m = s["truth"]["markers"]
+    assert m["n_wrong"] == 0 and m["right_or_flagged"] == 1.0
+    assert m["rms_px"] <= 0.2                          # the goal of issue 19
+    assert s["offsets"] == {"S1": 0, "S2": 0, "S3": 0}
+    jp = pd.read_csv(out / "jumper_points.csv", comment="#", dtype={"exposure": str})
+    assert list(jp.columns) == ["exposure", "station", "point", "x", "y", "sigma"]
+    assert set(jp.exposure) <= {f"{e:03d}" for e in range(1, 25)}
+    # every point of jumper_points.csv is seen from two stations at least
+    assert (jp.groupby(["exposure", "point"]).station.nunique() >= 2).all()
+    tr = pd.read_csv(out / "tracking.csv", dtype={"exposure": str})
+    assert len(tr) == 24 * 3 * 4 and set(tr.status) <= {"ok", "lost", "ambiguous"}
+    assert tr[tr.status != "ok"][["x", "y"]].isna().all(axis=None)
+    sheet = cv2.imread(str(out / "contact_sheet.png"))
+    assert sheet is not None and sheet.shape[0] > 3 * 200
+    # and intersect reads them (a copy of jumps-video.prj beside the results)
+    text = (JUMPS / "jumps-video.prj").read_text().replace('"../', f'"{ROOT.as_posix()}/projects/')
+    (tmp_path / "jumps-video.prj").write_text(text)
+    run = _run("intersect", tmp_path / "jumps-video.prj")
+    assert run.returncode == 0, run.stderr
+    ex = pd.read_csv(tmp_path / "results-video" / "exposures.csv", dtype={"exposure": str})
+    assert len(ex) == 24
+
+
+def _frames_folder(src_video, dst, keep=None):
+    """The frames of an AVI as an image folder (optionally only ``keep``)."""
+    cap = cv2.VideoCapture(str(src_video))
+    dst.mkdir(parents=True)
+    k = 0
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        if keep is None or k < keep:
+            cv2.imwrite(str(dst / f"{k:06d}.png"), img)
+        k += 1
+    return dst
+
+
+@pytest.mark.parametrize("case", ["short video", "unknown station seed", "seed frame",
+                                  "fps", "exposure outside"])
+def test_bad_input_is_one_line_and_exit_2_and_no_results(tmp_path, rendered, case):
+    video = tmp_path / "video"
+    shutil.copytree(rendered, video)
+    changes = {}
+    if case == "short video":
+        (video / "S2.avi").unlink()
+        _frames_folder(rendered / "S2.avi", video / "S2", keep=40)
+        changes['S2 = "'] = 'S2 = "'      # unchanged key; the path below
+        changes[f'{video.as_posix()}/S2.avi'] = f'{video.as_posix()}/S2'
+        words = "40 frames"
+    elif case == "unknown station seed":
+        seeds = (video / "seeds.csv").read_text().replace("S3,", "S7,")
+        (video / "seeds.csv").write_text(seeds)
+        words = "S7"
+    elif case == "seed frame":
+        lines = (video / "seeds.csv").read_text().splitlines()
+        parts = lines[1].split(",")
+        parts[1] = "999"
+        lines[1] = ",".join(parts)
+        (video / "seeds.csv").write_text("\n".join(lines) + "\n")
+        words = "999"
+    elif case == "fps":
+        changes["fps = 30\n"] = "fps = 25\n"
+        words = "fps"
+    else:
+        (video / "frames.csv").write_text("exposure,frame\n001,12\n002,60\n")
+        words = "002"
+    prj = _project(tmp_path, video, **changes)
+    run = _run("track", prj)
+    assert run.returncode == 2, (run.stdout, run.stderr)
+    err = run.stderr.strip()
+    assert len(err.splitlines()) == 1 and words in err and "Traceback" not in err, err
+    assert not (tmp_path / "results-track").exists()
