@@ -83,6 +83,7 @@ from photogram.errors import InputError
 from photogram.track.markers import detect_markers
 from photogram.track.rays import reprojection_residuals, triangulate
 from photogram.track.skis import exposure_labels
+from photogram.track.tracks2d import scatter_sigma
 
 __all__ = ["SplitReport", "split_merged_bindings", "fit_two_spots", "fit_spot_shape",
            "label_pairs", "MIDPOINT_COLUMNS"]
@@ -523,8 +524,8 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                           offsets: dict | None = None, pixel_offset: float = 0.5,
                           length_unit: float = 0.1, half: int = 4, tophat: int = 7,
                           locate_tol: float = 1.0, hip_distance=(0.4, 1.6),
-                          pair_distance=(0.15, 0.40), min_snr: float = 2.0,
-                          sigma_floor: float = 0.05, chi2_quantile: float = 0.999,
+                          pair_distance=(0.15, 0.40), min_snr: float = 3.0,
+                          sigma_floor: float = 0.15, chi2_quantile: float = 0.999,
                           chi2_margin: float = 9.0, min_across_deg: float = 60.0,
                           min_side: float = 0.5, k_sigma: float = 5.0,
                           min_flux: float = 0.5):
@@ -755,6 +756,16 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                 out.loc[sel, "status"] = "ok"
                 out.loc[sel, "reason"] = SPLIT_REASON.format(sep)
             counts["resolved"] += 1
+    # the sigma of a split track is at least its own scatter about a local
+    # quadratic in time (exposure order; as the tracker's markers)
+    split = out.reason.astype(str).str.startswith("split from a merged blob")
+    for (s, m), g in out[split].groupby(["station", "marker"]):
+        xy = np.full((len(names), 2), np.nan)
+        pos = np.array([eidx[e] for e in g.exposure])
+        xy[pos] = g[["x", "y"]].to_numpy(float)
+        emp = scatter_sigma(xy, np.isfinite(xy).all(1))
+        if np.isfinite(emp):
+            out.loc[g.index, "sigma"] = np.maximum(g.sigma.to_numpy(float), emp)
     for (e, s), why in notes.items():
         sel = (out.exposure == e) & (out.station == s) & out.marker.isin([right_m, left_m]) \
             & (out.status == "ambiguous")
