@@ -74,6 +74,7 @@ for OpenCV's frame. The table, the cameras and this must agree.
 from __future__ import annotations
 
 import itertools
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -214,11 +215,19 @@ def _gauss_newton(model, p, v, x, y, n_iter=30, eps=1e-4, damping=1e-3):
     return p, jac(p, r), r, valid
 
 
+def _nanmax(v):
+    """Largest finite value per window (n, h, w) -> (n,), NaN if none."""
+    f = np.isfinite(v).any(axis=(1, 2))
+    return np.where(f, np.max(np.where(np.isfinite(v), v, -np.inf), axis=(1, 2)), np.nan)
+
+
 def _moments(v, x, y):
     """Centroid (n, 2), second moments (n, 3) and border level (n,) of the
     positive part of windows ``v`` less the median of their border."""
     border = np.concatenate([v[:, 0, :], v[:, -1, :], v[:, 1:-1, 0], v[:, 1:-1, -1]], axis=1)
-    b = np.nanmedian(border, axis=1)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        b = np.nanmedian(border, axis=1)
     w = np.clip(np.nan_to_num(v - b[:, None, None]), 0, None)
     s = w.sum((1, 2))
     s = np.where(s > 0, s, np.nan)
@@ -283,7 +292,7 @@ def fit_spot_shape(image: np.ndarray, centres: np.ndarray, *, half: int = 4,
     v, x, y = _windows(image, centres, half, pixel_offset)
     c, M, b = _moments(v, x, y)
     M = np.clip(M, [0.05, -np.inf, 0.05], None)
-    amp = np.nanmax(v, axis=(1, 2)) - b
+    amp = _nanmax(v) - b
     with np.errstate(all="ignore"):
         rho = np.arctanh(np.clip(M[:, 1] / np.sqrt(M[:, 0] * M[:, 2]) / 0.95, -0.9, 0.9))
     # a uniform disc of radius R has variance R^2 / 4 per axis
@@ -358,7 +367,7 @@ def fit_two_spots(image: np.ndarray, centres: np.ndarray, shapes: np.ndarray, *,
     ang = 0.5 * np.arctan2(2 * E[:, 1], E[:, 0] - E[:, 2])
     dlen = np.sqrt(np.clip(lam1, 0.04, None))
     d0 = np.column_stack([np.cos(ang), np.sin(ang)]) * dlen[:, None]
-    amp = np.nanmax(v, axis=(1, 2)) - b
+    amp = _nanmax(v) - b
     p0 = np.column_stack([amp, b, c, d0])
     out = {k: np.full(s, np.nan) for k, s in
            [("centre", (n, 2)), ("half_sep", (n, 2)), ("points", (n, 2, 2)),
@@ -528,7 +537,7 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                           sigma_floor: float = 0.15, chi2_quantile: float = 0.999,
                           chi2_margin: float = 9.0, min_across_deg: float = 60.0,
                           min_side: float = 0.5, k_sigma: float = 5.0,
-                          min_flux: float = 0.5):
+                          min_flux: float = 0.5, shape_window: int = 3):
     """Split the binding markers out of merged blobs (module doc).
 
     Parameters
@@ -574,6 +583,9 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
     min_flux : float
         A candidate for the pair's blob has at least this fraction of the
         flux and the peak of the single markers of its image.
+    shape_window : int
+        The spot's shape is the median of the single markers' within this
+        many exposures (the same station).
 
     Returns
     -------
@@ -629,6 +641,23 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
         for j in range(3):
             vel[:, j] = np.gradient(np.interp(t, t[good], X_hip[good, j]), t)
     up = np.array([0.0, 0.0, 1.0])
+
+    # the spot of a single marker per station and exposure (module doc,
+    # step 2): fitted to the ok single markers of every exposure frame
+    shape_at = {}
+    sing_ok = ok[ok.marker.isin(singles) & ok.station.isin(stations) & ok.exposure.isin(names)]
+    for s in stations:
+        pos, shp = [], []
+        for e, g in sing_ok[sing_ok.station == s].groupby("exposure"):
+            f = when[e][s]
+            if not 0 <= f < len(frames[s]):
+                continue
+            sh, _ = fit_spot_shape(_tophat(frames[s][f], tophat), g[["x", "y"]].to_numpy(float),
+                                   half=half, pixel_offset=pixel_offset)
+            sh = sh[np.isfinite(sh).all(1)]
+            pos += [eidx[e]] * len(sh)
+            shp += list(sh)
+        shape_at[s] = (np.asarray(pos, int), np.asarray(shp, float).reshape(-1, 4))
 
     blobs, labels, mids = [], [], []
     counts = {"flagged": 0, "located": 0, "split": 0, "resolved": 0, "ambiguous": 0}
@@ -690,14 +719,9 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             counts["located"] += 1
             fr, noise = imgs[s]
             th = _tophat(fr, tophat)
-            sing = ok[(ok.exposure == e) & (ok.station == s) & ok.marker.isin(singles)]
-            shape = np.full(4, np.nan)
-            if len(sing):
-                sh, _ = fit_spot_shape(th, sing[["x", "y"]].to_numpy(), half=half,
-                                       pixel_offset=pixel_offset)
-                sh = sh[np.isfinite(sh).all(1)]
-                if len(sh):
-                    shape = sh.mean(0)
+            near = np.abs(shape_at[s][0] - eidx[e]) <= shape_window
+            shape = np.median(shape_at[s][1][near], axis=0) if near.any() \
+                else np.full(4, np.nan)
             if not np.isfinite(shape).all():
                 notes[(e, s)] = "no single marker to take the spot's shape from"
                 mids.append((e, s, centre[0], centre[1], np.nan, False))
