@@ -50,7 +50,17 @@ where the data allow it, gives both markers back with status ``ok``:
    flight at least ``min_across_deg``) and its side component is at least
    ``min_side`` of its length. Otherwise all rows of the exposure stay
    ``ambiguous`` with the reason. A single split view cannot be labelled
-   (one ray per point): ambiguous.
+   by the views (one ray per point).
+5. **Continuity in time** (``continuity`` exposures): an exposure left
+   with a single split view, or with no clearly better assignment, takes
+   the 3D direction of ``P3 - P4`` from the labelled exposures around it
+   (interpolated between both sides, or the neighbour at one exposure),
+   placed at this exposure's triangulated blob centre and projected into
+   each split view; a view's assignment is the one whose separation
+   vector points the same way, accepted only within ``arccos(min_cos)``
+   of the predicted direction (or its reverse) in every split view and,
+   with two or more views, a chi-square below the quantile. The reason
+   then says ``"...; labels from the neighbouring exposures"``.
 
 Rows that are split get status ``ok``, reason ``"split from a merged blob
 (separation d px)"`` and the sigma of step 3; a row never gets a label the
@@ -92,6 +102,7 @@ __all__ = ["SplitReport", "split_merged_bindings", "fit_two_spots", "fit_spot_sh
 #: columns of ``SplitReport.midpoints``
 MIDPOINT_COLUMNS = ["exposure", "station", "x", "y", "sigma", "split"]
 SPLIT_REASON = "split from a merged blob (separation {:.2f} px)"
+CONTINUITY_NOTE = "; labels from the neighbouring exposures"
 
 
 @dataclass
@@ -110,7 +121,9 @@ class SplitReport:
         each split point), outcome (``"split"``, or why not).
     labels : DataFrame
         Per exposure with split views: exposure, views, chi2, chi2_second,
-        distance (|P3 - P4|, camera units), across_deg, outcome.
+        distance (|P3 - P4|, m), across_deg, outcome (``"ok"`` or why
+        not); an exposure handed to the continuity step has a second row
+        (outcome ``"ok (continuity)"`` or why not).
     counts : dict
         flagged (station-exposures where the pair was merged/ambiguous),
         located, split (separation measured), resolved (labelled ok),
@@ -537,7 +550,8 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                           sigma_floor: float = 0.15, chi2_quantile: float = 0.999,
                           chi2_margin: float = 9.0, min_across_deg: float = 60.0,
                           min_side: float = 0.5, k_sigma: float = 5.0,
-                          min_flux: float = 0.5, shape_window: int = 3):
+                          min_flux: float = 0.5, shape_window: int = 3,
+                          continuity: int = 2, min_cos: float = 0.8):
     """Split the binding markers out of merged blobs (module doc).
 
     Parameters
@@ -586,6 +600,14 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
     shape_window : int
         The spot's shape is the median of the single markers' within this
         many exposures (the same station).
+    continuity : int
+        Exposures that the views could not label (one split view, or no
+        clear assignment) take the direction of ``P3 - P4`` from labelled
+        exposures at most this far (both sides, or one side at distance 1);
+        0: never.
+    min_cos : float
+        ... when the measured separation vector is within ``arccos(min_cos)``
+        of the predicted one (or its reverse) in every split view.
 
     Returns
     -------
@@ -660,6 +682,19 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
         shape_at[s] = (np.asarray(pos, int), np.asarray(shp, float).reshape(-1, 4))
 
     blobs, labels, mids = [], [], []
+    pending = {}                                   # exposure -> (split views, located)
+    X_pair = np.full((len(names), 2, 3), np.nan)   # labelled P3, P4 in 3D
+
+    def _write(e, split_views, assign, note):
+        """The split points of exposure ``e`` under their labels."""
+        for (s, p, sg_, sep), a in zip(split_views, assign):
+            for m, q in ((right_m, p[a]), (left_m, p[1 - a])):
+                sel = (out.exposure == e) & (out.station == s) & (out.marker == m)
+                out.loc[sel, ["x", "y", "sigma"]] = [q[0], q[1], sg_]
+                out.loc[sel, "status"] = "ok"
+                out.loc[sel, "reason"] = SPLIT_REASON.format(sep) + note
+            counts["resolved"] += 1
+            notes.pop((e, s), None)
     counts = {"flagged": 0, "located": 0, "split": 0, "resolved": 0, "ambiguous": 0}
     notes = {}                       # (e, s) -> why not resolved
 
@@ -757,6 +792,7 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             if split_views:
                 labels.append((e, len(split_views), np.nan, np.nan, np.nan, np.nan,
                                "needs two split views"))
+                pending[e] = (split_views, found)
             continue
         vcams = [cameras[s] for s, *_ in split_views]
         pts = np.array([p - bias[sidx[s]] for s, p, *_ in split_views])
@@ -772,14 +808,25 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
         if not lab["ok"]:
             for s, *_ in split_views:
                 notes[(e, s)] = lab["reason"]
+            if lab["reason"].startswith("assignment not clear"):
+                pending[e] = (split_views, found)
             continue
-        for (s, p, sg_, sep), a in zip(split_views, lab["assign"]):
-            for m, q in ((right_m, p[a]), (left_m, p[1 - a])):
-                sel = (out.exposure == e) & (out.station == s) & (out.marker == m)
-                out.loc[sel, ["x", "y", "sigma"]] = [q[0], q[1], sg_]
-                out.loc[sel, "status"] = "ok"
-                out.loc[sel, "reason"] = SPLIT_REASON.format(sep)
-            counts["resolved"] += 1
+        X_pair[eidx[e]] = lab["X"]
+        _write(e, split_views, lab["assign"], "")
+    # 5. continuity in time: an exposure whose views could not decide
+    # (one split view, or no clear assignment) takes the direction of
+    # P3 - P4 from the 3D pairs of its labelled neighbours
+    if continuity:
+        for e, (split_views, found) in pending.items():
+            lab = _from_neighbours(e, eidx[e], split_views, found, X_pair, bias, sidx, cameras,
+                                   cams, continuity, min_cos, chi2_quantile)
+            labels.append((e, len(split_views), lab["chi2"], np.nan, np.nan, np.nan,
+                           "ok (continuity)" if lab["ok"] else lab["reason"]))
+            if lab["ok"]:
+                _write(e, split_views, lab["assign"], CONTINUITY_NOTE)
+            else:
+                for s, *_ in split_views:
+                    notes[(e, s)] = notes.get((e, s), "") + "; " + lab["reason"]
     # the sigma of a split track is at least its own scatter about a local
     # quadratic in time (exposure order; as the tracker's markers)
     split = out.reason.astype(str).str.startswith("split from a merged blob")
@@ -849,4 +896,56 @@ def _locate(cams, per_view, bias, X_hip, vel, tol, hip_distance, length_unit,
             # the two markers may be two candidates here: their mean
             near = np.hypot(*(c - c[combos[best, i]]).T) <= merge_px
             out[i] = c[near].mean(0)
+    return out
+
+
+def _from_neighbours(e, i, split_views, found, X_pair, bias, sidx, cameras, cams, window,
+                     min_cos, chi2_quantile):
+    """Labels of exposure ``e`` (index ``i``) from the 3D pairs of its
+    labelled neighbours (module doc, step 5)."""
+    from scipy.stats import chi2 as chi2_dist
+    out = {"ok": False, "assign": None, "chi2": np.nan, "reason": ""}
+    have = np.nonzero(np.isfinite(X_pair).all(axis=(1, 2)))[0]
+    near = have[np.abs(have - i) <= window]
+    before, after = near[near < i], near[near > i]
+    if not ((len(before) and len(after)) or (np.abs(near - i) == 1).any()):
+        out["reason"] = "no labelled exposure near enough for continuity"
+        return out
+    D = X_pair[near, 0] - X_pair[near, 1]
+    if len(before) and len(after):
+        D_i = np.array([np.interp(i, near, D[:, j]) for j in range(3)])
+    else:
+        D_i = D[np.argmin(np.abs(near - i))]
+    # the midpoint now: from this exposure's located blob centres
+    xy = np.array([found[j] - bias[j] for j in range(len(cams))])[:, None, :]
+    Xm, nv = triangulate(cams, xy)
+    if not np.isfinite(Xm).all():
+        Xm = np.array([np.interp(i, near, X_pair[near, :, j].mean(1)) for j in range(3)])[None]
+    assign = []
+    for s, p, sg, sep in split_views:
+        q = cameras[s].project(np.vstack([Xm[0] + D_i / 2, Xm[0] - D_i / 2]))
+        u, m = q[0] - q[1], p[0] - p[1]
+        c = float(u @ m) / max(np.linalg.norm(u) * np.linalg.norm(m), 1e-12)
+        if abs(c) < min_cos:
+            ang = np.degrees(np.arccos(min(abs(c), 1.0)))
+            out["reason"] = (f"continuity: the separation in {s} is {ang:.0f} deg from "
+                             "the prediction")
+            return out
+        assign.append(0 if c > 0 else 1)
+    assign = np.array(assign)
+    if len(split_views) >= 2:
+        vc = [cameras[s] for s, *_ in split_views]
+        pts = np.array([p - bias[sidx[s]] for s, p, *_ in split_views])
+        sg = np.array([v[2] for v in split_views])
+        k = len(vc)
+        xy = np.stack([pts[np.arange(k), assign], pts[np.arange(k), 1 - assign]], axis=1)
+        X, _ = triangulate(vc, xy)
+        res = reprojection_residuals(vc, X, xy)
+        out["chi2"] = float(((res / sg[:, None]) ** 2).sum())
+        limit = float(chi2_dist.ppf(chi2_quantile, 2 * (2 * k - 3)))
+        if not out["chi2"] <= limit:
+            out["reason"] = (f"continuity: views inconsistent (chi2 {out['chi2']:.1f} > "
+                             f"{limit:.1f})")
+            return out
+    out["ok"], out["assign"] = True, assign
     return out
