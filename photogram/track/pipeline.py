@@ -8,9 +8,13 @@
 3. the markers (:func:`photogram.track.tracks.track_markers`): candidates,
    2D tracks from the seeds, sync offsets (given or estimated), 3D checks
    and the ballistic prediction; flagged, never guessed;
-4. the ski lines (:func:`photogram.track.skis.track_skis`) in bands
+4. the merged binding markers split
+   (:func:`photogram.track.bindings.split_merged_bindings`): two spots of
+   the single markers' shape in one blob, labels from the three views and
+   the jumper's right, or left ambiguous;
+5. the ski lines (:func:`photogram.track.skis.track_skis`) in bands
    predicted from the binding markers, left/right by the three-view check;
-5. the tables: ``jumper_points.csv`` keeps a marker of an exposure only
+6. the tables: ``jumper_points.csv`` keeps a marker of an exposure only
    where at least two stations found it (one ray fixes no point; the
    single observation stays in ``tracking.csv`` with the reason), and
    ``ski_lines.csv`` a ski only where at least two stations found it.
@@ -31,6 +35,7 @@ import pandas as pd
 
 from photogram.errors import InputError
 from photogram.track.background import estimate_background
+from photogram.track.bindings import split_merged_bindings
 from photogram.track.inputs import Exposures, read_exposures, read_seeds, view_cameras
 from photogram.track.skis import track_skis
 from photogram.track.tracks import track_markers
@@ -56,6 +61,9 @@ class TrackingRun:
         ``exposure, status, swapped, detail``: the left/right check.
     ski_flags : DataFrame
         ``exposure, station, line, reason``: skis not found in an image.
+    midpoints : DataFrame
+        ``exposure, station, x, y, sigma, split``: the centre of each merged
+        binding blob (the image of the binding midpoint), split or not.
     offsets : dict
         station -> frames its video starts late (the ``[track]`` convention).
     exposures : Exposures
@@ -74,6 +82,7 @@ class TrackingRun:
     frames: dict
     summary: dict = field(default_factory=dict)
     log: list = field(default_factory=list)
+    midpoints: pd.DataFrame | None = None
 
     def jumper_points(self) -> pd.DataFrame:
         """``exposure, station, point, x, y, sigma`` of the markers found in
@@ -104,7 +113,8 @@ def _tracker_offsets(offsets: dict, stations: list) -> dict:
 
 
 def track_videos(frames, cameras, seeds, exposures: Exposures, *, markers, skis, ski_markers,
-                 offsets, ski_length, binding_fraction, points_per_ski, log=None):
+                 offsets, ski_length, binding_fraction, points_per_ski, length_unit=1.0,
+                 log=None):
     """The tracking chain on arrays (module doc, steps 2-4).
 
     Parameters
@@ -117,6 +127,7 @@ def track_videos(frames, cameras, seeds, exposures: Exposures, *, markers, skis,
     offsets : dict station -> frames late, or None to estimate them
     ski_length : in the length unit of the cameras
     binding_fraction, points_per_ski : as ``[track]``
+    length_unit : metres per length unit of the cameras (0.1: dm)
 
     Returns
     -------
@@ -144,13 +155,21 @@ def track_videos(frames, cameras, seeds, exposures: Exposures, *, markers, skis,
                    + (f" ({mt.sync.summary()})" if mt.sync is not None else ""))
     frames_of = {s: exposures.in_station(used[s]) for s in stations}
     t = time.perf_counter()
-    st = track_skis(frames, {s: backgrounds[s].median for s in stations}, cameras, mt.table,
+    table, split = split_merged_bindings(mt.table, frames, backgrounds, cameras, frames_of,
+                                         pair=tuple(ski_markers), hip=markers[1],
+                                         length_unit=length_unit)
+    timings["bindings_s"] = time.perf_counter() - t
+    c = split.counts
+    log.append("merged binding blobs: " + ", ".join(f"{k} {v}" for k, v in c.items()))
+    t = time.perf_counter()
+    st = track_skis(frames, {s: backgrounds[s].median for s in stations}, cameras, table,
                     frames_of, skis=dict(zip(skis, ski_markers)), ski_length=ski_length,
                     binding_fraction=binding_fraction, points_per_ski=points_per_ski,
                     helmet=markers[0], hip=markers[1])
     timings["skis_s"] = time.perf_counter() - t
-    run = TrackingRun(markers=mt.table, skis=st.table, ski_checks=st.checks, ski_flags=st.flags,
-                      offsets=used, exposures=exposures, frames=frames, log=log)
+    run = TrackingRun(markers=table, skis=st.table, ski_checks=st.checks, ski_flags=st.flags,
+                      offsets=used, exposures=exposures, frames=frames, log=log,
+                      midpoints=split.midpoints)
     run.summary["timings"] = timings
     return run
 
@@ -179,7 +198,7 @@ def track_project(project) -> TrackingRun:
                        ski_markers=ts.ski_markers, offsets=ts.offsets,
                        ski_length=ts.ski_length / to_unit,
                        binding_fraction=ts.binding_fraction, points_per_ski=ts.points_per_ski,
-                       log=log)
+                       length_unit=to_unit, log=log)
     run.summary["timings"]["read_s"] = t_read
     run.summary["timings"]["total_s"] = time.perf_counter() - t0
     n_cam_frames = sum(n_frames.values())
