@@ -40,3 +40,28 @@ def test_a_point_missing_at_one_exposure_leaves_a_gap_not_a_zero_sigma(tmp_path)
     e7 = ex[ex.exposure == "007"].iloc[0]
     assert np.isnan(e7.alpha) and np.isfinite(e7.phi) and np.isfinite(e7.v)   # alpha needs P2
     assert ex[ex.exposure != "007"].alpha.notna().all()
+
+
+@pytest.mark.skipif(not all(p.exists() for p in NEEDS), reason="needs make demo's lab and field results")
+def test_a_ski_seen_in_one_image_is_a_gap_with_a_warning(tmp_path):
+    shutil.copy(JUMPS / "jumper_points.csv", tmp_path / "jumper_points.csv")
+    prj = tmp_path / "jumps.prj"
+    prj.write_text((JUMPS / "jumps.prj").read_text().replace('"../', f'"{ROOT}/projects/'))
+    rows = (JUMPS / "ski_lines.csv").read_text().splitlines()
+    drop = ("009,S1,L1,", "009,S2,L1,")
+    kept = [r for r in rows if not r.startswith(drop)]
+    assert len(rows) - len(kept) == 30                     # 15 points in each of 2 images
+    (tmp_path / "ski_lines.csv").write_text("\n".join(kept) + "\n")
+    run = subprocess.run([sys.executable, "-m", "photogram_cli", "intersect", str(prj)],
+                         capture_output=True, text=True, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    import json
+    s = json.loads((tmp_path / "results" / "summary.json").read_text())
+    assert any("L1@009 is measured in 1 image(s)" in w for w in s["warnings"])
+    lines = pd.read_csv(tmp_path / "results" / "lines3d.csv", dtype={"exposure": str})
+    assert not ((lines.exposure == "009") & (lines.line == "L1")).any()
+    assert len(lines) == 47
+    ex = pd.read_csv(tmp_path / "results" / "exposures.csv", dtype={"exposure": str})
+    e9 = ex[ex.exposure == "009"].iloc[0]
+    assert np.isnan(e9.delta_phi)                      # the V angle needs both skis
+    assert ex[ex.exposure != "009"].delta_phi.notna().all()

@@ -179,6 +179,11 @@ def intersect_jump(project, orientation=None) -> JumpResult:
                     views = {**views, **swap_labels(complete, check)}
         for j, ski in enumerate(cfg.skis):
             pts = {st: v[ski] for st, v in views.items() if ski in v}
+            if len(pts) < 2:       # e.g. flagged by photogram track: a gap, not an error
+                summary["warnings"].append(
+                    f"ski line {ski}@{exposure} is measured in {len(pts)} image(s): not "
+                    f"intersected (the stick-model values that need it are empty)")
+                continue
             res = intersect_line_from_points(pts, cameras, sig, label=f"{ski}@{exposure}")
             lines[(exposure, ski)] = res
             d[e, j] = res.line.direction
