@@ -90,8 +90,18 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
         raise InputError(f"every must be >= 1, got {every}")
     ex, ey, (lx, ly) = _plan_axes(model, along)
     unit = model.length_unit
-    idx = [i for i in range(0, len(model), int(every))
-           if np.all(np.isfinite(model.P[i])) and np.all(np.isfinite(model.skis[i]))]
+    complete = [i for i in range(len(model))
+                if np.all(np.isfinite(model.P[i])) and np.all(np.isfinite(model.skis[i]))]
+    # every ``every``-th exposure; where gaps (points or skis not measured,
+    # e.g. flagged by photogram track) leave none of those, every
+    # ``every``-th complete one
+    idx = [i for i in complete if i % int(every) == 0] or complete[::int(every)]
+    if not idx:
+        with _style():
+            fig = _new_figure((8, 2))
+            fig.text(0.5, 0.5, "no exposure with all jumper points and both skis",
+                     ha="center", va="center")
+            return _save(fig, path_png, dpi)
 
     def side(p):   # (..., 3) -> abscissa, Z
         return p @ ex, p[..., 2]
