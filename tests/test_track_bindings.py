@@ -293,3 +293,29 @@ def test_rendered_harsh_set():
           f"{np.sqrt(np.mean(res.err[by_continuity] ** 2)):.3f} px")
     assert wrong == 0
     assert resolved == 0 or rms < 0.6
+
+
+def test_spot_models_have_analytic_jacobians_that_match_finite_differences():
+    """The one-spot (soft elliptical disc over a constant) and the two-spot
+    (union of two equal discs) models: analytic partials against central
+    differences."""
+    from photogram.track import bindings as bd
+    rng = np.random.default_rng(1)
+    n = 4
+    yy, xx = np.mgrid[0:9, 0:9].astype(float)
+    x, y = np.broadcast_to(xx, (n, 9, 9)).copy(), np.broadcast_to(yy, (n, 9, 9)).copy()
+    p = np.column_stack([rng.uniform(50, 100, n), rng.uniform(0, 5, n),
+                         4 + rng.normal(0, .3, n), 4 + rng.normal(0, .3, n),
+                         np.log(rng.uniform(1.5, 3, n)), rng.normal(0, .3, n),
+                         np.log(rng.uniform(1.5, 3, n)), np.log(rng.uniform(.2, .5, n))])
+    S = np.column_stack([np.exp(p[:, 4]), np.full(n, 0.3), np.exp(p[:, 6]), np.exp(p[:, 7])])
+    two = bd._two_spots(S)
+    q = np.column_stack([p[:, :4], rng.normal(0, .6, n), rng.normal(0, .6, n)])
+    for model, jac, par in ((bd._one_spot, bd._one_spot_jacobian, p),
+                            (two, two.jacobian, q)):
+        J = jac(par, x, y)
+        for k in range(par.shape[1]):
+            e = np.zeros(par.shape[1])
+            e[k] = 1e-6
+            fd = (model(par + e, x, y) - model(par - e, x, y)) / 2e-6
+            np.testing.assert_allclose(J[..., k], fd, rtol=1e-5, atol=1e-7 * np.abs(fd).max())

@@ -314,3 +314,24 @@ def test_rendered_harsh_videos():
     assert len(err) >= 0.8 * 24 * 3 * 2
     assert (err.dist < err.dist_other).mean() > 0.8
     assert np.sqrt(np.mean(err.angle ** 2)) < 2.0
+
+
+def test_bar_model_jacobian_is_analytic_and_matches_finite_differences():
+    """The two-bar model's Jacobian (angle, shift, ends of each bar; width,
+    grey, blur) against central differences."""
+    from photogram.track import ski_edges as se
+    rng = np.random.default_rng(0)
+    x, y = np.meshgrid(np.arange(24.0), np.arange(30.0))
+    x, y = x.ravel(), y.ravel()
+    bg = 200 + rng.normal(0, 3, x.shape)
+    ref, u0 = np.array([11.0, 15.0]), np.array([0.6, 0.8])
+    for th in (np.array([0.05, 1.2, -8, 9, -0.03, -2.1, -7, 10, 2.5, 90, 0.8]),
+               np.array([-0.2, 0.3, -12, 4, 0.1, 0.0, -3, 12, 1.2, 120, 1.6])):
+        J = se._model_jacobian(th, x, y, bg, ref, u0)
+        for k in range(11):
+            h = 1e-6 * max(1.0, abs(th[k]))
+            e = np.zeros(11)
+            e[k] = h
+            fd = (se._model(th + e, x, y, bg, ref, u0)
+                  - se._model(th - e, x, y, bg, ref, u0)) / (2 * h)
+            np.testing.assert_allclose(J[:, k], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())

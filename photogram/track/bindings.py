@@ -207,12 +207,13 @@ def _inv_sym(S):
     return np.column_stack([S[:, 2], -S[:, 1], S[:, 0]]) / det[:, None]
 
 
-def _gauss_newton(model, p, v, x, y, n_iter=30, eps=1e-4, damping=1e-3):
-    """Batched Levenberg-Marquardt with a forward-difference Jacobian.
+def _gauss_newton(model, p, v, x, y, n_iter=30, damping=1e-3):
+    """Batched Levenberg-Marquardt with the model's analytic Jacobian.
 
-    ``model(p, x, y) -> (n, h, w)``; ``p`` (n, k) start; ``v`` (n, h, w)
-    data (NaN outside the image); ``x, y`` (n, h, w) pixel centres.
-    Returns p, J (n, m, k) at the solution, residuals (n, m), valid (n, m).
+    ``model(p, x, y) -> (n, h, w)`` and ``model.jacobian(p, x, y) -> (n, h,
+    w, k)``; ``p`` (n, k) start; ``v`` (n, h, w) data (NaN outside the
+    image); ``x, y`` (n, h, w) pixel centres. Returns p, J (n, m, k) at the
+    solution, residuals (n, m), valid (n, m).
     """
     valid = np.isfinite(v).reshape(len(v), -1)
     data = np.where(np.isfinite(v), v, 0).reshape(len(v), -1)
@@ -225,13 +226,9 @@ def _gauss_newton(model, p, v, x, y, n_iter=30, eps=1e-4, damping=1e-3):
         return np.where(valid, r, 0.0)
 
     def jac(q, r0):
-        J = np.empty(r0.shape + (q.shape[1],))
-        for j in range(q.shape[1]):
-            h = eps * np.maximum(1.0, np.abs(q[:, j]))
-            dq = q.copy()
-            dq[:, j] += h
-            J[:, :, j] = (resid(dq) - r0) / h[:, None]
-        return J
+        with np.errstate(all="ignore"):
+            J = model.jacobian(q, x, y).reshape(len(q), -1, q.shape[1])
+        return np.where(valid[:, :, None], np.nan_to_num(J), 0.0)
 
     r = resid(p)
     cost = (r ** 2).sum(1)
@@ -299,10 +296,77 @@ def _profile(x, y, cx, cy, Qinv, w):
     return 0.5 * erfc((np.sqrt(q) - 1.0) / w[:, None, None])
 
 
+def _profile_jacobian(x, y, cx, cy, Qinv, w):
+    """:func:`_profile` ``g`` and its partials (n, h, w, 6) by the centre
+    (cx, cy), the three entries of ``Qinv`` and the edge width ``w``:
+    ``dg/dz = -exp(-z^2) / sqrt(pi)``, ``z = (rho - 1) / w``,
+    ``drho/dq = 1 / (2 rho)``, ``dq/dcx = -2 (a dx + b dy)``,
+    ``dq/dcy = -2 (b dx + c dy)``, ``dq/d(a, b, c) = (dx^2, 2 dx dy, dy^2)``."""
+    from scipy.special import erfc
+    dx, dy = x - cx[:, None, None], y - cy[:, None, None]
+    a, b, c = (Qinv[:, k, None, None] for k in range(3))
+    q = a * dx * dx + 2 * b * dx * dy + c * dy * dy
+    rho = np.sqrt(np.maximum(q, 1e-24))
+    ww = w[:, None, None]
+    z = (rho - 1.0) / ww
+    g = 0.5 * erfc(z)
+    dg_dq = -np.exp(-z * z) / np.sqrt(np.pi) / ww / (2 * rho)
+    J = np.empty(x.shape + (6,))
+    J[..., 0] = dg_dq * -2 * (a * dx + b * dy)
+    J[..., 1] = dg_dq * -2 * (b * dx + c * dy)
+    J[..., 2] = dg_dq * dx * dx
+    J[..., 3] = dg_dq * 2 * dx * dy
+    J[..., 4] = dg_dq * dy * dy
+    J[..., 5] = -np.exp(-z * z) / np.sqrt(np.pi) * -z / ww
+    return g, J
+
+
+def _shape_jacobian(lx, rho, ly):
+    """``Qinv`` = inverse of :func:`_shape` (n, 3) and d Qinv / d(lx, rho,
+    ly) (n, 3, 3): ``dQinv = -Qinv dS Qinv``."""
+    S = _shape(lx, rho, ly)
+    Qi = _inv_sym(S)
+    sx, sy, th = np.exp(0.5 * lx), np.exp(0.5 * ly), np.tanh(rho)
+    dS = np.zeros((len(lx), 3, 3))                       # [entry of S, parameter]
+    dS[:, 0, 0] = sx * sx
+    dS[:, 1, 0] = 0.5 * S[:, 1]
+    dS[:, 1, 1] = 0.95 * (1 - th * th) * sx * sy
+    dS[:, 1, 2] = 0.5 * S[:, 1]
+    dS[:, 2, 2] = sy * sy
+
+    def full(v):                                          # (n, 3) -> (n, 2, 2)
+        return np.stack([np.stack([v[..., 0], v[..., 1]], -1),
+                         np.stack([v[..., 1], v[..., 2]], -1)], -2)
+    Qm = full(Qi)
+    out = np.empty((len(lx), 3, 3))
+    for k in range(3):
+        D = -Qm @ full(dS[:, :, k]) @ Qm
+        out[:, :, k] = np.stack([D[:, 0, 0], D[:, 0, 1], D[:, 1, 1]], -1)
+    return Qi, out
+
+
 def _one_spot(p, x, y):
     Q = _shape(p[:, 4], p[:, 5], p[:, 6])
     return p[:, 0, None, None] * _profile(x, y, p[:, 2], p[:, 3], _inv_sym(Q), np.exp(p[:, 7])) \
         + p[:, 1, None, None]
+
+
+def _one_spot_jacobian(p, x, y):
+    """d :func:`_one_spot` / d(amp, b, cx, cy, lx, rho, ly, log w), analytic."""
+    Qi, dQi = _shape_jacobian(p[:, 4], p[:, 5], p[:, 6])
+    w = np.exp(p[:, 7])
+    g, Jg = _profile_jacobian(x, y, p[:, 2], p[:, 3], Qi, w)
+    amp = p[:, 0, None, None, None]
+    J = np.empty(x.shape + (8,))
+    J[..., 0] = g
+    J[..., 1] = 1.0
+    J[..., 2:4] = amp * Jg[..., 0:2]
+    J[..., 4:7] = amp * np.einsum("nhwe,nek->nhwk", Jg[..., 2:5], dQi)
+    J[..., 7] = amp[..., 0] * Jg[..., 5] * w[:, None, None]
+    return J
+
+
+_one_spot.jacobian = _one_spot_jacobian
 
 
 def fit_spot_shape(image: np.ndarray, centres: np.ndarray, *, half: int = 4,
@@ -362,6 +426,22 @@ def _two_spots(shape):
         g2 = _profile(x, y, cx - dx, cy - dy, Qinv, w)
         # opaque discs: the union, not the sum, of the two coverages
         return a[:, None, None] * (g1 + g2 - g1 * g2) + b[:, None, None]
+
+    def jacobian(p, x, y):
+        """d model / d(a, b, cx, cy, dx, dy), analytic."""
+        a, b, cx, cy, dx, dy = p.T
+        g1, J1 = _profile_jacobian(x, y, cx + dx, cy + dy, Qinv, w)
+        g2, J2 = _profile_jacobian(x, y, cx - dx, cy - dy, Qinv, w)
+        A = a[:, None, None, None]
+        h1, h2 = (1 - g2)[..., None] * J1[..., :2], (1 - g1)[..., None] * J2[..., :2]
+        J = np.empty(x.shape + (6,))
+        J[..., 0] = g1 + g2 - g1 * g2
+        J[..., 1] = 1.0
+        J[..., 2:4] = A * (h1 + h2)
+        J[..., 4:6] = A * (h1 - h2)
+        return J
+
+    model.jacobian = jacobian
     return model
 
 

@@ -213,6 +213,60 @@ def _model(theta, x, y, bg, ref, u0):
     return (bg - G) * (c1 + c2 - c1 * c2)
 
 
+def _coverage_jacobian(x, y, par, w, blur, ref, u0):
+    """Coverage eq. (1) of one bar and its analytic partial derivatives by
+    (angle, shift, a, b, width, blur): (n,), (n, 6).
+
+    With ``u = R(angle) u0``, ``n = perp(u)``, ``p = ref + c n0``, the
+    distances ``d = (x - p) . n`` and ``t = (x - p) . u`` have
+    ``dd/dangle = -t``, ``dt/dangle = d``, ``dd/dc = -n0 . n``,
+    ``dt/dc = -n0 . u``; the coverage is ``A(d) B(t)`` with
+    ``A = Phi((d + w/2)/s) - Phi((d - w/2)/s)``,
+    ``B = Phi((t - a)/s) - Phi((t - b)/s)`` (Phi the normal CDF, phi its
+    density)."""
+    ang, c, a, b = par
+    ca, sa = np.cos(ang), np.sin(ang)
+    u = np.array([u0[0] * ca - u0[1] * sa, u0[0] * sa + u0[1] * ca])
+    n = np.array([-u[1], u[0]])
+    n0 = np.array([-u0[1], u0[0]])
+    p = ref + c * n0
+    dx, dy = x - p[0], y - p[1]
+    d = dx * n[0] + dy * n[1]
+    t = dx * u[0] + dy * u[1]
+    z1, z2 = (d + w / 2) / blur, (d - w / 2) / blur
+    za, zb = (t - a) / blur, (t - b) / blur
+    f1, f2, fa, fb = (np.exp(-0.5 * z * z) / np.sqrt(2 * np.pi) for z in (z1, z2, za, zb))
+    A = ndtr(z1) - ndtr(z2)
+    B = ndtr(za) - ndtr(zb)
+    dA_dd = (f1 - f2) / blur
+    dB_dt = (fa - fb) / blur
+    J = np.empty(x.shape + (6,))
+    J[..., 0] = dA_dd * -t * B + A * dB_dt * d                       # angle
+    J[..., 1] = dA_dd * -(n0 @ n) * B + A * dB_dt * -(n0 @ u)       # shift c
+    J[..., 2] = A * -fa / blur                                       # a
+    J[..., 3] = A * fb / blur                                        # b
+    J[..., 4] = 0.5 * (f1 + f2) / blur * B                           # width
+    J[..., 5] = (-(f1 * z1 - f2 * z2) / blur * B
+                 + A * -(fa * za - fb * zb) / blur)                  # blur
+    return A * B, J
+
+
+def _model_jacobian(theta, x, y, bg, ref, u0):
+    """d model / d theta (n, 11) of :func:`_model`, analytic."""
+    w, G, blur = theta[_W], theta[_G], theta[_BLUR]
+    c1, J1 = _coverage_jacobian(x, y, theta[:4], w, blur, ref, u0)
+    c2, J2 = _coverage_jacobian(x, y, theta[4:8], w, blur, ref, u0)
+    k = bg - G
+    g1, g2 = k * (1 - c2), k * (1 - c1)                               # d / d c1, d / d c2
+    J = np.empty(x.shape + (11,))
+    J[..., 0:4] = g1[..., None] * J1[..., :4]
+    J[..., 4:8] = g2[..., None] * J2[..., :4]
+    J[..., _W] = g1 * J1[..., 4] + g2 * J2[..., 4]
+    J[..., _G] = -(c1 + c2 - c1 * c2)
+    J[..., _BLUR] = g1 * J1[..., 5] + g2 * J2[..., 5]
+    return J
+
+
 def _to_bar(theta, k, ref, u0, cov):
     ang, c, a, b = theta[k * _PER_SKI:(k + 1) * _PER_SKI]
     ca, sa = np.cos(ang), np.sin(ang)
@@ -424,7 +478,10 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
         def fun(th):
             return _model(th, x, y, bv, ref, u0) - v
 
-        res = least_squares(fun, theta, bounds=(lower, upper), loss="soft_l1",
+        def jac(th):
+            return _model_jacobian(th, x, y, bv, ref, u0)
+
+        res = least_squares(fun, theta, jac=jac, bounds=(lower, upper), loss="soft_l1",
                             f_scale=3 * sigma_noise, x_scale="jac", max_nfev=60,
                             xtol=1e-6, ftol=1e-8)
         theta = res.x
