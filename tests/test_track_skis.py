@@ -227,7 +227,14 @@ def test_brightness_changes(field):
 def test_swapped_binding_markers_are_corrected(field):
     swap = {(e, "S2") for e in range(1, 5)}
     frames, bgs, cams, markers, truth = _views(field, [6, 7, 8, 9], marker_swap=swap)
+    # the check corrects the labels the (swapped) binding markers gave
     res = track_skis(frames, bgs, cams, markers, np.arange(4))
+    # with trust_bindings the same swap contradicts the bindings: flagged
+    # with the reason, the labels left as the bindings say
+    trusted = track_skis(frames, bgs, cams, markers, np.arange(4), trust_bindings=True)
+    fl = trusted.checks[trusted.checks.detail.str.contains("binding markers of S2 say")]
+    assert len(fl) >= 3 and (fl.status == "flagged").all()
+    assert (trusted.checks.status != "swapped").all()
     err = _label_errors(res, truth)
     # the table's labels are right in every view after the three-view check
     assert (err.dist < err.dist_other).all()
