@@ -189,17 +189,25 @@ _PER_SKI = 4
 _W, _G, _BLUR = 8, 9, 10
 
 
-def _coverage(x, y, par, w, blur, ref, u0):
-    """Coverage eq. (1) of one bar at pixel centres (x, y)."""
-    ang, c, a, b = par
+def _bar_frame(x, y, par, ref, u0):
+    """Distances ``d`` across and ``t`` along one bar of pixel centres (x,
+    y), with the bar's direction ``u``, normal ``n`` and the reference
+    normal ``n0`` (``par``: angle from ``u0``, shift along ``n0`` at
+    ``ref``, ends)."""
+    ang, c = par[0], par[1]
     ca, sa = np.cos(ang), np.sin(ang)
     u = np.array([u0[0] * ca - u0[1] * sa, u0[0] * sa + u0[1] * ca])
     n = np.array([-u[1], u[0]])
     n0 = np.array([-u0[1], u0[0]])
     p = ref + c * n0
     dx, dy = x - p[0], y - p[1]
-    d = dx * n[0] + dy * n[1]
-    t = dx * u[0] + dy * u[1]
+    return dx * n[0] + dy * n[1], dx * u[0] + dy * u[1], u, n, n0
+
+
+def _coverage(x, y, par, w, blur, ref, u0):
+    """Coverage eq. (1) of one bar at pixel centres (x, y)."""
+    a, b = par[2], par[3]
+    d, t, *_ = _bar_frame(x, y, par, ref, u0)
     across = ndtr((d + w / 2) / blur) - ndtr((d - w / 2) / blur)
     along = ndtr((t - a) / blur) - ndtr((t - b) / blur)
     return across * along
@@ -224,15 +232,8 @@ def _coverage_jacobian(x, y, par, w, blur, ref, u0):
     ``A = Phi((d + w/2)/s) - Phi((d - w/2)/s)``,
     ``B = Phi((t - a)/s) - Phi((t - b)/s)`` (Phi the normal CDF, phi its
     density)."""
-    ang, c, a, b = par
-    ca, sa = np.cos(ang), np.sin(ang)
-    u = np.array([u0[0] * ca - u0[1] * sa, u0[0] * sa + u0[1] * ca])
-    n = np.array([-u[1], u[0]])
-    n0 = np.array([-u0[1], u0[0]])
-    p = ref + c * n0
-    dx, dy = x - p[0], y - p[1]
-    d = dx * n[0] + dy * n[1]
-    t = dx * u[0] + dy * u[1]
+    a, b = par[2], par[3]
+    d, t, u, n, n0 = _bar_frame(x, y, par, ref, u0)
     z1, z2 = (d + w / 2) / blur, (d - w / 2) / blur
     za, zb = (t - a) / blur, (t - b) / blur
     f1, f2, fa, fb = (np.exp(-0.5 * z * z) / np.sqrt(2 * np.pi) for z in (z1, z2, za, zb))
