@@ -16,9 +16,6 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 JUMPS = ROOT / "projects" / "jumps"
-NEEDS = [ROOT / "projects/lab/results/cameras.toml", ROOT / "projects/field/results/stations.csv"]
-pytestmark = pytest.mark.skipif(not all(p.exists() for p in NEEDS),
-                                reason="needs make demo's lab and field results")
 
 
 @pytest.fixture(scope="module")
@@ -29,9 +26,10 @@ def rendered(tmp_path_factory):
     return folder
 
 
-def _project(tmp_path, video, **changes):
-    """A copy of projects/jumps/track.prj reading ``video``."""
-    text = (JUMPS / "track.prj").read_text().replace('"../', f'"{ROOT.as_posix()}/projects/')
+def _project(tmp_path, video, oriented, **changes):
+    """A copy of projects/jumps/track.prj reading ``video`` and the lab and
+    field results of ``oriented`` (the session's oriented chain)."""
+    text = (JUMPS / "track.prj").read_text().replace('"../', f'"{oriented.as_posix()}/')
     text = text.replace('"video/', f'"{video.as_posix()}/')
     for old, new in changes.items():
         text = text.replace(old, new)
@@ -45,8 +43,8 @@ def _run(*args, cwd=None):
                           capture_output=True, text=True, cwd=cwd)
 
 
-def test_track_writes_the_tables_intersect_reads(tmp_path, rendered):
-    prj = _project(tmp_path, rendered)
+def test_track_writes_the_tables_intersect_reads(tmp_path, rendered, oriented_projects):
+    prj = _project(tmp_path, rendered, oriented_projects)
     run = _run("track", prj)
     assert run.returncode == 0, run.stderr
     out = tmp_path / "results-track"
@@ -69,7 +67,8 @@ def test_track_writes_the_tables_intersect_reads(tmp_path, rendered):
     sheet = cv2.imread(str(out / "contact_sheet.png"))
     assert sheet is not None and sheet.shape[0] > 3 * 200
     # and intersect reads them (a copy of jumps-video.prj beside the results)
-    text = (JUMPS / "jumps-video.prj").read_text().replace('"../', f'"{ROOT.as_posix()}/projects/')
+    text = (JUMPS / "jumps-video.prj").read_text().replace('"../',
+                                                          f'"{oriented_projects.as_posix()}/')
     (tmp_path / "jumps-video.prj").write_text(text)
     run = _run("intersect", tmp_path / "jumps-video.prj")
     assert run.returncode == 0, run.stderr
@@ -94,7 +93,8 @@ def _frames_folder(src_video, dst, keep=None):
 
 @pytest.mark.parametrize("case", ["short video", "unknown station seed", "seed frame",
                                   "fps", "exposure outside"])
-def test_bad_input_is_one_line_and_exit_2_and_no_results(tmp_path, rendered, case):
+def test_bad_input_is_one_line_and_exit_2_and_no_results(tmp_path, rendered, oriented_projects,
+                                                         case):
     video = tmp_path / "video"
     shutil.copytree(rendered, video)
     changes = {}
@@ -121,7 +121,7 @@ def test_bad_input_is_one_line_and_exit_2_and_no_results(tmp_path, rendered, cas
     else:
         (video / "frames.csv").write_text("exposure,frame\n001,12\n002,60\n")
         words = "002"
-    prj = _project(tmp_path, video, **changes)
+    prj = _project(tmp_path, video, oriented_projects, **changes)
     run = _run("track", prj)
     assert run.returncode == 2, (run.stdout, run.stderr)
     err = run.stderr.strip()

@@ -13,14 +13,17 @@ from photogram.project import read_project
 from photogram.track.inputs import read_exposures, read_seeds, view_cameras
 
 ROOT = Path(__file__).resolve().parents[1]
-LAB = ROOT / "projects" / "lab" / "results" / "cameras.toml"
-FIELD = ROOT / "projects" / "field" / "results" / "stations.csv"
-
-needs_results = pytest.mark.skipif(not (LAB.is_file() and FIELD.is_file()),
-                                   reason="needs the lab and field results (make demo)")
 
 
-def _project(tmp_path, track_extra="", videos=("S1", "S2", "S3"), more=""):
+@pytest.fixture
+def oriented(oriented_projects):
+    """(lab cameras.toml, field stations.csv) of the session's oriented chain."""
+    return (oriented_projects / "lab" / "results" / "cameras.toml",
+            oriented_projects / "field" / "results" / "stations.csv")
+
+
+def _project(tmp_path, oriented, track_extra="", videos=("S1", "S2", "S3"), more=""):
+    LAB, FIELD = oriented
     v = tmp_path / "video"
     v.mkdir(exist_ok=True)
     for s in videos:
@@ -57,9 +60,8 @@ folder = "out"
     return prj
 
 
-@needs_results
-def test_a_tracking_project_reads_its_section_and_views(tmp_path):
-    p = read_project(_project(tmp_path, 'offsets = { S3 = 2 }\nfps = 29.97'))
+def test_a_tracking_project_reads_its_section_and_views(tmp_path, oriented):
+    p = read_project(_project(tmp_path, oriented, 'offsets = { S3 = 2 }\nfps = 29.97'))
     t = p.track
     assert set(t.videos) == {"S1", "S2", "S3"} and t.offsets == {"S3": 2}
     assert t.fps == 29.97 and t.markers == ("P1", "P2", "P3", "P4")
@@ -73,10 +75,9 @@ def test_a_tracking_project_reads_its_section_and_views(tmp_path):
         o = m[m.station == s]
         err = cam.project(o[["X", "Y", "Z"]].to_numpy()) - o[["x", "y"]].to_numpy()
         assert np.sqrt((err ** 2).mean()) < 1.0        # 0.33 px noise, adjusted orientation
-    assert read_project(_project(tmp_path, 'offsets = "estimate"')).track.offsets is None
+    assert read_project(_project(tmp_path, oriented, 'offsets = "estimate"')).track.offsets is None
 
 
-@needs_results
 @pytest.mark.parametrize("extra, words", [
     ('offsets = { S4 = 1 }', "S4"),
     ('markers = ["P1", "P2"]', "4 points"),
@@ -84,8 +85,8 @@ def test_a_tracking_project_reads_its_section_and_views(tmp_path):
     ('unknown_key = 1', "unknown_key"),
     ('truth = "nowhere"', "not found"),
 ])
-def test_bad_track_settings_are_one_line_at_their_line(tmp_path, extra, words):
-    prj = _project(tmp_path, extra)
+def test_bad_track_settings_are_one_line_at_their_line(tmp_path, oriented, extra, words):
+    prj = _project(tmp_path, oriented, extra)
     line = prj.read_text().splitlines().index(extra) + 1
     with pytest.raises(InputError) as exc:
         read_project(prj)
@@ -93,16 +94,15 @@ def test_bad_track_settings_are_one_line_at_their_line(tmp_path, extra, words):
     assert f"track.prj:{line}:" in text and words in text and "\n" not in text
 
 
-@needs_results
-def test_a_video_of_an_unknown_station_and_missing_files_are_refused(tmp_path):
-    prj = _project(tmp_path, videos=("S1", "S9"))
+def test_a_video_of_an_unknown_station_and_missing_files_are_refused(tmp_path, oriented):
+    prj = _project(tmp_path, oriented, videos=("S1", "S9"))
     with pytest.raises(InputError, match="S9"):
         read_project(prj)
-    prj = _project(tmp_path)
+    prj = _project(tmp_path, oriented)
     (tmp_path / "video" / "S2.avi").unlink()
     with pytest.raises(InputError, match="S2.avi not found"):
         read_project(prj)
-    prj = _project(tmp_path, more='[observations]\npoints = "x.csv"\n')
+    prj = _project(tmp_path, oriented, more='[observations]\npoints = "x.csv"\n')
     with pytest.raises(InputError, match="observations"):
         read_project(prj)
 

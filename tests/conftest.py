@@ -1,0 +1,31 @@
+"""Shared fixtures."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import shutil
+from pathlib import Path
+
+import pytest
+
+PROJECTS = Path(__file__).resolve().parents[1] / "projects"
+
+
+@pytest.fixture(scope="session")
+def oriented_projects(tmp_path_factory):
+    """A folder with copies of projects/lab (its photographs measured and
+    calibrated), projects/field (oriented) and projects/jumps, as `make
+    demo` leaves them: ``root/lab/results``, ``root/field/results``, the
+    jumps project reading them by its relative paths. Built once per test
+    session, so that tests of the later steps run in a fresh clone too."""
+    from lab_stage import stage_lab
+    from photogram_cli.main import main
+    root = tmp_path_factory.mktemp("oriented")
+    for name in ("field", "jumps"):
+        shutil.copytree(PROJECTS / name, root / name,
+                        ignore=shutil.ignore_patterns("results*", "video", ".*"))
+    stage_lab(root / "lab", calibrate=True)
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        assert main(["orient", "-q", str(root / "field" / "field.prj")]) == 0
+    return root
