@@ -299,7 +299,7 @@ def test_spot_models_have_analytic_jacobians_that_match_finite_differences():
     """The one-spot (soft elliptical disc over a constant) and the two-spot
     (union of two equal discs) models: analytic partials against central
     differences."""
-    from photogram.track import bindings as bd
+    from photogram.track import spots as bd
     rng = np.random.default_rng(1)
     n = 4
     yy, xx = np.mgrid[0:9, 0:9].astype(float)

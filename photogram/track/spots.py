@@ -1,0 +1,370 @@
+"""Spots of reflective markers in small windows (the image fits of
+:mod:`photogram.track.bindings`): the white top-hat, windows with their
+pixel centres, moments, the single marker's spot (a soft elliptical disc,
+:func:`fit_spot_shape`) and two equal spots in one blob
+(:func:`fit_two_spots`), fitted by a batched Levenberg-Marquardt with
+analytic Jacobians."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+# ------------------------------------------------------------------ image fits
+
+def _tophat(frame: np.ndarray, size: int) -> np.ndarray:
+    """White top-hat ``I - open(I)`` with a ``size`` square (float32)."""
+    import cv2
+    f = np.asarray(frame, np.float32)
+    k = cv2.getStructuringElement(cv2.MORPH_RECT, (size, size))
+    return f - cv2.morphologyEx(f, cv2.MORPH_OPEN, k)
+
+
+def _windows(img: np.ndarray, centres: np.ndarray, half: int, pixel_offset: float):
+    """Windows (n, 2h+1, 2h+1) of ``img`` around ``centres`` (n, 2) (image
+    frame) and the image-frame coordinates of their pixel centres
+    (n, 2h+1, 2h+1) x 2; pixels outside the image are NaN."""
+    centres = np.asarray(centres, float).reshape(-1, 2)
+    H, W = img.shape
+    ij = np.rint(centres - pixel_offset).astype(int)                  # (n, 2) col, row
+    r = np.arange(-half, half + 1)
+    cols = ij[:, 0, None, None] + r[None, None, :]
+    rows = ij[:, 1, None, None] + r[None, :, None]
+    cols, rows = np.broadcast_arrays(cols, rows)
+    inside = (cols >= 0) & (cols < W) & (rows >= 0) & (rows < H)
+    vals = np.where(inside, img[np.clip(rows, 0, H - 1), np.clip(cols, 0, W - 1)], np.nan)
+    return vals.astype(float), cols + pixel_offset, rows + pixel_offset
+
+
+def _gauss(x, y, cx, cy, Sinv):
+    """exp(-q/2) of pixel grids (n, h, w) about centres (n,) with inverse
+    covariances (n, 3) (a, b, c of [[a, b], [b, c]])."""
+    dx, dy = x - cx[:, None, None], y - cy[:, None, None]
+    q = Sinv[:, 0, None, None] * dx * dx + 2 * Sinv[:, 1, None, None] * dx * dy \
+        + Sinv[:, 2, None, None] * dy * dy
+    return np.exp(-0.5 * q)
+
+
+def _inv_sym(S):
+    """Inverse of symmetric 2x2 (n, 3) [sxx, sxy, syy] -> (n, 3)."""
+    det = S[:, 0] * S[:, 2] - S[:, 1] ** 2
+    return np.column_stack([S[:, 2], -S[:, 1], S[:, 0]]) / det[:, None]
+
+
+def _gauss_newton(model, p, v, x, y, n_iter=30, damping=1e-3):
+    """Batched Levenberg-Marquardt with the model's analytic Jacobian.
+
+    ``model(p, x, y) -> (n, h, w)`` and ``model.jacobian(p, x, y) -> (n, h,
+    w, k)``; ``p`` (n, k) start; ``v`` (n, h, w) data (NaN outside the
+    image); ``x, y`` (n, h, w) pixel centres. Returns p, J (n, m, k) at the
+    solution, residuals (n, m), valid (n, m).
+    """
+    valid = np.isfinite(v).reshape(len(v), -1)
+    data = np.where(np.isfinite(v), v, 0).reshape(len(v), -1)
+    lam = np.full(len(p), damping)
+    eye = np.eye(p.shape[1])[None]
+
+    def resid(q):
+        with np.errstate(all="ignore"):
+            r = model(q, x, y).reshape(len(q), -1) - data
+        return np.where(valid, r, 0.0)
+
+    def jac(q, r0):
+        with np.errstate(all="ignore"):
+            J = model.jacobian(q, x, y).reshape(len(q), -1, q.shape[1])
+        return np.where(valid[:, :, None], np.nan_to_num(J), 0.0)
+
+    r = resid(p)
+    cost = (r ** 2).sum(1)
+    for _ in range(n_iter):
+        J = jac(p, r)
+        A = J.transpose(0, 2, 1) @ J
+        g = (J.transpose(0, 2, 1) @ r[:, :, None])[:, :, 0]
+        D = np.einsum("nii->ni", A)
+        Ad = A + lam[:, None, None] * (D[:, :, None] * eye + 1e-9 * eye)
+        try:
+            step = -np.linalg.solve(Ad, g[:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError:
+            step = -(np.linalg.pinv(Ad) @ g[:, :, None])[:, :, 0]
+        pn = p + step
+        rn = resid(pn)
+        cn = (rn ** 2).sum(1)
+        better = np.isfinite(cn) & (cn < cost)
+        p = np.where(better[:, None], pn, p)
+        r = np.where(better[:, None], rn, r)
+        cost = np.where(better, cn, cost)
+        lam = np.where(better, lam * 0.3, lam * 10.0)
+        if np.all(~better | (np.abs(step) < 1e-6).all(1)) and np.all(lam > 1e6):
+            break
+    return p, jac(p, r), r, valid
+
+
+def _nanmax(v):
+    """Largest finite value per window (n, h, w) -> (n,), NaN if none."""
+    f = np.isfinite(v).any(axis=(1, 2))
+    return np.where(f, np.max(np.where(np.isfinite(v), v, -np.inf), axis=(1, 2)), np.nan)
+
+
+def _moments(v, x, y):
+    """Centroid (n, 2), second moments (n, 3) and border level (n,) of the
+    positive part of windows ``v`` less the median of their border."""
+    border = np.concatenate([v[:, 0, :], v[:, -1, :], v[:, 1:-1, 0], v[:, 1:-1, -1]], axis=1)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        b = np.nanmedian(border, axis=1)
+    w = np.clip(np.nan_to_num(v - b[:, None, None]), 0, None)
+    s = w.sum((1, 2))
+    s = np.where(s > 0, s, np.nan)
+    cx, cy = (w * x).sum((1, 2)) / s, (w * y).sum((1, 2)) / s
+    dx, dy = x - cx[:, None, None], y - cy[:, None, None]
+    M = np.column_stack([(w * dx * dx).sum((1, 2)), (w * dx * dy).sum((1, 2)),
+                         (w * dy * dy).sum((1, 2))]) / s[:, None]
+    return np.column_stack([cx, cy]), M, b
+
+
+def _shape(lx, rho, ly):
+    """Covariance (n, 3) from log variances and a correlation (kept in
+    (-0.95, 0.95) by tanh)."""
+    sx, sy = np.exp(0.5 * lx), np.exp(0.5 * ly)
+    return np.column_stack([sx * sx, 0.95 * np.tanh(rho) * sx * sy, sy * sy])
+
+
+def _profile(x, y, cx, cy, Qinv, w):
+    """A soft elliptical disc, 1 inside, 0 outside: ``erfc((rho - 1) / w) / 2``
+    with ``rho^2 = (x - c)^T Q^-1 (x - c)`` (pixel grids (n, h, w), centres
+    (n,), ``Qinv`` (n, 3), edge widths (n,) in units of the radius)."""
+    from scipy.special import erfc
+    dx, dy = x - cx[:, None, None], y - cy[:, None, None]
+    q = Qinv[:, 0, None, None] * dx * dx + 2 * Qinv[:, 1, None, None] * dx * dy \
+        + Qinv[:, 2, None, None] * dy * dy
+    return 0.5 * erfc((np.sqrt(q) - 1.0) / w[:, None, None])
+
+
+def _profile_jacobian(x, y, cx, cy, Qinv, w):
+    """:func:`_profile` ``g`` and its partials (n, h, w, 6) by the centre
+    (cx, cy), the three entries of ``Qinv`` and the edge width ``w``:
+    ``dg/dz = -exp(-z^2) / sqrt(pi)``, ``z = (rho - 1) / w``,
+    ``drho/dq = 1 / (2 rho)``, ``dq/dcx = -2 (a dx + b dy)``,
+    ``dq/dcy = -2 (b dx + c dy)``, ``dq/d(a, b, c) = (dx^2, 2 dx dy, dy^2)``."""
+    from scipy.special import erfc
+    dx, dy = x - cx[:, None, None], y - cy[:, None, None]
+    a, b, c = (Qinv[:, k, None, None] for k in range(3))
+    q = a * dx * dx + 2 * b * dx * dy + c * dy * dy
+    rho = np.sqrt(np.maximum(q, 1e-24))
+    ww = w[:, None, None]
+    z = (rho - 1.0) / ww
+    g = 0.5 * erfc(z)
+    dg_dq = -np.exp(-z * z) / np.sqrt(np.pi) / ww / (2 * rho)
+    J = np.empty(x.shape + (6,))
+    J[..., 0] = dg_dq * -2 * (a * dx + b * dy)
+    J[..., 1] = dg_dq * -2 * (b * dx + c * dy)
+    J[..., 2] = dg_dq * dx * dx
+    J[..., 3] = dg_dq * 2 * dx * dy
+    J[..., 4] = dg_dq * dy * dy
+    J[..., 5] = -np.exp(-z * z) / np.sqrt(np.pi) * -z / ww
+    return g, J
+
+
+def _shape_jacobian(lx, rho, ly):
+    """``Qinv`` = inverse of :func:`_shape` (n, 3) and d Qinv / d(lx, rho,
+    ly) (n, 3, 3): ``dQinv = -Qinv dS Qinv``."""
+    S = _shape(lx, rho, ly)
+    Qi = _inv_sym(S)
+    sx, sy, th = np.exp(0.5 * lx), np.exp(0.5 * ly), np.tanh(rho)
+    dS = np.zeros((len(lx), 3, 3))                       # [entry of S, parameter]
+    dS[:, 0, 0] = sx * sx
+    dS[:, 1, 0] = 0.5 * S[:, 1]
+    dS[:, 1, 1] = 0.95 * (1 - th * th) * sx * sy
+    dS[:, 1, 2] = 0.5 * S[:, 1]
+    dS[:, 2, 2] = sy * sy
+
+    def full(v):                                          # (n, 3) -> (n, 2, 2)
+        return np.stack([np.stack([v[..., 0], v[..., 1]], -1),
+                         np.stack([v[..., 1], v[..., 2]], -1)], -2)
+    Qm = full(Qi)
+    out = np.empty((len(lx), 3, 3))
+    for k in range(3):
+        D = -Qm @ full(dS[:, :, k]) @ Qm
+        out[:, :, k] = np.stack([D[:, 0, 0], D[:, 0, 1], D[:, 1, 1]], -1)
+    return Qi, out
+
+
+def _one_spot(p, x, y):
+    Q = _shape(p[:, 4], p[:, 5], p[:, 6])
+    return p[:, 0, None, None] * _profile(x, y, p[:, 2], p[:, 3], _inv_sym(Q), np.exp(p[:, 7])) \
+        + p[:, 1, None, None]
+
+
+def _one_spot_jacobian(p, x, y):
+    """d :func:`_one_spot` / d(amp, b, cx, cy, lx, rho, ly, log w), analytic."""
+    Qi, dQi = _shape_jacobian(p[:, 4], p[:, 5], p[:, 6])
+    w = np.exp(p[:, 7])
+    g, Jg = _profile_jacobian(x, y, p[:, 2], p[:, 3], Qi, w)
+    amp = p[:, 0, None, None, None]
+    J = np.empty(x.shape + (8,))
+    J[..., 0] = g
+    J[..., 1] = 1.0
+    J[..., 2:4] = amp * Jg[..., 0:2]
+    J[..., 4:7] = amp * np.einsum("nhwe,nek->nhwk", Jg[..., 2:5], dQi)
+    J[..., 7] = amp[..., 0] * Jg[..., 5] * w[:, None, None]
+    return J
+
+
+_one_spot.jacobian = _one_spot_jacobian
+
+
+def fit_spot_shape(image: np.ndarray, centres: np.ndarray, *, half: int = 4,
+                   pixel_offset: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """The spot of single markers: a soft elliptical disc over a constant.
+
+    The marker balls image as uniform discs, widened by defocus and
+    smeared by motion blur: modelled as ``A erfc((rho - 1) / w) / 2 + b``,
+    ``rho`` the elliptical radius of the shape matrix ``Q`` (a circle of
+    radius R: ``Q = R^2 I``) and ``w`` the relative edge width.
+
+    Parameters
+    ----------
+    image : (H, W)
+        Grey values above the local background (the white top-hat of the
+        frame).
+    centres : (n, 2)
+        Approximate centres (image frame).
+    half : int
+        Half side (px) of the fitting window.
+    pixel_offset : float
+        Image-frame coordinate of the first pixel's centre.
+
+    Returns
+    -------
+    shape : (n, 4)
+        ``qxx, qxy, qyy`` (px^2) of ``Q`` and ``w``; NaN where the fit failed.
+    centre : (n, 2)
+    """
+    v, x, y = _windows(image, centres, half, pixel_offset)
+    c, M, b = _moments(v, x, y)
+    M = np.clip(M, [0.05, -np.inf, 0.05], None)
+    amp = _nanmax(v) - b
+    with np.errstate(all="ignore"):
+        rho = np.arctanh(np.clip(M[:, 1] / np.sqrt(M[:, 0] * M[:, 2]) / 0.95, -0.9, 0.9))
+    # a uniform disc of radius R has variance R^2 / 4 per axis
+    p0 = np.column_stack([amp, b, c, np.log(4 * M[:, 0]), rho, np.log(4 * M[:, 2]),
+                          np.full(len(v), np.log(0.4))])
+    shape = np.full((len(v), 4), np.nan)
+    cen = np.full((len(v), 2), np.nan)
+    ok = np.isfinite(p0).all(1) & (amp > 0)
+    if ok.any():
+        p, *_ = _gauss_newton(_one_spot, p0[ok], v[ok], x[ok], y[ok])
+        shape[ok] = np.column_stack([_shape(p[:, 4], p[:, 5], p[:, 6]), np.exp(p[:, 7])])
+        cen[ok] = p[:, 2:4]
+        far = np.hypot(*(cen[ok] - c[ok]).T) > 1.5
+        shape[np.nonzero(ok)[0][far]] = np.nan
+    return shape, cen
+
+
+def _two_spots(shape):
+    Qinv, w = _inv_sym(shape[:, :3]), shape[:, 3]
+
+    def model(p, x, y):
+        a, b, cx, cy, dx, dy = p.T
+        g1 = _profile(x, y, cx + dx, cy + dy, Qinv, w)
+        g2 = _profile(x, y, cx - dx, cy - dy, Qinv, w)
+        # opaque discs: the union, not the sum, of the two coverages
+        return a[:, None, None] * (g1 + g2 - g1 * g2) + b[:, None, None]
+
+    def jacobian(p, x, y):
+        """d model / d(a, b, cx, cy, dx, dy), analytic."""
+        a, b, cx, cy, dx, dy = p.T
+        g1, J1 = _profile_jacobian(x, y, cx + dx, cy + dy, Qinv, w)
+        g2, J2 = _profile_jacobian(x, y, cx - dx, cy - dy, Qinv, w)
+        A = a[:, None, None, None]
+        h1, h2 = (1 - g2)[..., None] * J1[..., :2], (1 - g1)[..., None] * J2[..., :2]
+        J = np.empty(x.shape + (6,))
+        J[..., 0] = g1 + g2 - g1 * g2
+        J[..., 1] = 1.0
+        J[..., 2:4] = A * (h1 + h2)
+        J[..., 4:6] = A * (h1 - h2)
+        return J
+
+    model.jacobian = jacobian
+    return model
+
+
+def fit_two_spots(image: np.ndarray, centres: np.ndarray, shapes: np.ndarray, *,
+                  noise: float | np.ndarray = 1.0, half: int = 4,
+                  pixel_offset: float = 0.5, sigma_floor: float = 0.05) -> dict:
+    """Two equal spots of a known shape fitted to blobs (module doc, step 3).
+
+    Parameters
+    ----------
+    image : (H, W)
+        Grey values above the local background (white top-hat).
+    centres : (n, 2)
+        Approximate blob centres (image frame).
+    shapes : (n, 4) or (4,)
+        The shape of ONE spot (:func:`fit_spot_shape` of single markers).
+    noise : float or (n,)
+        Pixel noise sigma (grey levels); the fit's residual RMS is used
+        where it is larger.
+    half : int
+        Half side (px) of the fitting window.
+    pixel_offset : float
+        Image-frame coordinate of the first pixel's centre.
+    sigma_floor : float
+        Smallest point sigma (px): the model is not the rendered disc.
+
+    Returns
+    -------
+    dict of arrays
+        ``centre`` (n, 2) the midpoint ``c``; ``half_sep`` (n, 2) ``d``
+        (sign arbitrary); ``points`` (n, 2, 2) ``c + d`` and ``c - d``;
+        ``separation`` (n,) ``2 |d|``; ``sep_sigma`` (n,); ``sigma`` (n,)
+        per point (RMS of its x and y sigmas, with the floor);
+        ``centre_sigma`` (n,); ``rms`` (n,) residual RMS; ``amplitude``.
+    """
+    centres = np.asarray(centres, float).reshape(-1, 2)
+    n = len(centres)
+    S = np.broadcast_to(np.asarray(shapes, float), (n, 4)).copy()
+    v, x, y = _windows(image, centres, half, pixel_offset)
+    c, M, b = _moments(v, x, y)
+    # two equal spots at c +- d: second moments S + d d^T (moment start;
+    # a uniform disc of shape Q has the second moments Q / 4)
+    E = M - S[:, :3] / 4
+    tr, det = E[:, 0] + E[:, 2], E[:, 0] * E[:, 2] - E[:, 1] ** 2
+    lam1 = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr ** 2 - det, 0))
+    ang = 0.5 * np.arctan2(2 * E[:, 1], E[:, 0] - E[:, 2])
+    dlen = np.sqrt(np.clip(lam1, 0.04, None))
+    d0 = np.column_stack([np.cos(ang), np.sin(ang)]) * dlen[:, None]
+    amp = _nanmax(v) - b
+    p0 = np.column_stack([amp, b, c, d0])
+    out = {k: np.full(s, np.nan) for k, s in
+           [("centre", (n, 2)), ("half_sep", (n, 2)), ("points", (n, 2, 2)),
+            ("separation", n), ("sep_sigma", n), ("sigma", n), ("centre_sigma", n),
+            ("rms", n), ("amplitude", n)]}
+    ok = np.isfinite(p0).all(1) & np.isfinite(S).all(1) & (amp > 0)
+    if not ok.any():
+        return out
+    idx = np.nonzero(ok)[0]
+    p, J, r, valid = _gauss_newton(_two_spots(S[ok]), p0[ok], v[ok], x[ok], y[ok])
+    m = valid.sum(1)
+    rms = np.sqrt((r ** 2).sum(1) / np.maximum(m - p.shape[1], 1))
+    sn = np.maximum(rms, np.broadcast_to(np.asarray(noise, float), (n,))[ok])
+    A = J.transpose(0, 2, 1) @ J
+    C = np.linalg.pinv(A) * (sn ** 2)[:, None, None]
+    cc, dd = p[:, 2:4], p[:, 4:6]
+    # var of c + s d per axis: C_cc + C_dd + 2 s C_cd (the larger of the two points)
+    vx = C[:, 2, 2] + C[:, 4, 4] + 2 * np.abs(C[:, 2, 4])
+    vy = C[:, 3, 3] + C[:, 5, 5] + 2 * np.abs(C[:, 3, 5])
+    dl = np.hypot(dd[:, 0], dd[:, 1])
+    u = dd / np.maximum(dl, 1e-9)[:, None]
+    var_d = np.einsum("ni,nij,nj->n", u, C[:, 4:6, 4:6], u)
+    out["centre"][idx] = cc
+    out["half_sep"][idx] = dd
+    out["points"][idx] = np.stack([cc + dd, cc - dd], axis=1)
+    out["separation"][idx] = 2 * dl
+    out["sep_sigma"][idx] = 2 * np.sqrt(np.maximum(var_d, 0))
+    out["sigma"][idx] = np.sqrt(0.5 * (vx + vy) + sigma_floor ** 2)
+    out["centre_sigma"][idx] = np.sqrt(0.5 * (C[:, 2, 2] + C[:, 3, 3]) + sigma_floor ** 2)
+    out["rms"][idx] = rms
+    out["amplitude"][idx] = p[:, 0]
+    return out
