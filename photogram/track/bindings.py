@@ -122,9 +122,9 @@ import pandas as pd
 from photogram.errors import InputError
 from photogram.track.markers import detect_markers
 from photogram.track.rays import reprojection_residuals, triangulate
-from photogram.track.skis import exposure_labels
+from photogram.track.skis import _frame_gain, exposure_labels
 from photogram.track.spots import (  # noqa: F401  (fit_spot_shape etc. re-exported)
-    _tophat, fit_spot_shape, fit_two_spots)
+    _opening, _tophat, fit_spot_shape, fit_two_spots, fit_two_spots_over)
 from photogram.track.tracks2d import scatter_sigma
 
 __all__ = ["SplitReport", "split_merged_bindings", "fit_two_spots", "fit_spot_shape",
@@ -282,6 +282,29 @@ def _as_background(b, frame):
     return med, noise, Background(med, noise, level, 1)
 
 
+def _crop_around(frame, xy, pad: int, pixel_offset: float):
+    """The part of ``frame`` within ``pad`` pixels of the points ``xy``
+    (n, 2) (image frame) and its origin (2,): image coordinates in the crop
+    are those in the frame minus the origin (a top-hat of the crop equals
+    the frame's within ``pad - size`` of its border)."""
+    H, W = frame.shape[:2]
+    ij = np.rint(np.asarray(xy, float).reshape(-1, 2) - pixel_offset).astype(int)
+    x0, y0 = np.maximum(ij.min(0) - pad, 0)
+    x1, y1 = np.minimum(ij.max(0) + pad + 1, [W, H])
+    return frame[y0:y1, x0:x1], np.array([x0, y0], float)
+
+
+def _behind(frame, background, size, noise):
+    """The scene behind the markers of a frame: the grey opening (the frame
+    without its small bright spots) where the jumper's body is, the static
+    background (scaled by the frame's brightness ratio) where the opening
+    shows it, within ``max(4 noise, 10)`` grey levels (the opening of a
+    noisy frame is biased low, the temporal median is not)."""
+    bg = np.asarray(background, np.float32) * _frame_gain(frame, background)
+    op = _opening(frame, size)
+    return np.where(op >= bg - max(4 * noise, 10.0), bg, op)
+
+
 def _frame_of(table, exposure_frames, stations, offsets):
     offsets = offsets or {}
     if isinstance(exposure_frames, dict):
@@ -303,7 +326,8 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                           chi2_margin: float = 9.0, min_across_deg: float = 60.0,
                           min_side: float = 0.5, k_sigma: float = 5.0,
                           min_flux: float = 0.5, shape_window: int = 3,
-                          continuity: int = 2, min_cos: float = 0.8):
+                          continuity: int = 2, min_cos: float = 0.8,
+                          spot_model: str = "tophat"):
     """Split the binding markers out of merged blobs (module doc).
 
     Parameters
@@ -360,6 +384,16 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
     min_cos : float
         ... when the measured separation vector is within ``arccos(min_cos)``
         of the predicted one (or its reverse) in every split view.
+    spot_model : {"tophat", "composite"}
+        "tophat": two equal spots over a constant fitted to the white top-hat
+        (:func:`photogram.track.spots.fit_two_spots`). "composite": two
+        opaque spots over the scene behind them (:func:`_behind`,
+        :func:`photogram.track.spots.fit_two_spots_over`). Measured on the
+        rendered sets (docs/track.md): the composite model removes the
+        top-hat's 0.15 px bias of the normal set (mean error (0.06, -0.15)
+        -> (0.03, 0.08) px, 71 pairs both) but on the harsh set it splits
+        10 pairs at 0.65 px RMS against the top-hat's 22 at 0.30 px: the
+        default stays the top-hat.
 
     Returns
     -------
@@ -426,8 +460,10 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             f = when[e][s]
             if not 0 <= f < len(frames[s]):
                 continue
-            sh, _ = fit_spot_shape(_tophat(frames[s][f], tophat), g[["x", "y"]].to_numpy(float),
-                                   half=half, pixel_offset=pixel_offset)
+            xy = g[["x", "y"]].to_numpy(float)
+            crop, origin = _crop_around(frames[s][f], xy, half + tophat + 1, pixel_offset)
+            sh, _ = fit_spot_shape(_tophat(crop, tophat), xy - origin, half=half,
+                                   pixel_offset=pixel_offset)
             sh = sh[np.isfinite(sh).all(1)]
             pos += [eidx[e]] * len(sh)
             shp += list(sh)
@@ -469,7 +505,7 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                 continue
             fr = frames[s][f]
             med, noise, bg = _as_background(backgrounds[s], fr)
-            imgs[s] = (fr, noise)
+            imgs[s] = (fr, noise, med)
             a, b = row(e, s, right_m), row(e, s, left_m)
             if a is not None and b is not None and a.status == "ok" and b.status == "ok":
                 per_view.append(np.array([[(a.x + b.x) / 2, (a.y + b.y) / 2]]))
@@ -504,8 +540,7 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                 notes[(e, s)] = "binding blob not located in this view"
                 continue
             counts["located"] += 1
-            fr, noise = imgs[s]
-            th = _tophat(fr, tophat)
+            fr, noise, med = imgs[s]
             near = np.abs(shape_at[s][0] - eidx[e]) <= shape_window
             shape = np.median(shape_at[s][1][near], axis=0) if near.any() \
                 else np.full(4, np.nan)
@@ -515,8 +550,18 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                 continue
             ij = np.clip(np.rint(centre - pixel_offset).astype(int), 0,
                          [fr.shape[1] - 1, fr.shape[0] - 1])
-            fit = fit_two_spots(th, centre[None], shape, noise=float(noise[ij[1], ij[0]]),
-                                half=half, pixel_offset=pixel_offset, sigma_floor=sigma_floor)
+            sn = float(noise[ij[1], ij[0]])
+            if spot_model == "composite":
+                fit = fit_two_spots_over(fr, _behind(fr, med, tophat, sn), centre[None], shape,
+                                         noise=sn, half=half,
+                                         pixel_offset=pixel_offset, sigma_floor=sigma_floor)
+            else:
+                crop, origin = _crop_around(fr, centre[None], half + tophat + 1, pixel_offset)
+                fit = fit_two_spots(_tophat(crop, tophat), (centre - origin)[None], shape,
+                                    noise=sn, half=half, pixel_offset=pixel_offset,
+                                    sigma_floor=sigma_floor)
+                for k in ("centre", "points"):
+                    fit[k] = fit[k] + origin
             sep, ssig = fit["separation"][0], fit["sep_sigma"][0]
             measurable = np.isfinite(sep) and sep > min_snr * ssig
             c = fit["centre"][0]
