@@ -342,3 +342,51 @@ def test_bar_model_jacobian_is_analytic_and_matches_finite_differences():
             fd = (se._model(th + e, x, y, bg, ref, u0)
                   - se._model(th - e, x, y, bg, ref, u0)) / (2 * h)
             np.testing.assert_allclose(J[:, k], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+
+
+def test_robust_lm_matches_scipy_soft_l1_with_bounds():
+    """The module's soft-L1 Levenberg-Marquardt reaches scipy's
+    least_squares(loss="soft_l1") minimum on a bounded exponential fit with
+    outliers, and keeps a parameter on its bound where the bound binds."""
+    from scipy.optimize import least_squares
+    from photogram.track.ski_edges import robust_lm
+    rng = np.random.default_rng(3)
+    t = np.linspace(0, 4, 200)
+    y = 3.0 * np.exp(-0.7 * t) + 0.5 + rng.normal(0, 0.02, t.size)
+    y[::17] += 1.5                                          # outliers
+
+    def fun(p):
+        return p[0] * np.exp(-p[1] * t) + p[2] - y
+
+    def jac(p):
+        e = np.exp(-p[1] * t)
+        return np.column_stack([e, -p[0] * t * e, np.ones_like(t)])
+
+    for upper_c in (np.inf, 0.4):                           # free, then binding
+        lo, hi = np.array([0, 0, -1.0]), np.array([10, 5, upper_c])
+        ref = least_squares(fun, [1, 1, 0], jac=jac, bounds=(lo, hi), loss="soft_l1",
+                            f_scale=0.06, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+        res = robust_lm(fun, jac, np.array([1, 1, 0.0]), lo, hi, f_scale=0.06,
+                        xtol=1e-10, ftol=1e-14, max_iter=200)
+        assert res.status > 0
+        np.testing.assert_allclose(res.x, ref.x, atol=2e-5)
+        assert np.all(res.x >= lo) and np.all(res.x <= hi)
+    assert res.x[2] == 0.4
+
+
+def test_crop_around_gives_the_frames_tophat():
+    """The binding split's top-hat of a crop equals the whole frame's
+    top-hat in the crop's fitting windows."""
+    from photogram.track.bindings import _crop_around
+    from photogram.track.spots import _tophat
+    rng = np.random.default_rng(0)
+    frame = rng.integers(0, 255, (120, 160)).astype(np.uint8)
+    xy = np.array([[40.5, 30.5], [47.2, 36.9]])
+    crop, origin = _crop_around(frame, xy, 4 + 7 + 1, 0.5)
+    full = _tophat(frame, 7)
+    part = _tophat(crop, 7)
+    x0, y0 = origin.astype(int)
+    for c in xy:
+        i, j = int(c[0] - 0.5), int(c[1] - 0.5)
+        np.testing.assert_array_equal(part[j - 4 - y0:j + 5 - y0, i - 4 - x0:i + 5 - x0],
+                                      full[j - 4:j + 5, i - 4:i + 5])

@@ -262,6 +262,7 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
     E = len(next(iter(frame_of.values())))
     names = exposure_labels(markers, E)
     lookup = _marker_lookup(markers)
+    prepared = {}
 
     def one_image(i, st, prev):
         """Fit both skis in one image; updates ``prev`` (the tracking
@@ -274,14 +275,16 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             seen.flags.append((None, f"frame {fi} outside the video"))
             prev.pop(st, None)
             return seen
-        img = F[fi].astype(float)
-        bgd = np.asarray(backgrounds[st], float)
-        if gain:
-            # brightness of this frame against the background (auto exposure):
-            # the median ratio, the jumper being a small part of the frame
-            bgd = bgd * _frame_gain(img, bgd)
-        D = bgd - img
-        sn = noise_sigma(D)
+        if (st, fi) not in prepared:        # once for both passes
+            img = F[fi].astype(float)
+            bgd = np.asarray(backgrounds[st], float)
+            if gain:
+                # brightness of this frame against the background (auto
+                # exposure): the median ratio, the jumper a small part of it
+                bgd = bgd * _frame_gain(img, bgd)
+            D = bgd - img
+            prepared[(st, fi)] = (img, bgd, D, noise_sigma(D))
+        img, bgd, D, sn = prepared[(st, fi)]
         bind = [lookup.get((e, st, b)) for b in bind_names]
         if all(b is None for b in bind):
             seen.flags.append((None, "no binding marker"))
