@@ -216,17 +216,24 @@ def _score(v, before, after, rep):
 
 
 def _common_checks(before, after, rep):
-    # the station-exposures where both P3 and P4 are ambiguous
+    # the station-exposures where neither P3 nor P4 is ok (one merged blob,
+    # or lost by the 2D tracker), and those where the one ok binding is off
+    # the blob located in 3D
     pair = before.marker.isin(["P3", "P4"])
-    amb = before[pair].assign(a=before[pair].status == "ambiguous") \
+    notok = before[pair].assign(a=before[pair].status != "ok") \
         .groupby(["exposure", "station"]).a.transform("all")
-    flagged = before[pair][amb]
+    key = [before[pair].exposure, before[pair].station]
+    one_ok = before[pair].assign(a=before[pair].status == "ok").groupby(key).a.transform("sum") == 1
+    changed = (after[pair].reason.astype(str) != before[pair].reason.astype(str)) \
+        .groupby(key).transform("any")
+    lone = one_ok & changed
+    flagged = before[pair][notok | lone]
     a = after.loc[flagged.index]
-    # a flagged row is either split (ok, with its reason) or still ambiguous
+    # a flagged row is either split (ok, with its reason) or still flagged
     # with the reason why not; other rows are untouched
     split = a.status == "ok"
     assert a[split].reason.str.startswith("split from a merged blob (separation").all()
-    assert (a[~split].status == "ambiguous").all()
+    assert a[~split].status.isin(["ambiguous", "lost"]).all()
     assert a[~split].reason.str.contains("not split: ").all()
     assert (a[split].sigma > 0).all() and np.isfinite(a[split][["x", "y"]]).all().all()
     other = after.drop(flagged.index)

@@ -326,7 +326,7 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                           chi2_margin: float = 9.0, min_across_deg: float = 60.0,
                           min_side: float = 0.5, k_sigma: float = 5.0,
                           min_flux: float = 0.5, shape_window: int = 3,
-                          continuity: int = 2, min_cos: float = 0.8,
+                          continuity: int = 2, min_cos: float = 0.8, lone_tol: float = 3.0,
                           spot_model: str = "tophat"):
     """Split the binding markers out of merged blobs (module doc).
 
@@ -384,6 +384,10 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
     min_cos : float
         ... when the measured separation vector is within ``arccos(min_cos)``
         of the predicted one (or its reverse) in every split view.
+    lone_tol : float
+        Where one binding of a view is ok and the other not, the ok one
+        farther than this (px) from the blob located in 3D is flagged
+        ambiguous and the view split like the others.
     spot_model : {"tophat", "composite"}
         "tophat": two equal spots over a constant fitted to the white top-hat
         (:func:`photogram.track.spots.fit_two_spots`). "composite": two
@@ -490,8 +494,9 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
         flagged = []
         for s in stations:
             a, b = row(e, s, right_m), row(e, s, left_m)
-            if a is not None and b is not None and a.status == "ambiguous" \
-                    and b.status == "ambiguous":
+            # both flagged: one merged blob (ambiguous), or lost by the 2D
+            # tracker (no seed, the track ended) and found here in 3D
+            if a is not None and b is not None and a.status != "ok" and b.status != "ok":
                 flagged.append(s)
         if not flagged:
             continue
@@ -527,6 +532,26 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             per_view.append(c)
         found = _locate(cams, per_view, bias, X_hip[eidx[e]], vel[eidx[e]],
                         locate_tol, hip_distance, length_unit)
+        if not isinstance(found, str):
+            # a view where one binding is ok and the other not: the ok one
+            # must be on the blob located in 3D from every view (a seed that
+            # snapped to the wrong blob is not seen by the 3D check, the
+            # other views' bindings being merged)
+            for i, s in enumerate(stations):
+                rs = {m: row(e, s, m) for m in (right_m, left_m)}
+                if s in flagged or any(r is None for r in rs.values()) or \
+                        sum(r.status == "ok" for r in rs.values()) != 1 or \
+                        not np.all(np.isfinite(found[i])):
+                    continue
+                m, r = next((m, r) for m, r in rs.items() if r.status == "ok")
+                off = float(np.hypot(r.x - found[i][0], r.y - found[i][1]))
+                if off > lone_tol:
+                    sel = (out.exposure == e) & (out.station == s) & (out.marker == m)
+                    out.loc[sel, "status"] = "ambiguous"
+                    out.loc[sel, "reason"] = (f"{off:.1f} px from the bindings' blob located "
+                                              "in 3D from the views")
+                    flagged.append(s)
+                    counts["flagged"] += 1
         if isinstance(found, str):
             for s in flagged:
                 notes[(e, s)] = found
@@ -636,7 +661,7 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             out.loc[g.index, "sigma"] = np.maximum(g.sigma.to_numpy(float), emp)
     for (e, s), why in notes.items():
         sel = (out.exposure == e) & (out.station == s) & out.marker.isin([right_m, left_m]) \
-            & (out.status == "ambiguous")
+            & (out.status != "ok")
         out.loc[sel, "reason"] = out.loc[sel, "reason"].astype(str) + "; not split: " + why
     counts["ambiguous"] = counts["flagged"] - counts["resolved"]
     report = SplitReport(
