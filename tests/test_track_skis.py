@@ -260,14 +260,15 @@ def test_missing_skis_and_markers_are_flagged(field):
     # without three views the label check cannot run: flagged, with the reason
     c = res.checks.set_index("exposure")
     assert c.loc[2, "status"] == "flagged" and "needs 3" in c.loc[2, "detail"]
-    # the skis are found again in S1 at exposure 3, or flagged for the reason
-    # of that view (the left ski there is mostly hidden by the right one: its
-    # support is 0.14-0.16 depending on where the pixel grid falls)
+    # the skis are found again in S1 at exposure 3, or one is flagged for the
+    # reason of that view (the skis there overlap: the support of one is
+    # 0.14-0.16 depending on where the pixel grid falls and the fit stops)
     back = t[(t.exposure == 3) & (t.station == "S1")]
-    assert "L1" in set(back.line) and len(back) in (15, 30)
+    assert len(back) in (15, 30)
     if len(back) == 15:
-        why = f[(f.exposure == 3) & (f.station == "S1")].reason
-        assert len(why) == 1 and "support" in why.iloc[0]
+        why = f[(f.exposure == 3) & (f.station == "S1")]
+        assert len(why) == 1 and "support" in why.reason.iloc[0]
+        assert set(why.line) | set(back.line) == {"L1", "L2"}
 
 
 # ----------------------------------------------------- the rendered videos
@@ -310,17 +311,20 @@ def test_rendered_normal_videos():
 
 
 def test_rendered_harsh_videos():
-    # not tuned on: measured (with the true frame offsets, as here) direction
-    # RMS ~1.2 deg, max ~7 deg, points ~0.5 px RMS from the true axes; the
-    # label check flags most exposures (chi-square above its quantile: the
-    # point sigmas do not cover the harsh set's systematic errors).
+    # not tuned on: measured (with the true frame offsets, as here; the true
+    # markers + 0.2 px) 113 of 144 ski images, direction RMS 0.50 deg, max
+    # 2.1 deg, 95 % nearer their own ski (3 nearer the other and more than
+    # 0.5 px off their own), 26 flagged as not decided by the three-view
+    # check (the label check scales the point sigmas by its own s0 where no
+    # assignment fits them). Before the check's s0, the undecided views'
+    # flags and the sequence check: 1.2 deg RMS, max 7 deg, 80 % right.
     # Asserted: every ski image measured or flagged, most measured, labels
-    # mostly right, directions within a few degrees
+    # right, directions within a degree
     res, err = _rendered(lambda jv: jv.harsh_settings())
     assert len(err) + len(res.flags) == 24 * 3 * 2
-    assert len(err) >= 0.8 * 24 * 3 * 2
-    assert (err.dist < err.dist_other).mean() > 0.8
-    assert np.sqrt(np.mean(err.angle ** 2)) < 2.0
+    assert len(err) >= 0.7 * 24 * 3 * 2
+    assert (err.dist < err.dist_other).mean() > 0.9
+    assert np.sqrt(np.mean(err.angle ** 2)) < 1.0
 
 
 def test_bar_model_jacobian_is_analytic_and_matches_finite_differences():

@@ -8,8 +8,10 @@ found, ready for ``[observations] points``), ``ski_lines.csv`` (exposure,
 station, line, x, y, sigma: points along each ski, for ``[observations]
 lines``), ``tracking.csv`` (every marker of every exposure and station with
 its status: ok, lost or ambiguous, and why), ``ski_checks.csv`` (the
-left/right check per exposure, swaps corrected), ``contact_sheet.png``
-(frames with the labels), ``summary.json`` (counts, flags, offsets, timings;
+left/right check per exposure, swaps corrected), ``ski_flags.csv`` (skis
+not found in an image, or left out, and why), ``contact_sheet.png``
+(frames with the labels), ``summary.json`` (counts, flags, offsets, the
+skis' variance factors, timings;
 with ``[track] truth`` also the errors against the truth) and ``log.txt``.
 """
 
@@ -49,6 +51,7 @@ def track_and_write(project, output=None):
         _write_csv(stage.path / "ski_lines.csv", result.ski_lines(), note)
         _write_csv(stage.path / "tracking.csv", result.markers)
         _write_csv(stage.path / "ski_checks.csv", result.ski_checks)
+        _write_csv(stage.path / "ski_flags.csv", result.ski_flags)
         contact_sheet(result, stage.path / "contact_sheet.png")
         text = json.dumps(result.summary, indent=1, default=str) + "\n"
         atomic_write_text(stage.path / "summary.json", text)

@@ -60,7 +60,12 @@ class TrackingRun:
     ski_checks : DataFrame
         ``exposure, status, swapped, detail``: the left/right check.
     ski_flags : DataFrame
-        ``exposure, station, line, reason``: skis not found in an image.
+        ``exposure, station, line, reason``: skis not found in an image, or
+        found and left out (labels not decided, off their sequence).
+    ski_sequence : DataFrame
+        ``station, line, n, s0, scale, outliers``: per view and ski the
+        variance factor of its directions over the exposures and the scale
+        applied to its sigmas (:mod:`photogram.track.ski_sequence`).
     midpoints : DataFrame
         ``exposure, station, x, y, sigma, split``: the centre of each merged
         binding blob (the image of the binding midpoint), split or not.
@@ -83,6 +88,7 @@ class TrackingRun:
     summary: dict = field(default_factory=dict)
     log: list = field(default_factory=list)
     midpoints: pd.DataFrame | None = None
+    ski_sequence: pd.DataFrame | None = None
 
     def jumper_points(self) -> pd.DataFrame:
         """``exposure, station, point, x, y, sigma`` of the markers found in
@@ -165,11 +171,11 @@ def track_videos(frames, cameras, seeds, exposures: Exposures, *, markers, skis,
     st = track_skis(frames, {s: backgrounds[s].median for s in stations}, cameras, table,
                     frames_of, skis=dict(zip(skis, ski_markers)), ski_length=ski_length,
                     binding_fraction=binding_fraction, points_per_ski=points_per_ski,
-                    helmet=markers[0], hip=markers[1])
+                    helmet=markers[0], hip=markers[1], midpoints=split.midpoints)
     timings["skis_s"] = time.perf_counter() - t
     run = TrackingRun(markers=table, skis=st.table, ski_checks=st.checks, ski_flags=st.flags,
                       offsets=used, exposures=exposures, frames=frames, log=log,
-                      midpoints=split.midpoints)
+                      midpoints=split.midpoints, ski_sequence=st.sequence)
     run.summary["timings"] = timings
     return run
 
@@ -235,5 +241,9 @@ def _summary(project, run: TrackingRun) -> dict:
         "ski_flags": int(len(run.ski_flags)),
         "swapped_skis": int(len(swapped)),
         "ski_checks": {str(r.exposure): str(r.status) for r in run.ski_checks.itertuples()},
+        "ski_sequence": [] if run.ski_sequence is None else [
+            {"station": str(r.station), "line": str(r.line), "n": int(r.n),
+             "s0": round(float(r.s0), 3), "scale": round(float(r.scale), 3),
+             "outliers": int(r.outliers)} for r in run.ski_sequence.itertuples()],
         "warnings": [],
     }

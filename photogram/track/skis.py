@@ -31,6 +31,7 @@ import pandas as pd
 
 from photogram.errors import GeometryError, InputError
 from photogram.lines.skis import SkiCheck, check_ski_labels
+from photogram.track.ski_sequence import sequence_check
 from photogram.track.ski_edges import (BarLine, best_split, extent_along, fit_ski_pair,
                                        noise_sigma, sample_axis, search_direction)
 
@@ -64,12 +65,16 @@ class SkiTracking:
         one image (no rows for them in ``table``).
     lines : dict
         ``{(exposure, station): {label: BarLine}}`` the fitted axes.
+    sequence : DataFrame or None
+        ``station, line, n, s0, scale, outliers`` of the sequence check
+        (:func:`photogram.track.ski_sequence.sequence_check`).
     """
 
     table: pd.DataFrame
     checks: pd.DataFrame
     flags: pd.DataFrame
     lines: dict = field(default_factory=dict)
+    sequence: pd.DataFrame | None = None
 
 
 def exposure_labels(markers: pd.DataFrame, n: int) -> list:
@@ -162,8 +167,8 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
                ski_width=1.5, search_radius=15.0, split_deg=8.0,
                track_turn_deg=3.0, max_binding_distance=3.0, min_support=0.15,
                sigma_floor=0.15, marker_mask=4.0, label_margin=1.0, gain=True,
-               two_pass=True, check=True, trust_bindings=False,
-               **fit_options) -> SkiTracking:
+               two_pass=True, check=True, trust_bindings=False, midpoints=None,
+               coincide_px=1.0, sequence=True, **fit_options) -> SkiTracking:
     """Track both ski lines through the exposures of synchronized videos.
 
     Parameters
@@ -262,6 +267,10 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
     E = len(next(iter(frame_of.values())))
     names = exposure_labels(markers, E)
     lookup = _marker_lookup(markers)
+    blob_at = {} if midpoints is None else {
+        (e, s): np.array([x, y], float) - PIXEL_OFFSET
+        for e, s, x, y in zip(midpoints["exposure"], midpoints["station"], midpoints["x"],
+                              midpoints["y"]) if np.isfinite(x) and np.isfinite(y)}
     prepared = {}
 
     def one_image(i, st, prev):
@@ -286,6 +295,12 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             prepared[(st, fi)] = (img, bgd, D, noise_sigma(D))
         img, bgd, D, sn = prepared[(st, fi)]
         bind = [lookup.get((e, st, b)) for b in bind_names]
+        from_blob = all(b is None for b in bind) and (e, st) in blob_at
+        if from_blob:
+            # the bindings' merged blob, not split: where the skis are, not
+            # which is which (the labels then come from tracking or the
+            # three-view check, or the view is flagged)
+            bind = [blob_at[(e, st)]] * 2
         if all(b is None for b in bind):
             seen.flags.append((None, "no binding marker"))
             prev.pop(st, None)
@@ -318,7 +333,10 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
         better = dist[0, 0] + dist[1, 1] - dist[0, 1] - dist[1, 0]
         if better > (label_margin if tracked else 0.0):
             lines = lines[::-1]
-        prev[st] = (lines, bind)
+        # labels known: from the binding markers, or kept from a labelled
+        # tracked axis; a first prediction from the blob has none
+        seen.labelled = not from_blob or (tracked and prev[st][2])
+        prev[st] = (lines, bind, seen.labelled)
         seen.lines = lines
         for k, lab in enumerate(labels):
             d = abs(lines[k].distance(bind[k])[0])
@@ -359,7 +377,7 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             res = _check(views, cameras, labels, e) if check else None
             n_found = sum(len(v.pts) for v in views.values())
             n_complete = sum(len(v.pts) == 2 for v in views.values())
-            cost = min(res.costs.values()) if isinstance(res, SkiCheck) else np.inf
+            cost = res.best_cost if isinstance(res, SkiCheck) else np.inf
             key = (-n_complete, cost, -n_found)
             if best is None or key < best[0]:
                 best = (key, views, res)
@@ -383,10 +401,17 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             if against:
                 raw, detail = res.status, (res.message + "; not applied: the binding markers "
                                            f"of {', '.join(against)} say otherwise")
-            elif res.status == "swapped":
-                status, swapped = "swapped", list(res.swapped)
+            elif res.status in ("ok", "swapped") and not any(
+                    views[st].labelled for st in res.stations):
+                raw, detail = "unlabelled", (res.message + "; no view has labelled skis "
+                                             "(binding markers not split)")
+            elif res.status in ("ok", "swapped"):
+                flip = _oriented_flips(res, views)
+                status = "swapped" if flip else "ok"
+                swapped = flip
                 for st in swapped:
-                    by_view[st] = res.corrected[st]
+                    pts = by_view[st]
+                    by_view[st] = {labels[0]: pts[labels[1]], labels[1]: pts[labels[0]]}
                     sig_view[st] = dict(zip(labels, [sig_view[st][labels[1]],
                                                      sig_view[st][labels[0]]]))
                     fitted[(e, st)] = dict(zip(labels, views[st].lines[::-1]))
@@ -401,15 +426,35 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
         elif check:
             n = sum(len(v) == 2 for v in by_view.values())
             detail = f"both skis found in {n} view(s); the check needs 3"
+        confirmed = raw in ("ok", "swapped") and status in ("ok", "swapped")
+        undecided = set(res.undecided) if isinstance(res, SkiCheck) else set()
         for st, v in by_view.items():
+            sep = _separation(views[st].lines)
+            if st in undecided and sep > coincide_px:
+                # the check cannot tell the skis apart in this view, and they
+                # are apart in it: which is which would be a guess
+                for lab in v:
+                    flags.append((e, st, lab, "labels not decided by the three-view check "
+                                              f"(the skis {sep:.2g} px apart in this view)"))
+                continue
+            if not views[st].labelled and not confirmed:
+                # skis found where the bindings' blob is, labels unknown
+                for lab in v:
+                    flags.append((e, st, lab, "labels unknown (binding markers not split, "
+                                              "not confirmed by the three-view check)"))
+                continue
             for lab, pts in v.items():
                 for x, y in pts:
                     rows.append((e, st, lab, x, y, sig_view[st][lab]))
         checks.append((e, status, ",".join(swapped), detail, raw))
 
-    return SkiTracking(pd.DataFrame(rows, columns=TABLE_COLUMNS),
-                       pd.DataFrame(checks, columns=CHECK_COLUMNS),
-                       pd.DataFrame(flags, columns=FLAG_COLUMNS), fitted)
+    table = pd.DataFrame(rows, columns=TABLE_COLUMNS)
+    factors = None
+    if sequence and len(table):
+        table, seq_flags, factors = sequence_check(table, names)
+        flags += seq_flags
+    return SkiTracking(table, pd.DataFrame(checks, columns=CHECK_COLUMNS),
+                       pd.DataFrame(flags, columns=FLAG_COLUMNS), fitted, factors)
 
 
 @dataclass
@@ -418,9 +463,33 @@ class _Seen:
     points and their sigma per label, and flags (label or None, reason)."""
 
     lines: list | None = None
+    labelled: bool = True
     pts: dict = field(default_factory=dict)
     sig: dict = field(default_factory=dict)
     flags: list = field(default_factory=list)
+
+
+def _separation(lines) -> float:
+    """Largest distance (px) of one fitted axis' ends from the other axis:
+    how far apart the two skis are in the image (0 without both)."""
+    if lines is None or len(lines) != 2:
+        return 0.0
+    a, b = lines
+    return float(max(np.abs(a.distance(np.array([b.tail, b.tip]))).max(),
+                     np.abs(b.distance(np.array([a.tail, a.tip]))).max()))
+
+
+def _oriented_flips(res, views) -> list:
+    """The stations whose labels the three-view check ``res`` ("ok" or
+    "swapped") interchanges, oriented by the views with labelled skis: the
+    check finds which views agree, not which ski is the right one (a swap
+    of every view fits as well), so where most labelled views would be
+    interchanged the complement is interchanged instead."""
+    flipped = set(res.swapped) if res.status == "swapped" else set()
+    labelled = [st for st in res.stations if views[st].labelled]
+    if sum(st in flipped for st in labelled) * 2 > len(labelled):
+        flipped = set(res.stations) - flipped
+    return [st for st in res.stations if st in flipped]
 
 
 def _same(a, b, tol_deg=0.02, tol_px=0.05):
@@ -434,16 +503,33 @@ def _same(a, b, tol_deg=0.02, tol_px=0.05):
     return True
 
 
-def _check(views, cameras, labels, exposure):
+def _check(views, cameras, labels, exposure, max_s0=10.0):
     """The three-view label check of the views' points (SkiCheck), None
-    when fewer than three views have both skis, or the error message."""
+    when fewer than three views have both skis, or the error message. Where
+    no assignment fits within the points' sigmas, the check is repeated
+    with the sigmas scaled by the best assignment's ``s0`` (at most
+    ``max_s0``): the labels are then decided by how clearly the best
+    assignment beats the others at that noise level."""
     complete = [st for st, v in views.items() if len(v.pts) == 2]
     if len(complete) < 3:
         return None
+    pts = {st: views[st].pts for st in complete}
+    sig = {st: float(np.mean(list(views[st].sig.values()))) for st in complete}
     try:
-        return check_ski_labels({st: views[st].pts for st in complete}, cameras,
-                                {st: float(np.mean(list(views[st].sig.values())))
-                                 for st in complete},
-                                labels=tuple(labels), exposure=exposure, fix=True)
+        res = check_ski_labels(pts, cameras, sig, labels=tuple(labels), exposure=exposure,
+                               fix=True)
+        best_cost = min(res.costs.values())
+        if res.status == "inconsistent":
+            # the points' sigmas describe the image fit, not the estimated
+            # orientation between the views: the chi-squares in units of the
+            # best assignment's own (a posteriori variance factor s0^2 =
+            # chi2 / dof, as a bundle's sigma0), the decision on the leads
+            s0 = float(np.sqrt(min(res.costs.values()) / res.dof))
+            if s0 <= max_s0:
+                res = check_ski_labels(pts, cameras, {st: v * s0 for st, v in sig.items()},
+                                       labels=tuple(labels), exposure=exposure, fix=True)
+                res.message += f" (point sigmas scaled by s0 = {s0:.2g})"
+        res.best_cost = best_cost            # in the points' own sigmas
+        return res
     except (GeometryError, InputError) as exc:
         return str(exc)

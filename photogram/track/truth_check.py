@@ -69,20 +69,23 @@ def line_direction(xy: np.ndarray) -> np.ndarray:
     return vt[0]
 
 
-def ski_errors(skis: pd.DataFrame, truth: pd.DataFrame) -> dict:
+def ski_errors(skis: pd.DataFrame, truth: pd.DataFrame, *, own_px: float = 0.5) -> dict:
     """Direction error (degrees, modulo 180) of the line through each
     tracked ski's points against the true image of the ski axis, and the
     distance of the points from that axis (px); a ski labelled as the other
-    ski (nearer to the other true axis) counts as a wrong label.
+    ski (nearer to the other true axis, and farther than ``own_px`` on
+    average from its own) counts as a wrong label. Where the two skis
+    coincide in an image within ``own_px`` a line may be nearer the other
+    ski and still measure its own: counted in ``n_near_both``, not wrong.
 
     Returns
     -------
     dict: ``n_lines``, ``rms_deg``, ``max_deg``, ``rms_point_px``,
-    ``max_point_px``, ``n_wrong_label``.
+    ``max_point_px``, ``n_wrong_label``, ``n_near_both``.
     """
     t = truth.copy()
     t["exposure"] = t["exposure"].astype(str)
-    angles, dists, wrong = [], [], 0
+    angles, dists, wrong, near_both = [], [], 0, 0
     for (e, s, line), g in skis.groupby(["exposure", "station", "line"]):
         xy = g[["x", "y"]].to_numpy(float)
         if len(xy) < 2:
@@ -107,14 +110,17 @@ def ski_errors(skis: pd.DataFrame, truth: pd.DataFrame) -> dict:
         if len(others):
             a2, d2 = axis(others.iloc[0])
             if np.mean(distance(a2, d2)) < np.mean(dist):
-                wrong += 1
-                continue
+                if np.mean(dist) > own_px:
+                    wrong += 1
+                    continue
+                near_both += 1
         cos = abs(float(d_fit @ d))
         angles.append(np.degrees(np.arccos(min(cos, 1.0))))
         dists.append(dist)
     ang = np.array(angles)
     dd = np.concatenate(dists) if dists else np.zeros(0)
     return {"n_lines": int(len(ang)), "n_wrong_label": int(wrong),
+            "n_near_both": int(near_both),
             "rms_deg": float(np.sqrt(np.mean(ang ** 2))) if len(ang) else float("nan"),
             "max_deg": float(ang.max()) if len(ang) else float("nan"),
             "median_deg": float(np.median(ang)) if len(ang) else float("nan"),
