@@ -15,7 +15,13 @@ their sigmas. This temporal redundancy gives
 * **outliers**: an axis whose direction is off the sequence by more than
   ``k_out`` times its scaled sigma (robustly: iteratively, the worst first)
   is flagged, and so is an axis much shorter than the ski's median length
-  in that view (a fit to a piece of the ski).
+  in that view (a fit to a piece of the ski);
+* **labels** where nothing else decides them (the three-view check cannot
+  separate the skis in a view, or sees fewer than three views): the two
+  skis of a view differ in direction (the V), and each ski's direction
+  follows its own sequence, so the view's axes are compared with both
+  sequences at its time, as labelled and interchanged; a clear winner is
+  taken, otherwise the view is flagged (continuity, not a guess).
 
 The direction of the points of one axis is that of their principal axis;
 its sigma is that of a line fitted to ``n`` points of sigma ``s`` spread
@@ -52,46 +58,32 @@ def axis_directions(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def _fit(t, a, s, degree):
-    """Weighted polynomial fit; residuals of all points."""
+    """Weighted polynomial fit: residuals, degree used, coefficients and
+    their covariance for sigmas ``s`` (unscaled)."""
     deg = min(degree, len(t) - 1)
-    coef = np.polyfit(t, a, deg, w=1 / s)
-    return a - np.polyval(coef, t), deg
+    if deg >= 1 and len(t) > deg + 1:
+        coef, cov = np.polyfit(t, a, deg, w=1 / s, cov="unscaled")
+    else:
+        coef = np.polyfit(t, a, deg, w=1 / s)
+        V = np.vander(t, deg + 1) / s[:, None]
+        cov = np.linalg.pinv(V.T @ V)
+    return a - np.polyval(coef, t), deg, coef, cov
 
 
-def sequence_check(table: pd.DataFrame, exposures, *, degree: int = 3, k_out: float = 4.0,
-                   min_length_fraction: float = 0.5, min_redundancy: int = 3):
-    """Scale and screen the ski points of each station and ski by their
-    sequence (module doc).
+def _predict(fit, t):
+    """Predicted direction and its sigma at time ``t``."""
+    coef, cov, scale = fit
+    v = np.vander(np.atleast_1d(float(t)), len(coef))[0]
+    return float(v @ coef), float(np.sqrt(max(v @ cov @ v, 0.0)) * scale)
 
-    Parameters
-    ----------
-    table : DataFrame
-        ``exposure, station, line, x, y, sigma`` (the tracked ski points).
-    exposures : sequence
-        The exposure names in time order (their index is the time).
-    degree : int
-        Degree of the polynomial in time.
-    k_out : float
-        Outlier threshold in scaled sigmas.
-    min_length_fraction : float
-        An axis shorter than this share of the median length of that ski in
-        that view is flagged.
-    min_redundancy : int
-        Fewer exposures than ``degree + 1 + min_redundancy`` in a sequence:
-        no scaling and no outlier test (too little redundancy).
 
-    Returns
-    -------
-    table : DataFrame
-        The points kept, sigmas scaled.
-    flags : list of (exposure, station, line, reason)
-    factors : DataFrame
-        ``station, line, n, s0, scale, outliers``.
-    """
-    order = {e: i for i, e in enumerate(exposures)}
-    dirs = axis_directions(table)
+def _screen(dirs, order, *, degree, k_out, min_length_fraction, min_redundancy):
+    """Short axes and direction outliers of every station and ski of
+    ``dirs`` (:func:`axis_directions`), the variance factors and the fits
+    of the sequences. Returns (dropped keys, flags, factors DataFrame,
+    fits {(station, line): (coef, cov, scale, reference angle)})."""
     drop, flags, report = set(), [], []
-    scale_of = {}
+    fit_of = {}
     for (s, lab), g in dirs.groupby(["station", "line"], sort=False):
         med = float(np.median(g["length"]))
         short = g["length"] < min_length_fraction * med
@@ -108,7 +100,7 @@ def sequence_check(table: pd.DataFrame, exposures, *, degree: int = 3, k_out: fl
         keep = np.ones(len(t), bool)
         s0, outliers = 1.0, 0
         while keep.sum() >= degree + 1 + min_redundancy:
-            r, deg = _fit(t[keep], a[keep], sig[keep], degree)
+            r, deg, _, _ = _fit(t[keep], a[keep], sig[keep], degree)
             z = r / sig[keep]
             dof = keep.sum() - deg - 1
             robust = max(1.0, 1.4826 * float(np.median(np.abs(z))))
@@ -126,12 +118,121 @@ def sequence_check(table: pd.DataFrame, exposures, *, degree: int = 3, k_out: fl
             s0 = float(np.sqrt((z ** 2).sum() / dof))
             break
         scale = max(1.0, s0)
-        scale_of[(s, lab)] = scale
+        if keep.sum() >= 2:
+            _, _, coef, cov = _fit(t[keep], a[keep], sig[keep], min(degree, keep.sum() - 2))
+            fit_of[(s, lab)] = (coef, cov, scale, float(np.median(a[keep])))
         report.append((s, lab, int(keep.sum()), s0, scale, outliers))
+
+    factors = pd.DataFrame(report, columns=["station", "line", "n", "s0", "scale", "outliers"])
+    return drop, flags, factors, fit_of
+
+
+def sequence_check(table: pd.DataFrame, exposures, *, degree: int = 3, k_out: float = 4.0,
+                   min_length_fraction: float = 0.5, min_redundancy: int = 3,
+                   pending: dict | None = None, alpha: float = 0.001):
+    """Scale and screen the ski points of each station and ski by their
+    sequence (module doc), and decide the labels of pending views.
+
+    Parameters
+    ----------
+    table : DataFrame
+        ``exposure, station, line, x, y, sigma`` (the tracked ski points).
+    exposures : sequence
+        The exposure names in time order (their index is the time).
+    degree : int
+        Degree of the polynomial in time.
+    k_out : float
+        Outlier threshold in scaled sigmas.
+    min_length_fraction : float
+        An axis shorter than this share of the median length of that ski in
+        that view is flagged.
+    min_redundancy : int
+        Fewer exposures than ``degree + 1 + min_redundancy`` in a sequence:
+        no scaling and no outlier test (too little redundancy).
+    pending : dict {(exposure, station): str}, optional
+        Views whose labels nothing else decided (the three-view check could
+        not, or did not run), with why. Their axes are left out of the
+        sequences; each is compared, as labelled and interchanged, with the
+        sequences of the two skis in that view (their polynomials at its
+        time, sigmas of the measurement and of the prediction): the
+        assignment whose chi-square is within its ``1 - alpha`` quantile
+        and beats the other by that quantile is taken (labels interchanged
+        where needed), otherwise the view's skis are flagged.
+    alpha : float
+        Test level of the pending views' decision.
+
+    Returns
+    -------
+    table : DataFrame
+        The points kept, sigmas scaled.
+    flags : list of (exposure, station, line, reason)
+    factors : DataFrame
+        ``station, line, n, s0, scale, outliers``.
+    decided : dict {(exposure, station): "as labelled" or "interchanged"}
+        The pending views the sequences decided.
+    """
+    from scipy.stats import chi2
+    pending = dict(pending or {})
+    order = {e: i for i, e in enumerate(exposures)}
+    opts = dict(degree=degree, k_out=k_out, min_length_fraction=min_length_fraction,
+                min_redundancy=min_redundancy)
+    dirs = axis_directions(table)
+    is_pending = np.array([(e, s) in pending for e, s in zip(dirs.exposure, dirs.station)],
+                          bool)
+    # the sequences of the decided views first (their fits decide the rest)
+    _, _, _, fit_of = _screen(dirs[~is_pending], order, **opts)
+    # the pending views: as labelled or interchanged, by the sequences
+    drop, flags = set(), []
+    decided = {}
+    relabel = {}
+    for (e, s), why in pending.items():
+        view = dirs[(dirs.exposure == e) & (dirs.station == s)]
+        labs = list(view["line"])
+        all_labs = sorted({lab for (_, lab) in fit_of} | set(labs))
+        if len(all_labs) != 2 or any(fit_of.get((s, lab)) is None for lab in all_labs):
+            reason = f"labels not decided: {why}; too few decided exposures in this view"
+        else:
+            fits = {lab: fit_of[(s, lab)] for lab in all_labs}
+            other = dict(zip(all_labs, all_labs[::-1]))
+            costs = []
+            for swap in (False, True):
+                c = 0.0
+                for r in view.itertuples():
+                    lab = other[r.line] if swap else r.line
+                    coef, cov, scale, ref = fits[lab]
+                    pred, sp = _predict((coef, cov, scale), order[e])
+                    # the measured angle on the branch of the sequence
+                    ang = ref + np.angle(np.exp(1j * (r.angle - ref)))
+                    sm = r.sigma_angle * scale
+                    c += (ang - pred) ** 2 / (sm ** 2 + sp ** 2)
+                costs.append(c)
+            q = float(chi2.ppf(1 - alpha, max(len(view), 1)))
+            best = int(np.argmin(costs))
+            if costs[best] <= q and costs[1 - best] - costs[best] >= q:
+                decided[(e, s)] = "interchanged" if best else "as labelled"
+                if best:
+                    relabel[(e, s)] = other
+                continue
+            reason = (f"labels not decided: {why}; the sequences of the two skis in this "
+                      f"view do not tell them apart (chi2 {costs[0]:.3g} as labelled, "
+                      f"{costs[1]:.3g} interchanged, {len(view)} dof)")
+        for lab in labs:
+            drop.add((e, s, lab))
+            flags.append((e, s, lab, reason))
     out = table.copy()
+    if relabel:
+        out["line"] = [relabel[(e, s)][lab] if (e, s) in relabel else lab
+                       for e, s, lab in zip(out["exposure"], out["station"], out["line"])]
+    # (no relabelled view is in drop: its labels were decided)
     key = list(zip(out["exposure"], out["station"], out["line"]))
-    out = out[[k not in drop for k in key]].copy()
+    out = out.loc[np.array([k not in drop for k in key], bool)].copy()
+    # then every axis kept, the decided pending views with them: outliers,
+    # short axes and the variance factors
+    more, more_flags, factors, _ = _screen(axis_directions(out), order, **opts)
+    flags += more_flags
+    key = list(zip(out["exposure"], out["station"], out["line"]))
+    out = out.loc[np.array([k not in more for k in key], bool)].copy()
+    scale_of = dict(zip(zip(factors.station, factors.line), factors.scale))
     out["sigma"] = out["sigma"] * [scale_of.get((s, lab), 1.0)
                                    for s, lab in zip(out["station"], out["line"])]
-    factors = pd.DataFrame(report, columns=["station", "line", "n", "s0", "scale", "outliers"])
-    return out.reset_index(drop=True), flags, factors
+    return out.reset_index(drop=True), flags, factors, decided

@@ -366,6 +366,7 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
                 backward[(i, st)] = one_image(i, st, prev)
 
     rows, checks, flags, fitted = [], [], [], {}
+    pending = {}                      # (exposure, station) -> why its labels are open
     for i, e in enumerate(names):
         options = []
         for st in stations:
@@ -427,18 +428,22 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             n = sum(len(v) == 2 for v in by_view.values())
             detail = f"both skis found in {n} view(s); the check needs 3"
         confirmed = raw in ("ok", "swapped") and status in ("ok", "swapped")
-        undecided = set(res.undecided) if isinstance(res, SkiCheck) else set()
+        checked = set(res.stations) - set(res.undecided) \
+            if isinstance(res, SkiCheck) and confirmed else set()
         for st, v in by_view.items():
             sep = _separation(views[st].lines)
-            if st in undecided and sep > coincide_px:
-                # the check cannot tell the skis apart in this view, and they
-                # are apart in it: which is which would be a guess
-                for lab in v:
-                    flags.append((e, st, lab, "labels not decided by the three-view check "
-                                              f"(the skis {sep:.2g} px apart in this view)"))
-                continue
-            if not views[st].labelled and not confirmed:
-                # skis found where the bindings' blob is, labels unknown
+            in_check = st in res_stations(res)
+            if (in_check and st not in checked or not views[st].labelled and not confirmed) \
+                    and sep > coincide_px:
+                # the skis are apart in this view, the check saw it and did not
+                # decide which is which (or nothing labelled them): the
+                # sequences decide, or the view is flagged
+                why = ("not decided by the three-view check" if in_check
+                       else "binding markers not split, no three-view check")
+                pending[(e, st)] = f"{why} (the skis {sep:.2g} px apart in this view)"
+            elif not views[st].labelled and not confirmed:
+                # skis found where the bindings' blob is, nearly coincident,
+                # but no view of the exposure has labelled skis
                 for lab in v:
                     flags.append((e, st, lab, "labels unknown (binding markers not split, "
                                               "not confirmed by the three-view check)"))
@@ -451,8 +456,14 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
     table = pd.DataFrame(rows, columns=TABLE_COLUMNS)
     factors = None
     if sequence and len(table):
-        table, seq_flags, factors = sequence_check(table, names)
+        table, seq_flags, factors, _ = sequence_check(table, names, pending=pending)
         flags += seq_flags
+    elif pending:
+        drop = [(e, s) in pending for e, s in zip(table.exposure, table.station)]
+        for (e, s), why in pending.items():
+            for lab in table[(table.exposure == e) & (table.station == s)].line.unique():
+                flags.append((e, s, lab, f"labels not decided: {why}"))
+        table = table[~np.array(drop, bool)].reset_index(drop=True)
     return SkiTracking(table, pd.DataFrame(checks, columns=CHECK_COLUMNS),
                        pd.DataFrame(flags, columns=FLAG_COLUMNS), fitted, factors)
 
@@ -467,6 +478,11 @@ class _Seen:
     pts: dict = field(default_factory=dict)
     sig: dict = field(default_factory=dict)
     flags: list = field(default_factory=list)
+
+
+def res_stations(res) -> list:
+    """The stations of a three-view check result (none for no result)."""
+    return list(res.stations) if isinstance(res, SkiCheck) else []
 
 
 def _separation(lines) -> float:
