@@ -92,3 +92,23 @@ def test_a_ski_seen_in_one_image_is_a_clear_gap():
     assert ("007", "L1") not in r.lines and ("007", "L2") in r.lines
     e = list(r.exposures).index("007")
     assert np.isnan(r.model.d1[e]).all() and np.isfinite(r.model.d2[e]).all()
+
+
+def test_the_lines_sigma_column_weights_the_ski_lines():
+    """The ``sigma`` of each point along a ski (photogram track writes
+    them): twice the sigma in every image is twice the sigma of the 3D ski
+    direction (the line fits and the intersection are linear in the
+    weights); points without a sigma take [adjustment] sigma_image."""
+    project, _ = jump_project(noise=True)
+    il = project.image_lines
+    sig = project.adjustment.sigma_image
+    sig = float(sig if np.isscalar(sig) else next(iter(sig.values())))
+    il.sigma = np.full(len(il), np.nan)
+    base = intersect_jump(project)
+    il.sigma = np.full(len(il), 2 * sig)
+    doubled = intersect_jump(project)
+    for key, line in base.lines.items():
+        c0, c1 = line.line.covariance_plucker[:3, :3], doubled.lines[key].line.covariance_plucker[:3, :3]
+        np.testing.assert_allclose(c1, 4 * c0, rtol=1e-6, atol=1e-15)
+        np.testing.assert_allclose(doubled.lines[key].line.direction, line.line.direction,
+                                   atol=1e-9)

@@ -96,17 +96,26 @@ def _copy_with_points(project, xyz):
 
 
 def _lines_by_exposure(project):
-    """``{exposure: {station: {ski: xy (k, 2)}}}`` from the image lines."""
+    """``{exposure: {station: {ski: xy (k, 2)}}}`` from the image lines, and
+    the same of their sigmas ``(k,)`` (the table's sigma column where given,
+    else ``[adjustment] sigma_image`` of the station)."""
     il = project.image_lines
     names = project.stations.names
     out: dict = {}
+    sig: dict = {}
+    default = _station_sigmas(project)
+    sigma = np.asarray(il.sigma, float) if len(il.sigma) == len(il) else np.full(len(il), np.nan)
     for lab in dict.fromkeys(il.line.tolist()):
         ski, exposure = split_id(lab)
         rows = il.line == lab
         for s in np.unique(il.station[rows]):
             m = rows & (il.station == s)
-            out.setdefault(exposure, {}).setdefault(names[int(s)], {})[ski] = il.xy[m]
-    return out
+            name = names[int(s)]
+            out.setdefault(exposure, {}).setdefault(name, {})[ski] = il.xy[m]
+            # a point's own sigma (the table's sigma column), else the station's
+            sig.setdefault(exposure, {}).setdefault(name, {})[ski] = np.where(
+                np.isfinite(sigma[m]) & (sigma[m] > 0), sigma[m], default[name])
+    return out, sig
 
 
 def _station_sigmas(project):
@@ -159,7 +168,7 @@ def intersect_jump(project, orientation=None) -> JumpResult:
 
     cameras = cameras_from_project(adjusted)
     sig = _station_sigmas(project)
-    by_exposure = _lines_by_exposure(project)
+    by_exposure, sig_by_exposure = _lines_by_exposure(project)
     checks, lines = {}, {}
     d = np.full((n, 2, 3), np.nan)
     c = np.full((n, 2, 3), np.nan)
@@ -168,6 +177,7 @@ def intersect_jump(project, orientation=None) -> JumpResult:
         views = by_exposure.get(exposure)
         if not views:
             continue
+        check = None
         complete = {st: v for st, v in views.items() if all(s in v for s in cfg.skis)}
         if len(complete) >= 3:
             check = check_ski_labels(complete, cameras, sig, labels=tuple(cfg.skis),
@@ -184,7 +194,12 @@ def intersect_jump(project, orientation=None) -> JumpResult:
                     f"ski line {ski}@{exposure} is measured in {len(pts)} image(s): not "
                     f"intersected (the stick-model values that need it are empty)")
                 continue
-            res = intersect_line_from_points(pts, cameras, sig, label=f"{ski}@{exposure}")
+            sig_pts = {st: sig_by_exposure[exposure][st][ski] for st in pts}
+            if check is not None and check.status == "swapped" and cfg.swap_skis:
+                other = cfg.skis[1 - j]
+                sig_pts.update({st: sig_by_exposure[exposure][st][other]
+                                for st in check.swapped if st in pts})
+            res = intersect_line_from_points(pts, cameras, sig_pts, label=f"{ski}@{exposure}")
             lines[(exposure, ski)] = res
             d[e, j] = res.line.direction
             c[e, j] = res.line.point
