@@ -98,3 +98,61 @@ def test_combine_covariance_blocks_union_override_and_fixed():
     assert total[i["c"], i["y"]] == 0.5 and total[i["y"], i["y"]] == 1.0
     assert total[i["c"], i["x"]] == 1.0       # only a holds the pair with c
     assert np.allclose(total, total.T)
+
+
+def _line_views(prj, X_a, X_b, views, n=12):
+    """Points along the image of the 3D line X_a-X_b in ``views``."""
+    from photogram.lines import cameras_from_project
+    cams = cameras_from_project(prj)
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    X = X_a + t * (X_b - X_a)
+    return {v: cams[v].project(X) for v in views}
+
+
+def _line_direction(prj, pts):
+    from photogram.lines import cameras_from_project, intersect_line_from_points
+    res = intersect_line_from_points(pts, cameras_from_project(prj), 0.3)
+    return res.line.direction, res.line.point
+
+
+def test_line_direction_sensitivity_matches_finite_differences():
+    """A 3D line intersected from points measured along its images, the
+    images held fixed while the orientation moves: the analytic dd/dtheta
+    against central differences of the re-intersected direction; exact with
+    two views (two planes), within a few percent with three (the views'
+    weights are approximated)."""
+    from photogram.stats.propagation import line_direction_sensitivity
+    prj = field_points()
+    built = intersected(prj)
+    labels = labels_of(prj)
+    X = prj.points.xyz
+    X_a, X_b = X[0], X[0] + 0.3 * (X[5] - X[0])
+    names = list(prj.stations.names)
+    for views, rtol in ((names[:2], 1e-4), (names[:3], 0.05)):
+        pts = _line_views(prj, X_a, X_b, views)
+        d, c = _line_direction(prj, pts)
+        spec = [([names.index(v) for v in views], c, d, [12 / 0.3 ** 2] * len(views))]
+        S = line_direction_sensitivity(built.problem, prj, built.camera_names, labels, spec)[0]
+        assert (np.abs(d @ S) <= 1e-9 * np.abs(S).max(0) + 1e-300).all()   # dd across d
+        for lab in ["S1.X0", "S2.Z0", "S1.omega", "S2.kappa", "K1.c", "K2.x0"]:
+            j = labels.index(lab)
+            name, par = lab.split(".")
+            h = {"X0": 1e-3, "Z0": 1e-3, "omega": 1e-6, "kappa": 1e-6, "c": 1e-3,
+                 "x0": 1e-3}[par]
+            fd = []
+            for sign in (1, -1):
+                q = copy.deepcopy(prj)
+                if name in q.cameras:
+                    q.cameras[name].parameters[par].value += sign * h
+                else:
+                    i = q.stations.names.index(name)
+                    k = STATION_PARAMETERS.index(par)
+                    if k < 3:
+                        q.stations.position[i, k] += sign * h
+                    else:
+                        q.stations.angles[i, k - 3] += sign * h
+                dq, _ = _line_direction(q, pts)
+                fd.append(dq if dq @ d > 0 else -dq)
+            num = (fd[0] - fd[1]) / (2 * h)
+            scale = max(np.abs(num).max(), 1e-12)
+            assert np.abs(S[:, j] - num).max() <= rtol * scale + 1e-9, (views, lab, S[:, j], num)

@@ -73,6 +73,9 @@ def intersect_points(project, orientation=None):
         labels, matrix = orientation
         S = orientation_sensitivity(built.problem, project, built.camera_names, labels)
         joint = propagate_orientation(S, matrix)
+        # for the lines' propagation (intersect_jump takes it out)
+        summary["orientation_sensitivity"] = (built.problem, S, built.camera_names, labels,
+                                              matrix)
         n = len(project.points)
         idx = np.arange(n)
         cov = cov + joint.reshape(n, 3, n, 3)[idx, :, idx, :]
@@ -116,6 +119,42 @@ def _lines_by_exposure(project):
             sig.setdefault(exposure, {}).setdefault(name, {})[ski] = np.where(
                 np.isfinite(sigma[m]) & (sigma[m] > 0), sigma[m], default[name])
     return out, sig
+
+
+def _with_line_orientation(stash, project, cfg, exposures, pidx, cov_P, cov_d, c, d,
+                           line_views):
+    """The stick model's input covariance (n, 18, 18) per exposure with the
+    orientation's covariance propagated into the ski directions as well as
+    into the points, and their correlations within the exposure:
+    ``C = C_image + S C_theta S^T`` with ``S`` the sensitivities (18, q) of
+    P1..P4 (:func:`photogram.stats.propagation.orientation_sensitivity`) and
+    of d1, d2 (:func:`photogram.stats.propagation.line_direction_sensitivity`);
+    ``cov_P`` already holds the points' part."""
+    from photogram.stats.propagation import line_direction_sensitivity
+    problem, S, camera_names, labels, matrix = stash
+    n = len(exposures)
+    keys = sorted(line_views)
+    spec = [(line_views[k][0], c[k], d[k], line_views[k][1]) for k in keys]
+    S_lines = line_direction_sensitivity(problem, project, camera_names, labels, spec)
+    q = len(labels)
+    S_all = np.zeros((n, 18, q))
+    for (e, j), Sd in zip(keys, S_lines):
+        S_all[e, 12 + 3 * j:15 + 3 * j] = Sd
+    S3 = S.reshape(-1, 3, q)
+    for k, name in enumerate(cfg.points):
+        for e, exposure in enumerate(exposures):
+            i = pidx.get(f"{name}@{exposure}")
+            if i is not None:
+                S_all[e, 3 * k:3 * k + 3] = S3[i]
+    C = np.zeros((n, 18, 18))
+    C[:, :12, :12] = cov_P
+    for j in range(2):
+        C[:, 12 + 3 * j:15 + 3 * j, 12 + 3 * j:15 + 3 * j] = cov_d[:, j]
+    orient = S_all @ matrix @ np.swapaxes(S_all, 1, 2)
+    C[:, 12:, 12:] += orient[:, 12:, 12:]
+    C[:, :12, 12:] += orient[:, :12, 12:]
+    C[:, 12:, :12] += orient[:, 12:, :12]
+    return 0.5 * (C + np.swapaxes(C, 1, 2))
 
 
 def _station_sigmas(project):
@@ -169,7 +208,8 @@ def intersect_jump(project, orientation=None) -> JumpResult:
     cameras = cameras_from_project(adjusted)
     sig = _station_sigmas(project)
     by_exposure, sig_by_exposure = _lines_by_exposure(project)
-    checks, lines = {}, {}
+    checks, lines, line_views = {}, {}, {}
+    names = list(project.stations.names)
     d = np.full((n, 2, 3), np.nan)
     c = np.full((n, 2, 3), np.nan)
     cov_d = np.zeros((n, 2, 3, 3))
@@ -201,15 +241,23 @@ def intersect_jump(project, orientation=None) -> JumpResult:
                                 for st in check.swapped if st in pts})
             res = intersect_line_from_points(pts, cameras, sig_pts, label=f"{ski}@{exposure}")
             lines[(exposure, ski)] = res
+            line_views[(e, j)] = ([names.index(st) for st in pts],
+                                  [float(np.sum(1 / np.asarray(sig_pts[st]) ** 2)) for st in pts])
             d[e, j] = res.line.direction
             c[e, j] = res.line.point
             if res.line.covariance is not None:
                 cov_d[e, j] = res.line.covariance_plucker[:3, :3]
     times = (frames - frames[0]) / cfg.fps
+    stash = summary.pop("orientation_sensitivity", None)
+    if stash is None:
+        cov_in = dict(cov_points=cov_P, cov_dirs=cov_d)
+    else:
+        cov_in = dict(cov=_with_line_orientation(stash, project, cfg, exposures, pidx,
+                                                 cov_P, cov_d, c, d, line_views))
     model = stick_model(P, d[:, 0], d[:, 1], fps=cfg.fps, times=times,
                         length_unit=project.units.length, ski_length=cfg.ski_length,
                         binding_fraction=cfg.binding_fraction, c1=c[:, 0], c2=c[:, 1],
-                        forward="flight", cov_points=cov_P, cov_dirs=cov_d)
+                        forward="flight", **cov_in)
     summary["warnings"] += plausibility_warnings(model, project.units.length)
     summary["exposures"] = n
     summary["swapped_skis"] = {e: ch.swapped for e, ch in checks.items() if ch.status == "swapped"}
