@@ -40,14 +40,17 @@ The axes become image lines measured by points (:func:`sample_axis`); eq.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.ndimage import binary_dilation, map_coordinates
 from scipy.special import ndtr
 
+from photogram.track.lm import LMResult, robust_lm  # noqa: F401  (re-exported)
+
 __all__ = ["BarLine", "PairFit", "noise_sigma", "search_direction", "extent_along",
-           "best_split", "fit_ski_pair", "sample_axis"]
+           "best_split", "fit_ski_pair", "sample_axis", "robust_lm", "LMResult"]
 
 
 @dataclass
@@ -212,59 +215,142 @@ def _coverage(x, y, par, w, blur, ref, u0):
     return across * along
 
 
-def _model(theta, x, y, bg, ref, u0):
-    w, G, blur = theta[_W], theta[_G], theta[_BLUR]
-    c1 = _coverage(x, y, theta[:4], w, blur, ref, u0)
-    c2 = _coverage(x, y, theta[4:8], w, blur, ref, u0)
-    # eq. (2): two bars of grey G over the background bg (union)
-    return (bg - G) * (c1 + c2 - c1 * c2)
+# |z| beyond which ndtr(z) is 0 or 1 to double precision (ndtr(-8.3) = 5e-17,
+# phi(8.3) = 1e-15); scipy's ndtr is slowest there (its erfc branch)
+_Z_SATURATED = 8.3
+_INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)
 
 
-def _coverage_jacobian(x, y, par, w, blur, ref, u0):
-    """Coverage eq. (1) of one bar and its analytic partial derivatives by
-    (angle, shift, a, b, width, blur): (n,), (n, 6).
+class _PairTerms:
+    """Eqs. (1), (2) for both bars in one pass at a parameter vector
+    ``theta``, with what the Jacobian (:func:`_pair_jacobian`) reuses.
+
+    One (8, 3) @ (3, n) product gives the standardised edge distances ``Z``
+    (per bar ``(d + w/2)/s, (d - w/2)/s, (t - a)/s, (t - b)/s``), one
+    ``ndtr`` call their normal CDFs; ``A`` (2, n), ``B`` (2, n) the across
+    and along factors of eq. (1) of both bars, ``C = A B`` their coverages
+    and ``union = C_1 + C_2 - C_1 C_2`` the bracket of eq. (2). ``X3`` is
+    (3, n): the pixel centres x, y and ones. ``dd_dc``, ``dt_dc`` (2,) the
+    derivatives of ``d_k``, ``t_k`` by the shift (``-n0 . n_k``,
+    ``-n0 . u_k``)."""
+
+    __slots__ = ("theta", "Z", "live", "z_live", "A", "B", "C", "union", "dd_dc", "dt_dc",
+                 "a")
+
+    def __init__(self, theta, X3, ref, u0):
+        theta = np.array(theta, dtype=float)
+        p = theta.tolist()
+        w, s = p[_W], p[_BLUR]
+        u0x, u0y = float(u0[0]), float(u0[1])
+        rx, ry = float(ref[0]), float(ref[1])
+        M = []
+        dd_dc, dt_dc = [], []
+        for k in (0, 1):
+            ang, c, a, b = p[_PER_SKI * k:_PER_SKI * (k + 1)]
+            ca, sa = math.cos(ang), math.sin(ang)
+            ux, uy = u0x * ca - u0y * sa, u0x * sa + u0y * ca     # u = R(ang) u0
+            px, py = rx - c * u0y, ry + c * u0x                    # p = ref + c n0
+            pn, pu = ux * py - uy * px, ux * px + uy * py          # p . n, p . u
+            M += [(-uy, ux, w / 2 - pn), (-uy, ux, -w / 2 - pn),
+                  (ux, uy, -a - pu), (ux, uy, -b - pu)]
+            dd_dc.append(-(u0x * ux + u0y * uy))
+            dt_dc.append(u0y * ux - u0x * uy)
+        self.theta = theta
+        self.Z = Z = (np.array(M) * (1.0 / s)) @ X3
+        # Phi(Z) is 0 or 1 to double precision beyond |Z| = 8.3 (most of the
+        # along-the-bar arguments); ndtr only for the others ("live")
+        z = Z.ravel()
+        self.live = np.flatnonzero(np.abs(z) < _Z_SATURATED)
+        self.z_live = z[self.live]
+        P = (z > 0).astype(float)
+        P[self.live] = ndtr(self.z_live)
+        P = P.reshape(2, 2, 2, -1)
+        AB = P[:, :, 0] - P[:, :, 1]
+        self.A, self.B = AB[:, 0], AB[:, 1]
+        self.C = self.A * self.B
+        self.union = self.C[0] + self.C[1] - self.C[0] * self.C[1]
+        self.dd_dc = np.array(dd_dc)[:, None]
+        self.dt_dc = np.array(dt_dc)[:, None]
+        self.a = np.array([[p[2]], [p[6]]])
+
+
+def _pair_jacobian(T, bg):
+    """Analytic Jacobian (11, n), transposed, of the model eq. (2)
+    ``(bg - G) union`` at the terms ``T`` (:class:`_PairTerms`).
 
     With ``u = R(angle) u0``, ``n = perp(u)``, ``p = ref + c n0``, the
-    distances ``d = (x - p) . n`` and ``t = (x - p) . u`` have
+    distances ``d = (x - p) . n`` and ``t = (x - p) . u`` of eq. (1) have
     ``dd/dangle = -t``, ``dt/dangle = d``, ``dd/dc = -n0 . n``,
     ``dt/dc = -n0 . u``; the coverage is ``A(d) B(t)`` with
-    ``A = Phi((d + w/2)/s) - Phi((d - w/2)/s)``,
-    ``B = Phi((t - a)/s) - Phi((t - b)/s)`` (Phi the normal CDF, phi its
-    density)."""
-    a, b = par[2], par[3]
-    d, t, u, n, n0 = _bar_frame(x, y, par, ref, u0)
-    z1, z2 = (d + w / 2) / blur, (d - w / 2) / blur
-    za, zb = (t - a) / blur, (t - b) / blur
-    f1, f2, fa, fb = (np.exp(-0.5 * z * z) / np.sqrt(2 * np.pi) for z in (z1, z2, za, zb))
-    A = ndtr(z1) - ndtr(z2)
-    B = ndtr(za) - ndtr(zb)
-    dA_dd = (f1 - f2) / blur
-    dB_dt = (fa - fb) / blur
-    J = np.empty(x.shape + (6,))
-    J[..., 0] = dA_dd * -t * B + A * dB_dt * d                       # angle
-    J[..., 1] = dA_dd * -(n0 @ n) * B + A * dB_dt * -(n0 @ u)       # shift c
-    J[..., 2] = A * -fa / blur                                       # a
-    J[..., 3] = A * fb / blur                                        # b
-    J[..., 4] = 0.5 * (f1 + f2) / blur * B                           # width
-    J[..., 5] = (-(f1 * z1 - f2 * z2) / blur * B
-                 + A * -(fa * za - fb * zb) / blur)                  # blur
-    return A * B, J
+    ``A = Phi(z_1) - Phi(z_2)``, ``B = Phi(z_a) - Phi(z_b)`` (Phi the normal
+    CDF, phi its density), so ``dA/dd = (phi(z_1) - phi(z_2)) / s``,
+    ``dA/dw = (phi(z_1) + phi(z_2)) / 2s``, ``dB/da = -phi(z_a) / s``,
+    ``dB/db = phi(z_b) / s`` and ``dC/ds = -(z_1 phi(z_1) - z_2 phi(z_2)) B / s
+    - A (z_a phi(z_a) - z_b phi(z_b)) / s``; eq. (2) has
+    ``d/dC_1 = (bg - G)(1 - C_2)`` (and 1, 2 swapped) and
+    ``d/dG = -union``."""
+    th, Z, A, B = T.theta, T.Z, T.A, T.B
+    s = th[_BLUR]
+    n = Z.shape[1]
+    E = np.zeros(Z.size)                           # sqrt(2 pi) phi(Z), 0 if saturated
+    E[T.live] = np.exp(T.z_live * T.z_live * -0.5)
+    E = E.reshape(2, 2, 2, n)
+    EZ = E * Z.reshape(2, 2, 2, n)
+    Ed = E[:, :, 0] - E[:, :, 1]
+    g = (bg - th[_G]) * (_INV_SQRT_2PI / s) * (1.0 - T.C[::-1])   # d model / d C_k, / s
+    gA, gB = g * A, g * B
+    dd = gB * Ed[:, 0]                             # d model / d d_k
+    dt = gA * Ed[:, 1]                             # d model / d t_k
+    Zs = Z.reshape(2, 4, n)
+    d = (Zs[:, 0] + Zs[:, 1]) * (0.5 * s)
+    t = Zs[:, 2] * s + T.a
+    JT = np.empty((11, n))
+    Jb = JT[:8].reshape(2, 4, n)
+    Jb[:, 0] = dt * d - dd * t                     # angle
+    Jb[:, 1] = dd * T.dd_dc + dt * T.dt_dc         # shift c
+    Jb[:, 2] = -gA * E[:, 1, 0]                    # a
+    Jb[:, 3] = gA * E[:, 1, 1]                     # b
+    JT[_W] = (0.5 * gB * (E[:, 0, 0] + E[:, 0, 1])).sum(0)
+    JT[_G] = -T.union
+    EZd = EZ[:, :, 0] - EZ[:, :, 1]
+    JT[_BLUR] = -(gB * EZd[:, 0] + gA * EZd[:, 1]).sum(0)
+    return JT
+
+
+def _xy1(x, y):
+    return np.stack([np.ravel(x), np.ravel(y), np.ones(np.size(x))])
+
+
+def _model(theta, x, y, bg, ref, u0):
+    """Eq. (2) at pixel centres (x, y) with background ``bg``: ``B - I``."""
+    T = _PairTerms(theta, _xy1(x, y), ref, u0)
+    return ((np.ravel(bg) - theta[_G]) * T.union).reshape(np.shape(x))
 
 
 def _model_jacobian(theta, x, y, bg, ref, u0):
     """d model / d theta (n, 11) of :func:`_model`, analytic."""
-    w, G, blur = theta[_W], theta[_G], theta[_BLUR]
-    c1, J1 = _coverage_jacobian(x, y, theta[:4], w, blur, ref, u0)
-    c2, J2 = _coverage_jacobian(x, y, theta[4:8], w, blur, ref, u0)
-    k = bg - G
-    g1, g2 = k * (1 - c2), k * (1 - c1)                               # d / d c1, d / d c2
-    J = np.empty(x.shape + (11,))
-    J[..., 0:4] = g1[..., None] * J1[..., :4]
-    J[..., 4:8] = g2[..., None] * J2[..., :4]
-    J[..., _W] = g1 * J1[..., 4] + g2 * J2[..., 4]
-    J[..., _G] = -(c1 + c2 - c1 * c2)
-    J[..., _BLUR] = g1 * J1[..., 5] + g2 * J2[..., 5]
-    return J
+    T = _PairTerms(theta, _xy1(x, y), ref, u0)
+    return _pair_jacobian(T, np.ravel(bg)).T
+
+
+class _PairResiduals:
+    """Residuals eq. (2) minus data ``v`` of one set of used pixels, and
+    their Jacobian from the terms of the last residual evaluation (the
+    solver asks for the Jacobian at the point just accepted)."""
+
+    def __init__(self, x, y, bg, v, ref, u0):
+        self.X3, self.bg, self.v, self.ref, self.u0 = _xy1(x, y), bg, v, ref, u0
+        self.last = None
+
+    def fun(self, th):
+        self.last = T = _PairTerms(th, self.X3, self.ref, self.u0)
+        return (self.bg - th[_G]) * T.union - self.v
+
+    def jac(self, th):
+        T = self.last
+        if T is None or not np.array_equal(T.theta, th):
+            T = _PairTerms(th, self.X3, self.ref, self.u0)
+        return _pair_jacobian(T, self.bg).T
 
 
 def _to_bar(theta, k, ref, u0, cov):
@@ -475,13 +561,8 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
         if len(v) < 20:
             return PairFit(list(initial), np.nan, 1.0, False, "no pixels left in the band")
 
-        def fun(th):
-            return _model(th, x, y, bv, ref, u0) - v
-
-        def jac(th):
-            return _model_jacobian(th, x, y, bv, ref, u0)
-
-        res = robust_lm(fun, jac, theta, lower, upper, f_scale=3 * sigma_noise,
+        problem = _PairResiduals(x, y, bv, v, ref, u0)
+        res = robust_lm(problem.fun, problem.jac, theta, lower, upper, f_scale=3 * sigma_noise,
                         max_iter=60, xtol=1e-5, ftol=1e-6)
         theta = res.x
         r = img - _model(theta, xx, yy, bgw, ref, u0)
@@ -521,107 +602,6 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     if ok and res.status < 0:
         ok, reason = False, f"fit failed ({res.message})"
     return PairFit(lines, rms, masked, ok, reason, int(use.sum()))
-
-
-@dataclass
-class LMResult:
-    """Result of :func:`robust_lm`: the solution ``x``, the residuals
-    ``fun`` and Jacobian ``jac`` there, iterations and ``status`` (> 0
-    converged, 0 the iteration limit, < 0 failed) with a message."""
-
-    x: np.ndarray
-    fun: np.ndarray
-    jac: np.ndarray
-    nit: int
-    status: int
-    message: str
-
-
-def robust_lm(fun, jac, x0, lower, upper, *, f_scale: float = 1.0, max_iter: int = 60,
-              xtol: float = 1e-6, ftol: float = 1e-8) -> LMResult:
-    """Levenberg-Marquardt with a soft-L1 loss and box bounds, for the small
-    dense fits of this module (a dozen parameters, a few thousand pixels).
-
-    The soft-L1 cost ``sum 2 f^2 (sqrt(1 + (r/f)^2) - 1)`` (scipy's
-    ``loss="soft_l1"``) is minimised by iteratively reweighted Gauss-Newton
-    (weights ``1 / sqrt(1 + (r/f)^2)``, Triggs et al. 2000, sec. 6.8) with
-    Marquardt's damping of the diagonal (scale invariant, as
-    ``x_scale="jac"``); parameters on a bound that the gradient pushes
-    outwards are held there for the step (an active set), the rest of a
-    step leaving the box is projected onto it; a step
-    that does not lower the cost is refused and the damping raised.
-    scipy.optimize.least_squares(method="trf") solves the same problem with
-    an SVD per iteration, which for these sizes costs more than the model.
-
-    Parameters
-    ----------
-    fun, jac : callable
-        Residuals ``(m,)`` and their Jacobian ``(m, n)`` of the parameters.
-    x0, lower, upper : ndarray (n,)
-    f_scale : float
-        Soft-L1 scale (residuals below it count as least squares).
-    max_iter : int
-    xtol, ftol : float
-        Stop when a step moves every parameter by less than ``xtol`` times
-        (its size + xtol), or lowers the cost by less than ``ftol`` of it.
-
-    Returns
-    -------
-    LMResult
-    """
-    x = np.clip(np.asarray(x0, float), lower, upper)
-    f2 = f_scale * f_scale
-
-    def cost_of(r):
-        return float(np.sum(2 * f2 * (np.sqrt(1 + r * r / f2) - 1)))
-
-    r = fun(x)
-    cost = cost_of(r)
-    lam = 1e-3
-    status, msg, it = 0, "iteration limit", 0
-    J = jac(x)
-    for it in range(1, max_iter + 1):
-        w = 1 / np.sqrt(1 + r * r / f2)
-        Jw = J * w[:, None]
-        A = Jw.T @ J
-        g = Jw.T @ r
-        d = np.maximum(np.diag(A), 1e-12)
-        # parameters on a bound that the descent pushes outwards stay there
-        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)))
-        Af, gf = A[np.ix_(free, free)], g[free]
-        accepted = False
-        while lam < 1e10:
-            try:
-                step = np.zeros_like(x)
-                step[free] = -np.linalg.solve(Af + lam * np.diag(d[free]), gf)
-            except np.linalg.LinAlgError:
-                lam *= 10
-                continue
-            xn = np.clip(x + step, lower, upper)
-            rn = fun(xn)
-            cn = cost_of(rn)
-            if np.isfinite(cn) and cn <= cost:
-                accepted = True
-                break
-            lam *= 10
-        if not accepted:
-            status, msg = 2, "no step lowers the cost"
-            break
-        moved = np.abs(xn - x)
-        drop = cost - cn
-        x, r, cost = xn, rn, cn
-        J = jac(x)
-        lam = max(lam * 0.3, 1e-12)
-        if np.all(moved <= xtol * (np.abs(x) + xtol)):
-            status, msg = 3, "xtol"
-            break
-        if drop <= ftol * cost:
-            status, msg = 2, "ftol"
-            break
-    # the Jacobian of the reweighted problem at the solution (J^T W J the
-    # Gauss-Newton normal matrix of the robust cost)
-    w = 1 / np.sqrt(1 + r * r / f2)
-    return LMResult(x, r, J * np.sqrt(w)[:, None], it, status, msg)
 
 
 def sample_axis(line: BarLine, n: int, shape, *, inset: float = 0.05,
