@@ -350,6 +350,7 @@ def test_fused_pair_model_equals_the_two_bar_composition():
     eq. (1) coverage, also far beyond the bars' ends and sides; the
     residual object's Jacobian (reusing the terms of the last residual
     evaluation) equals the analytic one at whatever point it is asked."""
+    from scipy.special import ndtr
     from photogram.track import ski_edges as se
     rng = np.random.default_rng(1)
     x, y = np.meshgrid(np.arange(-40.0, 60.0), np.arange(-30.0, 50.0))
@@ -357,8 +358,18 @@ def test_fused_pair_model_equals_the_two_bar_composition():
     bg = 200 + rng.normal(0, 3, x.shape)
     ref, u0 = np.array([11.0, 15.0]), np.array([0.6, 0.8])
     th = np.array([0.05, 1.2, -8, 9, -0.03, -2.1, -7, 10, 2.5, 90, 0.8])
-    c1 = se._coverage(x, y, th[:4], th[8], th[10], ref, u0)
-    c2 = se._coverage(x, y, th[4:8], th[8], th[10], ref, u0)
+    w, s = th[8], th[10]
+
+    def coverage(ang, c, a, b):                              # eq. (1), one bar
+        u = np.array([u0[0] * np.cos(ang) - u0[1] * np.sin(ang),
+                      u0[0] * np.sin(ang) + u0[1] * np.cos(ang)])
+        p = ref + c * np.array([-u0[1], u0[0]])
+        d = -(x - p[0]) * u[1] + (y - p[1]) * u[0]
+        t = (x - p[0]) * u[0] + (y - p[1]) * u[1]
+        return ((ndtr((d + w / 2) / s) - ndtr((d - w / 2) / s))
+                * (ndtr((t - a) / s) - ndtr((t - b) / s)))
+
+    c1, c2 = coverage(*th[:4]), coverage(*th[4:8])
     expected = (bg - th[9]) * (c1 + c2 - c1 * c2)
     assert (expected == 0).mean() > 0.5                     # most pixels saturated
     np.testing.assert_allclose(se._model(th, x, y, bg, ref, u0), expected, rtol=0, atol=1e-10)
@@ -418,3 +429,14 @@ def test_crop_around_gives_the_frames_tophat():
         i, j = int(c[0] - 0.5), int(c[1] - 0.5)
         np.testing.assert_array_equal(part[j - 4 - y0:j + 5 - y0, i - 4 - x0:i + 5 - x0],
                                       full[j - 4:j + 5, i - 4:i + 5])
+
+
+def test_grow_equals_scipy_binary_dilation():
+    """The masks' one-pixel growth is scipy.ndimage.binary_dilation with its
+    default cross, borders included."""
+    from scipy.ndimage import binary_dilation
+    from photogram.track.ski_edges import _grow
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        m = rng.random((rng.integers(1, 30), rng.integers(1, 30))) < rng.random()
+        np.testing.assert_array_equal(_grow(m), binary_dilation(m, iterations=1))

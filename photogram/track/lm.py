@@ -59,13 +59,14 @@ def robust_lm(fun, jac, x0, lower, upper, *, f_scale: float = 1.0, max_iter: int
     -------
     LMResult
     """
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     x = np.clip(np.asarray(x0, float), lower, upper)
-    f2 = f_scale * f_scale
+    inv_f2, two_f2 = 1.0 / (f_scale * f_scale), 2.0 * f_scale * f_scale
 
     def loss_terms(r):
-        # sqrt(1 + (r/f)^2): the cost's terms and the reciprocal weights
-        q = np.sqrt(1 + r * r / f2)
-        return q, float(np.sum(2 * f2 * (q - 1)))
+        # sqrt(1 + (r/f)^2): the reciprocal weights, and the cost
+        q = np.sqrt(r * r * inv_f2 + 1.0)
+        return q, two_f2 * (float(q.sum()) - q.size)
 
     r = fun(x)
     q, cost = loss_terms(r)
@@ -73,37 +74,34 @@ def robust_lm(fun, jac, x0, lower, upper, *, f_scale: float = 1.0, max_iter: int
     status, msg, it = 0, "iteration limit", 0
     J = jac(x)
     for it in range(1, max_iter + 1):
-        w = 1 / q
-        Jw = J * w[:, None]
+        Jw = J * (1.0 / q)[:, None]
         A = Jw.T @ J
         g = Jw.T @ r
-        d = np.maximum(np.diag(A), 1e-12)
+        d = np.maximum(A.diagonal(), 1e-12)
         # parameters on a bound that the descent pushes outwards stay there
-        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)))
-        all_free = bool(free.all())
-        if all_free:
+        held = ((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0))
+        free = None if not held.any() else ~held
+        if free is None:
             Af, gf, df = A, g, d
         else:
             Af, gf, df = A[np.ix_(free, free)], g[free], d[free]
-        diag = np.arange(len(gf))
         accepted = False
         while lam < 1e10:
-            M = Af.copy()
-            M[diag, diag] += lam * df
+            M = Af + np.diag(lam * df)
             try:
-                sf = -np.linalg.solve(M, gf)
+                sf = np.linalg.solve(M, -gf)
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
-            if all_free:
-                step = sf
+            if free is None:
+                xn = x + sf
             else:
-                step = np.zeros_like(x)
-                step[free] = sf
-            xn = np.clip(x + step, lower, upper)
+                xn = x.copy()
+                xn[free] += sf
+            xn = np.minimum(np.maximum(xn, lower), upper)
             rn = fun(xn)
             qn, cn = loss_terms(rn)
-            if np.isfinite(cn) and cn <= cost:
+            if cn <= cost:              # False for nan
                 accepted = True
                 break
             lam *= 10
@@ -123,4 +121,4 @@ def robust_lm(fun, jac, x0, lower, upper, *, f_scale: float = 1.0, max_iter: int
             break
     # the Jacobian of the reweighted problem at the solution (J^T W J the
     # Gauss-Newton normal matrix of the robust cost)
-    return LMResult(x, r, J * np.sqrt(1 / q)[:, None], it, status, msg)
+    return LMResult(x, r, J * np.sqrt(1.0 / q)[:, None], it, status, msg)

@@ -29,7 +29,7 @@ pixels away from both predicted axes (a suit lighter than the skis), pixels
 darker than the fitted model (re-fitted up to ``iterations`` times), bright
 pixels (reflective markers) and given discs (the marker positions), each
 with a one-pixel margin. Least squares with a soft-L1 loss
-(:func:`robust_lm`); the covariance of each axis' angle and
+(:func:`robust_lm`, in :mod:`photogram.track.lm`); the covariance of each axis' angle and
 shift from the Gauss-Newton normal matrix, scaled by the robust residual
 variance.
 
@@ -44,7 +44,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import binary_dilation, map_coordinates
+from scipy.ndimage import map_coordinates
 from scipy.special import ndtr
 
 from photogram.track.lm import LMResult, robust_lm  # noqa: F401  (re-exported)
@@ -130,6 +130,18 @@ def _sample(img, xy):
                            mode="constant", cval=0.0).reshape(xy.shape[:-1])
 
 
+def _grow(mask):
+    """``mask`` grown by one pixel (4-neighbours): scipy.ndimage's
+    ``binary_dilation(mask, iterations=1)`` with its default cross, without
+    its per-call overhead (these masks are a few thousand pixels)."""
+    out = mask.copy()
+    out[1:] |= mask[:-1]
+    out[:-1] |= mask[1:]
+    out[:, 1:] |= mask[:, :-1]
+    out[:, :-1] |= mask[:, 1:]
+    return out
+
+
 def search_direction(D, binding, toward=None, *, radius: float = 15.0,
                      step_deg: float = 0.5) -> tuple[np.ndarray, float]:
     """Direction of a dark bar through ``binding``: the angle whose two rays
@@ -189,30 +201,10 @@ def extent_along(D, point, direction, level, *, max_length: float = 200.0,
 # about the same distance) the width (px), the grey and the blur (px)
 _PER_SKI = 4
 _W, _G, _BLUR = 8, 9, 10
-
-
-def _bar_frame(x, y, par, ref, u0):
-    """Distances ``d`` across and ``t`` along one bar of pixel centres (x,
-    y), with the bar's direction ``u``, normal ``n`` and the reference
-    normal ``n0`` (``par``: angle from ``u0``, shift along ``n0`` at
-    ``ref``, ends)."""
-    ang, c = par[0], par[1]
-    ca, sa = np.cos(ang), np.sin(ang)
-    u = np.array([u0[0] * ca - u0[1] * sa, u0[0] * sa + u0[1] * ca])
-    n = np.array([-u[1], u[0]])
-    n0 = np.array([-u0[1], u0[0]])
-    p = ref + c * n0
-    dx, dy = x - p[0], y - p[1]
-    return dx * n[0] + dy * n[1], dx * u[0] + dy * u[1], u, n, n0
-
-
-def _coverage(x, y, par, w, blur, ref, u0):
-    """Coverage eq. (1) of one bar at pixel centres (x, y)."""
-    a, b = par[2], par[3]
-    d, t, *_ = _bar_frame(x, y, par, ref, u0)
-    across = ndtr((d + w / 2) / blur) - ndtr((d - w / 2) / blur)
-    along = ndtr((t - a) / blur) - ndtr((t - b) / blur)
-    return across * along
+# the solver's relative cost change to stop at (robust_lm's ftol); the fits
+# whose masks are then changed only decide which pixels the next one uses
+# and stop at _FTOL_MASK, the fit on the final mask at _FTOL
+_FTOL, _FTOL_MASK = 1e-6, 1e-6
 
 
 # |z| beyond which ndtr(z) is 0 or 1 to double precision (ndtr(-8.3) = 5e-17,
@@ -380,12 +372,13 @@ class _Window:
     ref: np.ndarray
     u0: np.ndarray
     G0: float                # the skis' grey from their tail halves
+    bg_median: float         # median background of the band
 
     def suit(self, G, level):
         """The suit: darker than the ski (grey ``G``) by ``level`` or a
         quarter of the ski's contrast, grown by one pixel."""
-        margin_g = max(level, 0.25 * (np.median(self.bg[self.band]) - G))
-        return binary_dilation(self.band & (self.frame < G - margin_g), iterations=1)
+        margin_g = max(level, 0.25 * (self.bg_median - G))
+        return _grow(self.band & (self.frame < G - margin_g))
 
 
 def _window(frame, background, initial, margin, exclude, mask_level, sigma_noise,
@@ -421,15 +414,15 @@ def _window(frame, background, initial, margin, exclude, mask_level, sigma_noise
             rel = np.stack([xx - l.point[0], yy - l.point[1]], -1)
             near |= np.abs(rel @ l.normal) <= l.width / 2 + body_gap
         level = max(mask_level * sigma_noise, 0.3 * np.percentile(img[band], 95))
-        band &= ~binary_dilation(band & (img > level) & ~near, iterations=1)
+        band &= ~_grow(band & (img > level) & ~near)
     # bright things (reflective markers, patches) and the given discs
-    band &= ~binary_dilation(img < -mask_level * sigma_noise, iterations=1)
+    band &= ~_grow(img < -mask_level * sigma_noise)
     for c, r in exclude:
         band &= (xx - c[0]) ** 2 + (yy - c[1]) ** 2 > r * r
     tails = [l.point + np.linspace(l.ends[0], 0.0, 12)[:, None] * l.direction
              for l in initial]
     G0 = float(np.median(_sample(frame, np.concatenate(tails))))
-    return _Window(xx, yy, img, bgw, fr, band, ref, u0, G0)
+    return _Window(xx, yy, img, bgw, fr, band, ref, u0, G0, float(np.median(bgw[band])))
 
 
 def _axes_parameters(lines, ref, u0):
@@ -461,13 +454,14 @@ def best_split(frame, background, initial, *, sigma_noise: float, span_deg: floa
     use = win.band & ~win.suit(win.G0, mask_level * sigma_noise)
     x, y, v, bv = win.xx[use], win.yy[use], win.img[use], win.bg[use]
     turns = np.arange(-span_deg, span_deg + 1e-9, step_deg)
-    cand, cov = [], []
-    for l in initial:
-        cand.append([BarLine(l.point, _turn(l.direction, t), l.ends, width, win.G0)
-                     for t in turns])
-        cov.append(np.stack([_coverage(x, y, _axes_parameters([c], win.ref, win.u0), width,
-                                       blur, win.ref, win.u0) for c in cand[-1]]))
-    c1, c2 = cov[0][:, None, :], cov[1][None, :, :]
+    cand = [[BarLine(l.point, _turn(l.direction, t), l.ends, width, win.G0) for t in turns]
+            for l in initial]
+    # eq. (1) of the k-th turn of both axes at once: (turns, 2, n)
+    X3 = _xy1(x, y)
+    cov = np.stack([_PairTerms(np.r_[_axes_parameters([c1, c2], win.ref, win.u0),
+                                     width, win.G0, blur], X3, win.ref, win.u0).C
+                    for c1, c2 in zip(*cand)])
+    c1, c2 = cov[:, 0, None, :], cov[None, :, 1, :]
     r = (bv - win.G0) * (c1 + c2 - c1 * c2) - v
     z2 = (r / (3 * sigma_noise)) ** 2
     cost = (np.sqrt(1 + z2) - 1).sum(-1)
@@ -539,7 +533,7 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     # the predicted contrast (else the fit may take the suit for a ski)
     da, dc = np.radians(max_turn_deg), max_shift
     de = np.array([0.25 * l.length + 3.0 for l in initial])
-    contrast = max(np.median(bgw[band]) - theta0[_G], 5 * sigma_noise)
+    contrast = max(win.bg_median - theta0[_G], 5 * sigma_noise)
     lower = np.array([-da, -dc, -de[0], -de[0], -da, -dc, -de[1], -de[1],
                       0.3, -0.5 * contrast, 0.3])
     upper = np.array([da, dc, de[0], de[0], da, dc, de[1], de[1],
@@ -556,20 +550,26 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     use = band & ~suit(theta0[_G])
     theta = theta0
     res = None
-    for _ in range(iterations):
+    for it in range(iterations):
         x, y, v, bv = xx[use], yy[use], img[use], bgw[use]
         if len(v) < 20:
             return PairFit(list(initial), np.nan, 1.0, False, "no pixels left in the band")
-
         problem = _PairResiduals(x, y, bv, v, ref, u0)
+        last = it == iterations - 1
         res = robust_lm(problem.fun, problem.jac, theta, lower, upper, f_scale=3 * sigma_noise,
-                        max_iter=60, xtol=1e-5, ftol=1e-6)
+                        max_iter=60, xtol=1e-5, ftol=_FTOL if last else _FTOL_MASK)
         theta = res.x
-        r = img - _model(theta, xx, yy, bgw, ref, u0)
         A = np.median(bgw[use]) - theta[_G]
-        dark = band & (r > max(mask_level * sigma_noise, 0.2 * A))
-        new = band & ~binary_dilation(dark, iterations=1) & ~suit(theta[_G])
+        dark = np.zeros_like(band)
+        dark[band] = (img[band] - _model(theta, xx[band], yy[band], bgw[band], ref, u0)
+                      > max(mask_level * sigma_noise, 0.2 * A))
+        new = band & ~_grow(dark) & ~suit(theta[_G])
         if np.array_equal(new, use):
+            if not last and _FTOL_MASK > _FTOL:
+                # the mask is final: converge fully from here
+                res = robust_lm(problem.fun, problem.jac, theta, lower, upper,
+                                f_scale=3 * sigma_noise, max_iter=60, xtol=1e-5, ftol=_FTOL)
+                theta = res.x
             break
         use = new
     # covariance of the parameters (Gauss-Newton, unit weights scaled by the
@@ -584,8 +584,7 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     lines = [_to_bar(theta, k, ref, u0, cov) for k in (0, 1)]
     # support: area of each bar in used pixels, not covered by the other
     x, y = xx[use], yy[use]
-    cs = [_coverage(x, y, theta[4 * k:4 * k + 4], theta[_W], theta[_BLUR], ref, u0)
-          for k in (0, 1)]
+    cs = _PairTerms(theta, _xy1(x, y), ref, u0).C
     for k, l in enumerate(lines):
         area = max(theta[_W], 1.0) * max(l.length, 1.0)
         l.support = float(np.sum(cs[k] * (1 - cs[1 - k])) / area)
