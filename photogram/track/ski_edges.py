@@ -204,7 +204,7 @@ _W, _G, _BLUR = 8, 9, 10
 # the solver's relative cost change to stop at (robust_lm's ftol); the fits
 # whose masks are then changed only decide which pixels the next one uses
 # and stop at _FTOL_MASK, the fit on the final mask at _FTOL
-_FTOL, _FTOL_MASK = 1e-6, 1e-6
+_FTOL, _FTOL_MASK = 1e-6, 1e-4
 
 
 # |z| beyond which ndtr(z) is 0 or 1 to double precision (ndtr(-8.3) = 5e-17,
@@ -498,7 +498,9 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     mask_level : float
         Pixels darker than the model by more than this many noise sigmas
         (and by a fifth of the ski contrast) are masked, with a one-pixel
-        margin, and the fit repeated up to ``iterations`` times; so are
+        margin, and the fit repeated up to ``iterations`` times (a fit whose
+        mask then changes stops at a relative cost change of 1e-4, the fit
+        on the final mask at 1e-6); so are
         pixels darker than the ski grey (the suit) and brighter than the
         background by this many sigmas (markers).
     blur : float
