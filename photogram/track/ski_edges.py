@@ -208,7 +208,7 @@ _FTOL, _FTOL_MASK = 1e-6, 1e-4
 
 
 # |z| beyond which ndtr(z) is 0 or 1 to double precision (ndtr(-8.3) = 5e-17,
-# phi(8.3) = 1e-15); scipy's ndtr is slowest there (its erfc branch)
+# exp(-8.3^2 / 2) = 1e-15); scipy's ndtr is slowest there (its erfc branch)
 _Z_SATURATED = 8.3
 _INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)
 
@@ -310,6 +310,7 @@ def _pair_jacobian(T, bg):
 
 
 def _xy1(x, y):
+    """Pixel centres as the (3, n) rows x, y, 1 of :class:`_PairTerms`."""
     return np.stack([np.ravel(x), np.ravel(y), np.ones(np.size(x))])
 
 
