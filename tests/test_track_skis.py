@@ -348,6 +348,45 @@ def test_bar_model_jacobian_is_analytic_and_matches_finite_differences():
             np.testing.assert_allclose(J[:, k], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
 
 
+def test_fused_pair_model_equals_the_two_bar_composition():
+    """The fused two-bar evaluation (both bars in one array pass, ndtr only
+    where it is not saturated) gives eq. (2) composed from each bar's
+    eq. (1) coverage, also far beyond the bars' ends and sides; the
+    residual object's Jacobian (reusing the terms of the last residual
+    evaluation) equals the analytic one at whatever point it is asked."""
+    from scipy.special import ndtr
+    from photogram.track import ski_edges as se
+    rng = np.random.default_rng(1)
+    x, y = np.meshgrid(np.arange(-40.0, 60.0), np.arange(-30.0, 50.0))
+    x, y = x.ravel(), y.ravel()
+    bg = 200 + rng.normal(0, 3, x.shape)
+    ref, u0 = np.array([11.0, 15.0]), np.array([0.6, 0.8])
+    th = np.array([0.05, 1.2, -8, 9, -0.03, -2.1, -7, 10, 2.5, 90, 0.8])
+    w, s = th[8], th[10]
+
+    def coverage(ang, c, a, b):                              # eq. (1), one bar
+        u = np.array([u0[0] * np.cos(ang) - u0[1] * np.sin(ang),
+                      u0[0] * np.sin(ang) + u0[1] * np.cos(ang)])
+        p = ref + c * np.array([-u0[1], u0[0]])
+        d = -(x - p[0]) * u[1] + (y - p[1]) * u[0]
+        t = (x - p[0]) * u[0] + (y - p[1]) * u[1]
+        return ((ndtr((d + w / 2) / s) - ndtr((d - w / 2) / s))
+                * (ndtr((t - a) / s) - ndtr((t - b) / s)))
+
+    c1, c2 = coverage(*th[:4]), coverage(*th[4:8])
+    expected = (bg - th[9]) * (c1 + c2 - c1 * c2)
+    assert (expected == 0).mean() > 0.5                     # most pixels saturated
+    np.testing.assert_allclose(se._model(th, x, y, bg, ref, u0), expected, rtol=0, atol=1e-10)
+    v = expected + rng.normal(0, 2, x.shape)
+    problem = se._PairResiduals(x, y, bg, v, ref, u0)
+    other = th + 0.01
+    np.testing.assert_allclose(problem.fun(other), se._model(other, x, y, bg, ref, u0) - v,
+                               rtol=0, atol=1e-10)
+    for at in (other, th):          # the cached point, then a point not evaluated
+        np.testing.assert_allclose(problem.jac(at), se._model_jacobian(at, x, y, bg, ref, u0),
+                                   rtol=0, atol=1e-12)
+
+
 def test_robust_lm_matches_scipy_soft_l1_with_bounds():
     """The module's soft-L1 Levenberg-Marquardt reaches scipy's
     least_squares(loss="soft_l1") minimum on a bounded exponential fit with
@@ -394,3 +433,14 @@ def test_crop_around_gives_the_frames_tophat():
         i, j = int(c[0] - 0.5), int(c[1] - 0.5)
         np.testing.assert_array_equal(part[j - 4 - y0:j + 5 - y0, i - 4 - x0:i + 5 - x0],
                                       full[j - 4:j + 5, i - 4:i + 5])
+
+
+def test_grow_equals_scipy_binary_dilation():
+    """The masks' one-pixel growth is scipy.ndimage.binary_dilation with its
+    default cross, borders included."""
+    from scipy.ndimage import binary_dilation
+    from photogram.track.ski_edges import _grow
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        m = rng.random((rng.integers(1, 30), rng.integers(1, 30))) < rng.random()
+        np.testing.assert_array_equal(_grow(m), binary_dilation(m, iterations=1))

@@ -29,7 +29,7 @@ pixels away from both predicted axes (a suit lighter than the skis), pixels
 darker than the fitted model (re-fitted up to ``iterations`` times), bright
 pixels (reflective markers) and given discs (the marker positions), each
 with a one-pixel margin. Least squares with a soft-L1 loss
-(:func:`robust_lm`); the covariance of each axis' angle and
+(:func:`robust_lm`, in :mod:`photogram.track.lm`); the covariance of each axis' angle and
 shift from the Gauss-Newton normal matrix, scaled by the robust residual
 variance.
 
@@ -40,14 +40,17 @@ The axes become image lines measured by points (:func:`sample_axis`); eq.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import binary_dilation, map_coordinates
+from scipy.ndimage import map_coordinates
 from scipy.special import ndtr
 
+from photogram.track.lm import LMResult, robust_lm  # noqa: F401  (re-exported)
+
 __all__ = ["BarLine", "PairFit", "noise_sigma", "search_direction", "extent_along",
-           "best_split", "fit_ski_pair", "sample_axis"]
+           "best_split", "fit_ski_pair", "sample_axis", "robust_lm", "LMResult"]
 
 
 @dataclass
@@ -127,6 +130,18 @@ def _sample(img, xy):
                            mode="constant", cval=0.0).reshape(xy.shape[:-1])
 
 
+def _grow(mask):
+    """``mask`` grown by one pixel (4-neighbours): scipy.ndimage's
+    ``binary_dilation(mask, iterations=1)`` with its default cross, without
+    its per-call overhead (these masks are a few thousand pixels)."""
+    out = mask.copy()
+    out[1:] |= mask[:-1]
+    out[:-1] |= mask[1:]
+    out[:, 1:] |= mask[:, :-1]
+    out[:, :-1] |= mask[:, 1:]
+    return out
+
+
 def search_direction(D, binding, toward=None, *, radius: float = 15.0,
                      step_deg: float = 0.5) -> tuple[np.ndarray, float]:
     """Direction of a dark bar through ``binding``: the angle whose two rays
@@ -186,85 +201,149 @@ def extent_along(D, point, direction, level, *, max_length: float = 200.0,
 # about the same distance) the width (px), the grey and the blur (px)
 _PER_SKI = 4
 _W, _G, _BLUR = 8, 9, 10
+# the solver's relative cost change to stop at (robust_lm's ftol); the fits
+# whose masks are then changed only decide which pixels the next one uses
+# and stop at _FTOL_MASK, the fit on the final mask at _FTOL
+_FTOL, _FTOL_MASK = 1e-6, 1e-4
 
 
-def _bar_frame(x, y, par, ref, u0):
-    """Distances ``d`` across and ``t`` along one bar of pixel centres (x,
-    y), with the bar's direction ``u``, normal ``n`` and the reference
-    normal ``n0`` (``par``: angle from ``u0``, shift along ``n0`` at
-    ``ref``, ends)."""
-    ang, c = par[0], par[1]
-    ca, sa = np.cos(ang), np.sin(ang)
-    u = np.array([u0[0] * ca - u0[1] * sa, u0[0] * sa + u0[1] * ca])
-    n = np.array([-u[1], u[0]])
-    n0 = np.array([-u0[1], u0[0]])
-    p = ref + c * n0
-    dx, dy = x - p[0], y - p[1]
-    return dx * n[0] + dy * n[1], dx * u[0] + dy * u[1], u, n, n0
+# |z| beyond which ndtr(z) is 0 or 1 to double precision (ndtr(-8.3) = 5e-17,
+# exp(-8.3^2 / 2) = 1e-15); scipy's ndtr is slowest there (its erfc branch)
+_Z_SATURATED = 8.3
+_INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)
 
 
-def _coverage(x, y, par, w, blur, ref, u0):
-    """Coverage eq. (1) of one bar at pixel centres (x, y)."""
-    a, b = par[2], par[3]
-    d, t, *_ = _bar_frame(x, y, par, ref, u0)
-    across = ndtr((d + w / 2) / blur) - ndtr((d - w / 2) / blur)
-    along = ndtr((t - a) / blur) - ndtr((t - b) / blur)
-    return across * along
+class _PairTerms:
+    """Eqs. (1), (2) for both bars in one pass at a parameter vector
+    ``theta``, with what the Jacobian (:func:`_pair_jacobian`) reuses.
+
+    One (8, 3) @ (3, n) product gives the standardised edge distances ``Z``
+    (per bar ``(d + w/2)/s, (d - w/2)/s, (t - a)/s, (t - b)/s``), one
+    ``ndtr`` call their normal CDFs; ``A`` (2, n), ``B`` (2, n) the across
+    and along factors of eq. (1) of both bars, ``C = A B`` their coverages
+    and ``union = C_1 + C_2 - C_1 C_2`` the bracket of eq. (2). ``X3`` is
+    (3, n): the pixel centres x, y and ones. ``dd_dc``, ``dt_dc`` (2,) the
+    derivatives of ``d_k``, ``t_k`` by the shift (``-n0 . n_k``,
+    ``-n0 . u_k``)."""
+
+    __slots__ = ("theta", "Z", "live", "z_live", "A", "B", "C", "union", "dd_dc", "dt_dc",
+                 "a")
+
+    def __init__(self, theta, X3, ref, u0):
+        theta = np.array(theta, dtype=float)
+        p = theta.tolist()
+        w, s = p[_W], p[_BLUR]
+        u0x, u0y = float(u0[0]), float(u0[1])
+        rx, ry = float(ref[0]), float(ref[1])
+        M = []
+        dd_dc, dt_dc = [], []
+        for k in (0, 1):
+            ang, c, a, b = p[_PER_SKI * k:_PER_SKI * (k + 1)]
+            ca, sa = math.cos(ang), math.sin(ang)
+            ux, uy = u0x * ca - u0y * sa, u0x * sa + u0y * ca     # u = R(ang) u0
+            px, py = rx - c * u0y, ry + c * u0x                    # p = ref + c n0
+            pn, pu = ux * py - uy * px, ux * px + uy * py          # p . n, p . u
+            M += [(-uy, ux, w / 2 - pn), (-uy, ux, -w / 2 - pn),
+                  (ux, uy, -a - pu), (ux, uy, -b - pu)]
+            dd_dc.append(-(u0x * ux + u0y * uy))
+            dt_dc.append(u0y * ux - u0x * uy)
+        self.theta = theta
+        self.Z = Z = (np.array(M) * (1.0 / s)) @ X3
+        # Phi(Z) is 0 or 1 to double precision beyond |Z| = 8.3 (most of the
+        # along-the-bar arguments); ndtr only for the others ("live")
+        z = Z.ravel()
+        self.live = np.flatnonzero(np.abs(z) < _Z_SATURATED)
+        self.z_live = z[self.live]
+        P = (z > 0).astype(float)
+        P[self.live] = ndtr(self.z_live)
+        P = P.reshape(2, 2, 2, -1)
+        AB = P[:, :, 0] - P[:, :, 1]
+        self.A, self.B = AB[:, 0], AB[:, 1]
+        self.C = self.A * self.B
+        self.union = self.C[0] + self.C[1] - self.C[0] * self.C[1]
+        self.dd_dc = np.array(dd_dc)[:, None]
+        self.dt_dc = np.array(dt_dc)[:, None]
+        self.a = np.array([[p[2]], [p[6]]])
+
+
+def _pair_jacobian(T, bg):
+    """Analytic Jacobian (11, n), transposed, of the model eq. (2)
+    ``(bg - G) union`` at the terms ``T`` (:class:`_PairTerms`).
+
+    With ``u = R(angle) u0``, ``n = perp(u)``, ``p = ref + c n0``, the
+    distances ``d = (x - p) . n`` and ``t = (x - p) . u`` of eq. (1) have
+    ``dd/dangle = -t``, ``dt/dangle = d``, ``dd/dc = -n0 . n``,
+    ``dt/dc = -n0 . u``; the coverage is ``A(d) B(t)`` with
+    ``A = Phi(z_1) - Phi(z_2)``, ``B = Phi(z_a) - Phi(z_b)`` (Phi the normal
+    CDF, phi its density), so ``dA/dd = (phi(z_1) - phi(z_2)) / s``,
+    ``dA/dw = (phi(z_1) + phi(z_2)) / 2s``, ``dB/da = -phi(z_a) / s``,
+    ``dB/db = phi(z_b) / s`` and ``dC/ds = -(z_1 phi(z_1) - z_2 phi(z_2)) B / s
+    - A (z_a phi(z_a) - z_b phi(z_b)) / s``; eq. (2) has
+    ``d/dC_1 = (bg - G)(1 - C_2)`` (and 1, 2 swapped) and
+    ``d/dG = -union``."""
+    th, Z, A, B = T.theta, T.Z, T.A, T.B
+    s = th[_BLUR]
+    n = Z.shape[1]
+    E = np.zeros(Z.size)                           # sqrt(2 pi) phi(Z), 0 if saturated
+    E[T.live] = np.exp(T.z_live * T.z_live * -0.5)
+    E = E.reshape(2, 2, 2, n)
+    EZ = E * Z.reshape(2, 2, 2, n)
+    Ed = E[:, :, 0] - E[:, :, 1]
+    g = (bg - th[_G]) * (_INV_SQRT_2PI / s) * (1.0 - T.C[::-1])   # d model / d C_k, / s
+    gA, gB = g * A, g * B
+    dd = gB * Ed[:, 0]                             # d model / d d_k
+    dt = gA * Ed[:, 1]                             # d model / d t_k
+    Zs = Z.reshape(2, 4, n)
+    d = (Zs[:, 0] + Zs[:, 1]) * (0.5 * s)
+    t = Zs[:, 2] * s + T.a
+    JT = np.empty((11, n))
+    Jb = JT[:8].reshape(2, 4, n)
+    Jb[:, 0] = dt * d - dd * t                     # angle
+    Jb[:, 1] = dd * T.dd_dc + dt * T.dt_dc         # shift c
+    Jb[:, 2] = -gA * E[:, 1, 0]                    # a
+    Jb[:, 3] = gA * E[:, 1, 1]                     # b
+    JT[_W] = (0.5 * gB * (E[:, 0, 0] + E[:, 0, 1])).sum(0)
+    JT[_G] = -T.union
+    EZd = EZ[:, :, 0] - EZ[:, :, 1]
+    JT[_BLUR] = -(gB * EZd[:, 0] + gA * EZd[:, 1]).sum(0)
+    return JT
+
+
+def _xy1(x, y):
+    """Pixel centres as the (3, n) rows x, y, 1 of :class:`_PairTerms`."""
+    return np.stack([np.ravel(x), np.ravel(y), np.ones(np.size(x))])
 
 
 def _model(theta, x, y, bg, ref, u0):
-    w, G, blur = theta[_W], theta[_G], theta[_BLUR]
-    c1 = _coverage(x, y, theta[:4], w, blur, ref, u0)
-    c2 = _coverage(x, y, theta[4:8], w, blur, ref, u0)
-    # eq. (2): two bars of grey G over the background bg (union)
-    return (bg - G) * (c1 + c2 - c1 * c2)
-
-
-def _coverage_jacobian(x, y, par, w, blur, ref, u0):
-    """Coverage eq. (1) of one bar and its analytic partial derivatives by
-    (angle, shift, a, b, width, blur): (n,), (n, 6).
-
-    With ``u = R(angle) u0``, ``n = perp(u)``, ``p = ref + c n0``, the
-    distances ``d = (x - p) . n`` and ``t = (x - p) . u`` have
-    ``dd/dangle = -t``, ``dt/dangle = d``, ``dd/dc = -n0 . n``,
-    ``dt/dc = -n0 . u``; the coverage is ``A(d) B(t)`` with
-    ``A = Phi((d + w/2)/s) - Phi((d - w/2)/s)``,
-    ``B = Phi((t - a)/s) - Phi((t - b)/s)`` (Phi the normal CDF, phi its
-    density)."""
-    a, b = par[2], par[3]
-    d, t, u, n, n0 = _bar_frame(x, y, par, ref, u0)
-    z1, z2 = (d + w / 2) / blur, (d - w / 2) / blur
-    za, zb = (t - a) / blur, (t - b) / blur
-    f1, f2, fa, fb = (np.exp(-0.5 * z * z) / np.sqrt(2 * np.pi) for z in (z1, z2, za, zb))
-    A = ndtr(z1) - ndtr(z2)
-    B = ndtr(za) - ndtr(zb)
-    dA_dd = (f1 - f2) / blur
-    dB_dt = (fa - fb) / blur
-    J = np.empty(x.shape + (6,))
-    J[..., 0] = dA_dd * -t * B + A * dB_dt * d                       # angle
-    J[..., 1] = dA_dd * -(n0 @ n) * B + A * dB_dt * -(n0 @ u)       # shift c
-    J[..., 2] = A * -fa / blur                                       # a
-    J[..., 3] = A * fb / blur                                        # b
-    J[..., 4] = 0.5 * (f1 + f2) / blur * B                           # width
-    J[..., 5] = (-(f1 * z1 - f2 * z2) / blur * B
-                 + A * -(fa * za - fb * zb) / blur)                  # blur
-    return A * B, J
+    """Eq. (2) at pixel centres (x, y) with background ``bg``: ``B - I``."""
+    T = _PairTerms(theta, _xy1(x, y), ref, u0)
+    return ((np.ravel(bg) - theta[_G]) * T.union).reshape(np.shape(x))
 
 
 def _model_jacobian(theta, x, y, bg, ref, u0):
     """d model / d theta (n, 11) of :func:`_model`, analytic."""
-    w, G, blur = theta[_W], theta[_G], theta[_BLUR]
-    c1, J1 = _coverage_jacobian(x, y, theta[:4], w, blur, ref, u0)
-    c2, J2 = _coverage_jacobian(x, y, theta[4:8], w, blur, ref, u0)
-    k = bg - G
-    g1, g2 = k * (1 - c2), k * (1 - c1)                               # d / d c1, d / d c2
-    J = np.empty(x.shape + (11,))
-    J[..., 0:4] = g1[..., None] * J1[..., :4]
-    J[..., 4:8] = g2[..., None] * J2[..., :4]
-    J[..., _W] = g1 * J1[..., 4] + g2 * J2[..., 4]
-    J[..., _G] = -(c1 + c2 - c1 * c2)
-    J[..., _BLUR] = g1 * J1[..., 5] + g2 * J2[..., 5]
-    return J
+    T = _PairTerms(theta, _xy1(x, y), ref, u0)
+    return _pair_jacobian(T, np.ravel(bg)).T
+
+
+class _PairResiduals:
+    """Residuals eq. (2) minus data ``v`` of one set of used pixels, and
+    their Jacobian from the terms of the last residual evaluation (the
+    solver asks for the Jacobian at the point just accepted)."""
+
+    def __init__(self, x, y, bg, v, ref, u0):
+        self.X3, self.bg, self.v, self.ref, self.u0 = _xy1(x, y), bg, v, ref, u0
+        self.last = None
+
+    def fun(self, th):
+        self.last = T = _PairTerms(th, self.X3, self.ref, self.u0)
+        return (self.bg - th[_G]) * T.union - self.v
+
+    def jac(self, th):
+        T = self.last
+        if T is None or not np.array_equal(T.theta, th):
+            T = _PairTerms(th, self.X3, self.ref, self.u0)
+        return _pair_jacobian(T, self.bg).T
 
 
 def _to_bar(theta, k, ref, u0, cov):
@@ -294,12 +373,13 @@ class _Window:
     ref: np.ndarray
     u0: np.ndarray
     G0: float                # the skis' grey from their tail halves
+    bg_median: float         # median background of the band
 
     def suit(self, G, level):
         """The suit: darker than the ski (grey ``G``) by ``level`` or a
         quarter of the ski's contrast, grown by one pixel."""
-        margin_g = max(level, 0.25 * (np.median(self.bg[self.band]) - G))
-        return binary_dilation(self.band & (self.frame < G - margin_g), iterations=1)
+        margin_g = max(level, 0.25 * (self.bg_median - G))
+        return _grow(self.band & (self.frame < G - margin_g))
 
 
 def _window(frame, background, initial, margin, exclude, mask_level, sigma_noise,
@@ -335,15 +415,15 @@ def _window(frame, background, initial, margin, exclude, mask_level, sigma_noise
             rel = np.stack([xx - l.point[0], yy - l.point[1]], -1)
             near |= np.abs(rel @ l.normal) <= l.width / 2 + body_gap
         level = max(mask_level * sigma_noise, 0.3 * np.percentile(img[band], 95))
-        band &= ~binary_dilation(band & (img > level) & ~near, iterations=1)
+        band &= ~_grow(band & (img > level) & ~near)
     # bright things (reflective markers, patches) and the given discs
-    band &= ~binary_dilation(img < -mask_level * sigma_noise, iterations=1)
+    band &= ~_grow(img < -mask_level * sigma_noise)
     for c, r in exclude:
         band &= (xx - c[0]) ** 2 + (yy - c[1]) ** 2 > r * r
     tails = [l.point + np.linspace(l.ends[0], 0.0, 12)[:, None] * l.direction
              for l in initial]
     G0 = float(np.median(_sample(frame, np.concatenate(tails))))
-    return _Window(xx, yy, img, bgw, fr, band, ref, u0, G0)
+    return _Window(xx, yy, img, bgw, fr, band, ref, u0, G0, float(np.median(bgw[band])))
 
 
 def _axes_parameters(lines, ref, u0):
@@ -375,13 +455,14 @@ def best_split(frame, background, initial, *, sigma_noise: float, span_deg: floa
     use = win.band & ~win.suit(win.G0, mask_level * sigma_noise)
     x, y, v, bv = win.xx[use], win.yy[use], win.img[use], win.bg[use]
     turns = np.arange(-span_deg, span_deg + 1e-9, step_deg)
-    cand, cov = [], []
-    for l in initial:
-        cand.append([BarLine(l.point, _turn(l.direction, t), l.ends, width, win.G0)
-                     for t in turns])
-        cov.append(np.stack([_coverage(x, y, _axes_parameters([c], win.ref, win.u0), width,
-                                       blur, win.ref, win.u0) for c in cand[-1]]))
-    c1, c2 = cov[0][:, None, :], cov[1][None, :, :]
+    cand = [[BarLine(l.point, _turn(l.direction, t), l.ends, width, win.G0) for t in turns]
+            for l in initial]
+    # eq. (1) of the k-th turn of both axes at once: (turns, 2, n)
+    X3 = _xy1(x, y)
+    cov = np.stack([_PairTerms(np.r_[_axes_parameters([c1, c2], win.ref, win.u0),
+                                     width, win.G0, blur], X3, win.ref, win.u0).C
+                    for c1, c2 in zip(*cand)])
+    c1, c2 = cov[:, 0, None, :], cov[None, :, 1, :]
     r = (bv - win.G0) * (c1 + c2 - c1 * c2) - v
     z2 = (r / (3 * sigma_noise)) ** 2
     cost = (np.sqrt(1 + z2) - 1).sum(-1)
@@ -418,7 +499,9 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     mask_level : float
         Pixels darker than the model by more than this many noise sigmas
         (and by a fifth of the ski contrast) are masked, with a one-pixel
-        margin, and the fit repeated up to ``iterations`` times; so are
+        margin, and the fit repeated up to ``iterations`` times (a fit whose
+        mask then changes stops at a relative cost change of 1e-4, the fit
+        on the final mask at 1e-6); so are
         pixels darker than the ski grey (the suit) and brighter than the
         background by this many sigmas (markers).
     blur : float
@@ -453,7 +536,7 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     # the predicted contrast (else the fit may take the suit for a ski)
     da, dc = np.radians(max_turn_deg), max_shift
     de = np.array([0.25 * l.length + 3.0 for l in initial])
-    contrast = max(np.median(bgw[band]) - theta0[_G], 5 * sigma_noise)
+    contrast = max(win.bg_median - theta0[_G], 5 * sigma_noise)
     lower = np.array([-da, -dc, -de[0], -de[0], -da, -dc, -de[1], -de[1],
                       0.3, -0.5 * contrast, 0.3])
     upper = np.array([da, dc, de[0], de[0], da, dc, de[1], de[1],
@@ -470,25 +553,26 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     use = band & ~suit(theta0[_G])
     theta = theta0
     res = None
-    for _ in range(iterations):
+    for it in range(iterations):
         x, y, v, bv = xx[use], yy[use], img[use], bgw[use]
         if len(v) < 20:
             return PairFit(list(initial), np.nan, 1.0, False, "no pixels left in the band")
-
-        def fun(th):
-            return _model(th, x, y, bv, ref, u0) - v
-
-        def jac(th):
-            return _model_jacobian(th, x, y, bv, ref, u0)
-
-        res = robust_lm(fun, jac, theta, lower, upper, f_scale=3 * sigma_noise,
-                        max_iter=60, xtol=1e-5, ftol=1e-6)
+        problem = _PairResiduals(x, y, bv, v, ref, u0)
+        last = it == iterations - 1
+        res = robust_lm(problem.fun, problem.jac, theta, lower, upper, f_scale=3 * sigma_noise,
+                        max_iter=60, xtol=1e-5, ftol=_FTOL if last else _FTOL_MASK)
         theta = res.x
-        r = img - _model(theta, xx, yy, bgw, ref, u0)
         A = np.median(bgw[use]) - theta[_G]
-        dark = band & (r > max(mask_level * sigma_noise, 0.2 * A))
-        new = band & ~binary_dilation(dark, iterations=1) & ~suit(theta[_G])
+        dark = np.zeros_like(band)
+        dark[band] = (img[band] - _model(theta, xx[band], yy[band], bgw[band], ref, u0)
+                      > max(mask_level * sigma_noise, 0.2 * A))
+        new = band & ~_grow(dark) & ~suit(theta[_G])
         if np.array_equal(new, use):
+            if not last and _FTOL_MASK > _FTOL:
+                # the mask is final: converge fully from here
+                res = robust_lm(problem.fun, problem.jac, theta, lower, upper,
+                                f_scale=3 * sigma_noise, max_iter=60, xtol=1e-5, ftol=_FTOL)
+                theta = res.x
             break
         use = new
     # covariance of the parameters (Gauss-Newton, unit weights scaled by the
@@ -503,8 +587,7 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     lines = [_to_bar(theta, k, ref, u0, cov) for k in (0, 1)]
     # support: area of each bar in used pixels, not covered by the other
     x, y = xx[use], yy[use]
-    cs = [_coverage(x, y, theta[4 * k:4 * k + 4], theta[_W], theta[_BLUR], ref, u0)
-          for k in (0, 1)]
+    cs = _PairTerms(theta, _xy1(x, y), ref, u0).C
     for k, l in enumerate(lines):
         area = max(theta[_W], 1.0) * max(l.length, 1.0)
         l.support = float(np.sum(cs[k] * (1 - cs[1 - k])) / area)
@@ -521,107 +604,6 @@ def fit_ski_pair(frame, background, initial, *, sigma_noise: float, margin: floa
     if ok and res.status < 0:
         ok, reason = False, f"fit failed ({res.message})"
     return PairFit(lines, rms, masked, ok, reason, int(use.sum()))
-
-
-@dataclass
-class LMResult:
-    """Result of :func:`robust_lm`: the solution ``x``, the residuals
-    ``fun`` and Jacobian ``jac`` there, iterations and ``status`` (> 0
-    converged, 0 the iteration limit, < 0 failed) with a message."""
-
-    x: np.ndarray
-    fun: np.ndarray
-    jac: np.ndarray
-    nit: int
-    status: int
-    message: str
-
-
-def robust_lm(fun, jac, x0, lower, upper, *, f_scale: float = 1.0, max_iter: int = 60,
-              xtol: float = 1e-6, ftol: float = 1e-8) -> LMResult:
-    """Levenberg-Marquardt with a soft-L1 loss and box bounds, for the small
-    dense fits of this module (a dozen parameters, a few thousand pixels).
-
-    The soft-L1 cost ``sum 2 f^2 (sqrt(1 + (r/f)^2) - 1)`` (scipy's
-    ``loss="soft_l1"``) is minimised by iteratively reweighted Gauss-Newton
-    (weights ``1 / sqrt(1 + (r/f)^2)``, Triggs et al. 2000, sec. 6.8) with
-    Marquardt's damping of the diagonal (scale invariant, as
-    ``x_scale="jac"``); parameters on a bound that the gradient pushes
-    outwards are held there for the step (an active set), the rest of a
-    step leaving the box is projected onto it; a step
-    that does not lower the cost is refused and the damping raised.
-    scipy.optimize.least_squares(method="trf") solves the same problem with
-    an SVD per iteration, which for these sizes costs more than the model.
-
-    Parameters
-    ----------
-    fun, jac : callable
-        Residuals ``(m,)`` and their Jacobian ``(m, n)`` of the parameters.
-    x0, lower, upper : ndarray (n,)
-    f_scale : float
-        Soft-L1 scale (residuals below it count as least squares).
-    max_iter : int
-    xtol, ftol : float
-        Stop when a step moves every parameter by less than ``xtol`` times
-        (its size + xtol), or lowers the cost by less than ``ftol`` of it.
-
-    Returns
-    -------
-    LMResult
-    """
-    x = np.clip(np.asarray(x0, float), lower, upper)
-    f2 = f_scale * f_scale
-
-    def cost_of(r):
-        return float(np.sum(2 * f2 * (np.sqrt(1 + r * r / f2) - 1)))
-
-    r = fun(x)
-    cost = cost_of(r)
-    lam = 1e-3
-    status, msg, it = 0, "iteration limit", 0
-    J = jac(x)
-    for it in range(1, max_iter + 1):
-        w = 1 / np.sqrt(1 + r * r / f2)
-        Jw = J * w[:, None]
-        A = Jw.T @ J
-        g = Jw.T @ r
-        d = np.maximum(np.diag(A), 1e-12)
-        # parameters on a bound that the descent pushes outwards stay there
-        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)))
-        Af, gf = A[np.ix_(free, free)], g[free]
-        accepted = False
-        while lam < 1e10:
-            try:
-                step = np.zeros_like(x)
-                step[free] = -np.linalg.solve(Af + lam * np.diag(d[free]), gf)
-            except np.linalg.LinAlgError:
-                lam *= 10
-                continue
-            xn = np.clip(x + step, lower, upper)
-            rn = fun(xn)
-            cn = cost_of(rn)
-            if np.isfinite(cn) and cn <= cost:
-                accepted = True
-                break
-            lam *= 10
-        if not accepted:
-            status, msg = 2, "no step lowers the cost"
-            break
-        moved = np.abs(xn - x)
-        drop = cost - cn
-        x, r, cost = xn, rn, cn
-        J = jac(x)
-        lam = max(lam * 0.3, 1e-12)
-        if np.all(moved <= xtol * (np.abs(x) + xtol)):
-            status, msg = 3, "xtol"
-            break
-        if drop <= ftol * cost:
-            status, msg = 2, "ftol"
-            break
-    # the Jacobian of the reweighted problem at the solution (J^T W J the
-    # Gauss-Newton normal matrix of the robust cost)
-    w = 1 / np.sqrt(1 + r * r / f2)
-    return LMResult(x, r, J * np.sqrt(w)[:, None], it, status, msg)
 
 
 def sample_axis(line: BarLine, n: int, shape, *, inset: float = 0.05,
