@@ -327,7 +327,7 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                           min_side: float = 0.5, k_sigma: float = 5.0,
                           min_flux: float = 0.5, shape_window: int = 3,
                           continuity: int = 2, min_cos: float = 0.8, lone_tol: float = 3.0,
-                          spot_model: str = "tophat"):
+                          spot_model: str = "tophat", candidates: dict | None = None):
     """Split the binding markers out of merged blobs (module doc).
 
     Parameters
@@ -384,6 +384,10 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
     min_cos : float
         ... when the measured separation vector is within ``arccos(min_cos)``
         of the predicted one (or its reverse) in every split view.
+    candidates : dict station -> list of Candidates, optional
+        The marker candidates of every frame, as the marker tracker found
+        them (:class:`photogram.track.tracks.TrackResult`, the same
+        ``k_sigma`` and pixel convention): not detected again.
     lone_tol : float
         Where one binding of a view is ok and the other not, the ok one
         farther than this (px) from the blob located in 3D is flagged
@@ -515,7 +519,8 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             if a is not None and b is not None and a.status == "ok" and b.status == "ok":
                 per_view.append(np.array([[(a.x + b.x) / 2, (a.y + b.y) / 2]]))
                 continue
-            cand = detect_markers(fr, bg, k=k_sigma, pixel_offset=pixel_offset)
+            cand = candidates[s][f] if candidates is not None else \
+                detect_markers(fr, bg, k=k_sigma, pixel_offset=pixel_offset)
             c = cand.xy
             taken = ok[(ok.exposure == e) & (ok.station == s) & ok.marker.isin(singles)]
             if len(taken) and len(c):

@@ -39,6 +39,7 @@ from photogram.track.bindings import split_merged_bindings
 from photogram.track.inputs import Exposures, read_exposures, read_seeds, view_cameras
 from photogram.track.skis import track_skis
 from photogram.track.tracks import track_markers
+from photogram.track.tracks2d import TrackSettings
 from photogram.track.video import read_videos
 
 __all__ = ["TrackingRun", "track_project", "track_videos"]
@@ -163,7 +164,8 @@ def track_videos(frames, cameras, seeds, exposures: Exposures, *, markers, skis,
     t = time.perf_counter()
     table, split = split_merged_bindings(mt.table, frames, backgrounds, cameras, frames_of,
                                          pair=tuple(ski_markers), hip=markers[1],
-                                         length_unit=length_unit)
+                                         length_unit=length_unit, candidates=mt.candidates,
+                                         k_sigma=TrackSettings().k_sigma)
     timings["bindings_s"] = time.perf_counter() - t
     c = split.counts
     log.append("merged binding blobs: " + ", ".join(f"{k} {v}" for k, v in c.items()))

@@ -83,8 +83,9 @@ def _gauss_newton(model, p, v, x, y, n_iter=30, damping=1e-3):
 
     r = resid(p)
     cost = (r ** 2).sum(1)
+    done = np.zeros(len(p), bool)
+    J = jac(p, r)
     for _ in range(n_iter):
-        J = jac(p, r)
         A = J.transpose(0, 2, 1) @ J
         g = (J.transpose(0, 2, 1) @ r[:, :, None])[:, :, 0]
         D = np.einsum("nii->ni", A)
@@ -96,14 +97,19 @@ def _gauss_newton(model, p, v, x, y, n_iter=30, damping=1e-3):
         pn = p + step
         rn = resid(pn)
         cn = (rn ** 2).sum(1)
-        better = np.isfinite(cn) & (cn < cost)
+        better = np.isfinite(cn) & (cn < cost) & ~done
         p = np.where(better[:, None], pn, p)
         r = np.where(better[:, None], rn, r)
+        # a window is done when its accepted step is below 1e-6 in every
+        # parameter or its damping has grown past 1e6 (no step lowers it)
+        done |= (better & (np.abs(step) < 1e-6).all(1)) | (~better & (lam * 10.0 > 1e6))
         cost = np.where(better, cn, cost)
         lam = np.where(better, lam * 0.3, lam * 10.0)
-        if np.all(~better | (np.abs(step) < 1e-6).all(1)) and np.all(lam > 1e6):
+        if better.any():
+            J = np.where(better[:, None, None], jac(p, r), J)
+        if done.all():
             break
-    return p, jac(p, r), r, valid
+    return p, J, r, valid
 
 
 def _nanmax(v):
