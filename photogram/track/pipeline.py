@@ -210,8 +210,11 @@ def track_project(project) -> TrackingRun:
     run.summary["timings"]["read_s"] = t_read
     run.summary["timings"]["total_s"] = time.perf_counter() - t0
     n_cam_frames = sum(n_frames.values())
-    run.summary["timings"]["frames_per_s_per_camera"] = \
-        n_cam_frames / max(run.summary["timings"]["total_s"], 1e-9) / len(stations)
+    # camera frames per second of this (single-threaded) run: the rate at
+    # which one core keeps up with one camera; and synchronized frame sets
+    total = max(run.summary["timings"]["total_s"], 1e-9)
+    run.summary["timings"]["camera_frames_per_s"] = n_cam_frames / total
+    run.summary["timings"]["frame_sets_per_s"] = n_cam_frames / total / len(stations)
     run.summary.update(_summary(project, run))
     run.summary["warnings"] = [line for line in log if "not used" in line]
     if ts.truth is not None:
