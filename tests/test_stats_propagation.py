@@ -31,6 +31,21 @@ def field_points():
     return prj
 
 
+def _perturbed(prj, name, par, delta):
+    """A copy of the project with one orientation parameter moved."""
+    q = copy.deepcopy(prj)
+    if name in q.cameras:
+        q.cameras[name].parameters[par].value += delta
+    else:
+        i = q.stations.names.index(name)
+        k = STATION_PARAMETERS.index(par)
+        if k < 3:
+            q.stations.position[i, k] += delta
+        else:
+            q.stations.angles[i, k - 3] += delta
+    return q
+
+
 def labels_of(prj):
     cams = list(prj.cameras)
     lab = [f"{c}.{p}" for c in cams for p in prj.cameras[c].parameters]
@@ -50,19 +65,8 @@ def test_sensitivity_matches_finite_differences():
         name, par = lab.split(".")
         h = {"X0": 1e-3, "Z0": 1e-3, "omega": 1e-6, "kappa": 1e-6, "c": 1e-3,
              "x0": 1e-3, "K1": 1e-12}[par]
-        fd = []
-        for sign in (1, -1):
-            q = copy.deepcopy(prj)
-            if name in q.cameras:
-                q.cameras[name].parameters[par].value += sign * h
-            else:
-                i = q.stations.names.index(name)
-                k = STATION_PARAMETERS.index(par)
-                if k < 3:
-                    q.stations.position[i, k] += sign * h
-                else:
-                    q.stations.angles[i, k - 3] += sign * h
-            fd.append(intersected(q).problem.state.points.ravel())
+        fd = [intersected(_perturbed(prj, name, par, sign * h)).problem.state.points.ravel()
+              for sign in (1, -1)]
         num = (fd[0] - fd[1]) / (2 * h)
         assert np.allclose(S[:, j], num, rtol=1e-5, atol=1e-7 * np.abs(num).max()), lab
 
@@ -141,17 +145,7 @@ def test_line_direction_sensitivity_matches_finite_differences():
                  "x0": 1e-3}[par]
             fd = []
             for sign in (1, -1):
-                q = copy.deepcopy(prj)
-                if name in q.cameras:
-                    q.cameras[name].parameters[par].value += sign * h
-                else:
-                    i = q.stations.names.index(name)
-                    k = STATION_PARAMETERS.index(par)
-                    if k < 3:
-                        q.stations.position[i, k] += sign * h
-                    else:
-                        q.stations.angles[i, k - 3] += sign * h
-                dq, _ = _line_direction(q, pts)
+                dq, _ = _line_direction(_perturbed(prj, name, par, sign * h), pts)
                 fd.append(dq if dq @ d > 0 else -dq)
             num = (fd[0] - fd[1]) / (2 * h)
             scale = max(np.abs(num).max(), 1e-12)
