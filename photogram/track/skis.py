@@ -373,17 +373,23 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
         for st in stations:
             f, b = forward[(i, st)], backward.get((i, st))
             options.append([f] if b is None or _same(f, b) else [f, b])
+        # the combinations with the most complete views (then found skis)
+        # are checked; the one whose best assignment fits best is taken
+        combos = [dict(zip(stations, combo)) for combo in itertools.product(*options)]
+        counts = [(sum(len(v.pts) == 2 for v in vw.values()), sum(len(v.pts) for v in vw.values()))
+                  for vw in combos]
+        top = max(counts)
         best = None
-        for combo in itertools.product(*options):
-            views = dict(zip(stations, combo))
-            res = _check(views, cameras, labels, e) if check else None
-            n_found = sum(len(v.pts) for v in views.values())
-            n_complete = sum(len(v.pts) == 2 for v in views.values())
+        for views, n in zip(combos, counts):
+            if n != top:
+                continue
+            res = _check(views, cameras, labels, e, rescale=False) if check else None
             cost = res.best_cost if isinstance(res, SkiCheck) else np.inf
-            key = (-n_complete, cost, -n_found)
-            if best is None or key < best[0]:
-                best = (key, views, res)
+            if best is None or cost < best[0]:
+                best = (cost, views, res)
         _, views, res = best
+        if isinstance(res, SkiCheck) and res.status == "inconsistent":
+            res = _check(views, cameras, labels, e, first=res)
         by_view = {st: dict(v.pts) for st, v in views.items() if v.pts}
         sig_view = {st: dict(v.sig) for st, v in views.items() if v.pts}
         for st, v in views.items():
@@ -520,23 +526,26 @@ def _same(a, b, tol_deg=0.02, tol_px=0.05):
     return True
 
 
-def _check(views, cameras, labels, exposure, max_s0=10.0):
+def _check(views, cameras, labels, exposure, max_s0=10.0, rescale=True, first=None):
     """The three-view label check of the views' points (SkiCheck), None
     when fewer than three views have both skis, or the error message. Where
     no assignment fits within the points' sigmas, the check is repeated
     with the sigmas scaled by the best assignment's ``s0`` (at most
     ``max_s0``): the labels are then decided by how clearly the best
-    assignment beats the others at that noise level."""
+    assignment beats the others at that noise level (``rescale=False``:
+    not repeated; ``first``: the check's result without rescaling, when
+    known; ``best_cost`` is the best assignment's chi-square in the points'
+    own sigmas either way)."""
     complete = [st for st, v in views.items() if len(v.pts) == 2]
     if len(complete) < 3:
         return None
     pts = {st: views[st].pts for st in complete}
     sig = {st: float(np.mean(list(views[st].sig.values()))) for st in complete}
     try:
-        res = check_ski_labels(pts, cameras, sig, labels=tuple(labels), exposure=exposure,
-                               fix=True)
+        res = first if first is not None else check_ski_labels(
+            pts, cameras, sig, labels=tuple(labels), exposure=exposure, fix=True)
         best_cost = min(res.costs.values())
-        if res.status == "inconsistent":
+        if rescale and res.status == "inconsistent":
             # the points' sigmas describe the image fit, not the estimated
             # orientation between the views: the chi-squares in units of the
             # best assignment's own (a posteriori variance factor s0^2 =
