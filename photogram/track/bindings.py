@@ -289,8 +289,9 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
         ``k_sigma`` and pixel convention): not detected again.
     lone_tol : float
         Where one binding of a view is ok and the other not, the ok one
-        farther than this (px) from the blob located in 3D is flagged
-        ambiguous and the view split like the others.
+        farther than this (px) from the blob located in 3D (in that view,
+        or the projection of its 3D point where that view has no candidate)
+        is flagged ambiguous and the view split like the others.
     spot_model : {"tophat", "composite"}
         "tophat": two equal spots over a constant fitted to the white top-hat
         (:func:`photogram.track.spots.fit_two_spots`). "composite": two
@@ -441,14 +442,24 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             # must be on the blob located in 3D from every view (a seed that
             # snapped to the wrong blob is not seen by the 3D check, the
             # other views' bindings being merged)
+            seen = np.isfinite(found).all(1)
+            X_blob = None
+            if seen.sum() >= 2:
+                X_blob, _ = triangulate([c for c, k in zip(cams, seen) if k],
+                                        (found - bias)[seen][:, None])
             for i, s in enumerate(stations):
                 rs = {m: row(e, s, m) for m in (right_m, left_m)}
                 if s in flagged or any(r is None for r in rs.values()) or \
-                        sum(r.status == "ok" for r in rs.values()) != 1 or \
-                        not np.all(np.isfinite(found[i])):
+                        sum(r.status == "ok" for r in rs.values()) != 1:
+                    continue
+                where = found[i]
+                if not np.all(np.isfinite(where)) and X_blob is not None:
+                    # not located in this view: the blob's 3D point projected
+                    where = cams[i].project(X_blob)[0] + bias[i]
+                if not np.all(np.isfinite(where)):
                     continue
                 m, r = next((m, r) for m, r in rs.items() if r.status == "ok")
-                off = float(np.hypot(r.x - found[i][0], r.y - found[i][1]))
+                off = float(np.hypot(r.x - where[0], r.y - where[1]))
                 if off > lone_tol:
                     sel = (out.exposure == e) & (out.station == s) & (out.marker == m)
                     out.loc[sel, "status"] = "ambiguous"
