@@ -152,7 +152,7 @@ def _name(swapped):
 
 def check_ski_labels(lines_by_view, cameras, sigma=1.0, *, labels=None, exposure=None,
                      alpha: float = 0.001, margin: float | None = None,
-                     fix: bool = False) -> SkiCheck:
+                     fix: bool = False, transfers: bool = True) -> SkiCheck:
     """Detect interchanged left/right ski labels in one exposure.
 
     Parameters
@@ -174,6 +174,10 @@ def check_ski_labels(lines_by_view, cameras, sigma=1.0, *, labels=None, exposure
         quantile).
     fix : bool
         Also return the corrected measurements (:func:`swap_labels`).
+    transfers : bool
+        Compute the transferred lines of the report (``transfer``,
+        ``transfer_fixed``); False leaves them empty (a caller that needs
+        the decision only, e.g. the video tracker's many checks).
 
     Returns
     -------
@@ -266,9 +270,9 @@ def check_ski_labels(lines_by_view, cameras, sigma=1.0, *, labels=None, exposure
     result = SkiCheck(
         exposure=exposure, labels=labels, stations=stations, status=status, swapped=swapped,
         costs=costs, dof=dof, threshold=threshold, margin=margin,
-        transfer=_transfers(fitted, stations, labels, (0,) * k, cameras),
+        transfer=_transfers(fitted, stations, labels, (0,) * k, cameras) if transfers else [],
         undecided=undecided, skipped=skipped, message=msg)
-    if status == "swapped":
+    if status == "swapped" and transfers:
         flips = tuple(1 if n in swapped else 0 for n in stations)
         result.transfer_fixed = _transfers(fitted, stations, labels, flips, cameras)
     if fix:

@@ -543,7 +543,8 @@ def _check(views, cameras, labels, exposure, max_s0=10.0, rescale=True, first=No
     sig = {st: float(np.mean(list(views[st].sig.values()))) for st in complete}
     try:
         res = first if first is not None else check_ski_labels(
-            pts, cameras, sig, labels=tuple(labels), exposure=exposure, fix=True)
+            pts, cameras, sig, labels=tuple(labels), exposure=exposure, fix=True,
+            transfers=False)
         best_cost = min(res.costs.values())
         if rescale and res.status == "inconsistent":
             # the points' sigmas describe the image fit, not the estimated
@@ -553,7 +554,8 @@ def _check(views, cameras, labels, exposure, max_s0=10.0, rescale=True, first=No
             s0 = float(np.sqrt(min(res.costs.values()) / res.dof))
             if s0 <= max_s0:
                 res = check_ski_labels(pts, cameras, {st: v * s0 for st, v in sig.items()},
-                                       labels=tuple(labels), exposure=exposure, fix=True)
+                                       labels=tuple(labels), exposure=exposure, fix=True,
+                                       transfers=False)
                 res.message += f" (point sigmas scaled by s0 = {s0:.2g})"
         res.best_cost = best_cost            # in the points' own sigmas
         return res

@@ -38,8 +38,9 @@ def marker_errors(markers: pd.DataFrame, truth: pd.DataFrame, *, label_px: float
                       on=["station", "exposure", "marker"], how="left", suffixes=("", "_true"))
     ok = m[m.status == "ok"]
     right = np.zeros(len(ok), bool)
+    by_image = {key: g for key, g in t.groupby(["station", "exposure"])}
     for k, row in enumerate(ok.itertuples()):
-        same = t[(t.station == row.station) & (t.exposure == row.exposure)]
+        same = by_image.get((row.station, row.exposure), t.iloc[:0])
         d = np.hypot(same.x - row.x, same.y - row.y)
         if not len(d) or not np.isfinite(row.x_true):
             continue
@@ -86,11 +87,12 @@ def ski_errors(skis: pd.DataFrame, truth: pd.DataFrame, *, own_px: float = 0.5) 
     t = truth.copy()
     t["exposure"] = t["exposure"].astype(str)
     angles, dists, wrong, near_both = [], [], 0, 0
+    by_image = {key: g for key, g in t.groupby(["station", "exposure"])}
     for (e, s, line), g in skis.groupby(["exposure", "station", "line"]):
         xy = g[["x", "y"]].to_numpy(float)
         if len(xy) < 2:
             continue
-        rows = t[(t.station == s) & (t.exposure == str(e))]
+        rows = by_image.get((s, str(e)), t.iloc[:0])
         own = rows[rows.ski == line]
         if not len(own):
             continue
