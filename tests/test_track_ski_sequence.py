@@ -9,7 +9,7 @@ import pandas as pd
 
 from photogram.track.ski_edges import BarLine
 from photogram.track.ski_sequence import axis_directions, sequence_check
-from photogram.track.skis import _oriented_flips, _separation
+from photogram.track.ski_views import _oriented_flips, _separation
 
 
 def _axes(angles, lengths, sigma, station="S1", line="L1", n=15):

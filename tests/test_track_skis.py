@@ -212,7 +212,7 @@ def test_track_three_views(field):
 def test_brightness_changes(field):
     # a +-4 % brightness change per frame (auto exposure) against the median
     # background: the frame's gain is measured and the background scaled
-    from photogram.track.skis import _frame_gain
+    from photogram.track.background import frame_gain as _frame_gain
     gains = [1.04, 0.96, 1.04, 0.96]
     frames, bgs, cams, markers, truth = _views(field, [6, 7, 8, 9], gains=gains)
     for st in frames:
@@ -420,7 +420,7 @@ def test_robust_lm_matches_scipy_soft_l1_with_bounds():
 def test_crop_around_gives_the_frames_tophat():
     """The binding split's top-hat of a crop equals the whole frame's
     top-hat in the crop's fitting windows."""
-    from photogram.track.bindings import _crop_around
+    from photogram.track.spots import _crop_around
     from photogram.track.spots import _tophat
     rng = np.random.default_rng(0)
     frame = rng.integers(0, 255, (120, 160)).astype(np.uint8)

@@ -42,8 +42,8 @@ import numpy as np
 
 from photogram.errors import InputError
 
-__all__ = ["Background", "estimate_background", "foreground", "difference", "band_pass",
-           "band_pass_gain"]
+__all__ = ["Background", "estimate_background", "frame_gain", "foreground", "difference",
+           "band_pass", "band_pass_gain"]
 
 #: fraction of the smallest absolute deviations the image's noise level is taken from
 TRIM = 0.8
@@ -169,3 +169,13 @@ def foreground(frame: np.ndarray, background: Background, k: float = 4.0) -> np.
     """Pixels brighter than the background by more than ``k`` noise sigmas
     (bool (H, W); module doc)."""
     return difference(frame, background) > k * background.noise
+
+
+def frame_gain(img, bgd) -> float:
+    """Median ratio frame / background over the well-exposed pixels (a
+    frame's brightness change against the background: auto exposure)."""
+    img, bgd = img[::4, ::4], bgd[::4, ::4]          # a sample of the frame suffices
+    ok = (bgd > 20) & (bgd < 250) & (img > 5) & (img < 250)
+    if ok.sum() < 100:
+        return 1.0
+    return float(np.median(img[ok] / bgd[ok]))

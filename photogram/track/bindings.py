@@ -122,9 +122,9 @@ from photogram.errors import InputError
 from photogram.track.markers import detect_markers
 from photogram.track.binding_labels import _from_neighbours, _locate, label_pairs
 from photogram.track.rays import triangulate
-from photogram.track.skis import _frame_gain, exposure_labels
+from photogram.track.skis import exposure_labels
 from photogram.track.spots import (  # noqa: F401  (fit_spot_shape etc. re-exported)
-    _opening, _tophat, fit_spot_shape, fit_two_spots, fit_two_spots_over)
+    _behind, _crop_around, _tophat, fit_spot_shape, fit_two_spots, fit_two_spots_over)
 from photogram.track.tracks2d import scatter_sigma
 
 __all__ = ["SplitReport", "split_merged_bindings", "fit_two_spots", "fit_spot_shape",
@@ -181,27 +181,36 @@ def _as_background(b, frame):
     return med, noise, Background(med, noise, level, 1)
 
 
-def _crop_around(frame, xy, pad: int, pixel_offset: float):
-    """The part of ``frame`` within ``pad`` pixels of the points ``xy``
-    (n, 2) (image frame) and its origin (2,): image coordinates in the crop
-    are those in the frame minus the origin (a top-hat of the crop equals
-    the frame's within ``pad - size`` of its border)."""
-    H, W = frame.shape[:2]
-    ij = np.rint(np.asarray(xy, float).reshape(-1, 2) - pixel_offset).astype(int)
-    x0, y0 = np.maximum(ij.min(0) - pad, 0)
-    x1, y1 = np.minimum(ij.max(0) + pad + 1, [W, H])
-    return frame[y0:y1, x0:x1], np.array([x0, y0], float)
-
-
-def _behind(frame, background, size, noise):
-    """The scene behind the markers of a frame: the grey opening (the frame
-    without its small bright spots) where the jumper's body is, the static
-    background (scaled by the frame's brightness ratio) where the opening
-    shows it, within ``max(4 noise, 10)`` grey levels (the opening of a
-    noisy frame is biased low, the temporal median is not)."""
-    bg = np.asarray(background, np.float32) * _frame_gain(frame, background)
-    op = _opening(frame, size)
-    return np.where(op >= bg - max(4 * noise, 10.0), bg, op)
+def _hip_track(cams, ok, stations, names, singles, hip):
+    """The views' biases (k, 2) (median reprojection residual of the single
+    markers seen in three views), the hip in 3D per exposure (E, 3) and its
+    velocity (E, 3) (NaN where unknown) from the ok rows ``ok`` of the
+    single markers."""
+    sidx = {s: i for i, s in enumerate(stations)}
+    eidx = {e: i for i, e in enumerate(names)}
+    midx = {m: i for i, m in enumerate(singles)}
+    xy_single = np.full((len(stations), len(names), len(singles), 2), np.nan)
+    for r in ok[ok.marker.isin(singles) & ok.station.isin(stations)].itertuples():
+        if r.exposure in eidx:
+            xy_single[sidx[r.station], eidx[r.exposure], midx[r.marker]] = (r.x, r.y)
+    flat = xy_single.reshape(len(stations), -1, 2)
+    Xs, nv = triangulate(cams, flat)
+    bias = np.zeros((len(stations), 2))
+    full = nv >= 3
+    if full.any():
+        for i, cam in enumerate(cams):
+            q = cam.project(Xs[full])
+            bias[i] = np.nanmedian(flat[i, full] - q, axis=0)
+    bias = np.nan_to_num(bias)
+    Xs = Xs.reshape(len(names), len(singles), 3)
+    X_hip = Xs[:, midx[hip]] if hip in midx else np.full((len(names), 3), np.nan)
+    vel = np.full_like(X_hip, np.nan)
+    good = np.isfinite(X_hip).all(1)
+    if good.sum() >= 2:
+        t = np.arange(len(names))
+        for j in range(3):
+            vel[:, j] = np.gradient(np.interp(t, t[good], X_hip[good, j]), t)
+    return bias, X_hip, vel
 
 
 def _frame_of(table, exposure_frames, stations, offsets):
@@ -332,30 +341,9 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
     cams = [cameras[s] for s in stations]
     singles = [m for m in pd.unique(table["marker"]) if m not in (right_m, left_m)]
     ok = table[table.status == "ok"]
-    xy_single = np.full((len(stations), len(names), len(singles), 2), np.nan)
     sidx = {s: i for i, s in enumerate(stations)}
     eidx = {e: i for i, e in enumerate(names)}
-    midx = {m: i for i, m in enumerate(singles)}
-    for r in ok[ok.marker.isin(singles) & ok.station.isin(stations)].itertuples():
-        if r.exposure in eidx:
-            xy_single[sidx[r.station], eidx[r.exposure], midx[r.marker]] = (r.x, r.y)
-    flat = xy_single.reshape(len(stations), -1, 2)
-    Xs, nv = triangulate(cams, flat)
-    bias = np.zeros((len(stations), 2))
-    full = nv >= 3
-    if full.any():
-        for i, cam in enumerate(cams):
-            q = cam.project(Xs[full])
-            bias[i] = np.nanmedian(flat[i, full] - q, axis=0)
-    bias = np.nan_to_num(bias)
-    Xs = Xs.reshape(len(names), len(singles), 3)
-    X_hip = Xs[:, midx[hip]] if hip in midx else np.full((len(names), 3), np.nan)
-    vel = np.full_like(X_hip, np.nan)
-    good = np.isfinite(X_hip).all(1)
-    if good.sum() >= 2:
-        t = np.arange(len(names))
-        for j in range(3):
-            vel[:, j] = np.gradient(np.interp(t, t[good], X_hip[good, j]), t)
+    bias, X_hip, vel = _hip_track(cams, ok, stations, names, singles, hip)
     up = np.array([0.0, 0.0, 1.0])
 
     # the spot of a single marker per station and exposure (module doc,

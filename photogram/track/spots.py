@@ -11,6 +11,8 @@ import warnings
 
 import numpy as np
 
+from photogram.track.background import frame_gain
+
 # ------------------------------------------------------------------ image fits
 
 def _opening(frame: np.ndarray, size: int) -> np.ndarray:
@@ -25,6 +27,29 @@ def _opening(frame: np.ndarray, size: int) -> np.ndarray:
 def _tophat(frame: np.ndarray, size: int) -> np.ndarray:
     """White top-hat ``I - open(I)`` with a ``size`` square (float32)."""
     return np.asarray(frame, np.float32) - _opening(frame, size)
+
+
+def _crop_around(frame, xy, pad: int, pixel_offset: float):
+    """The part of ``frame`` within ``pad`` pixels of the points ``xy``
+    (n, 2) (image frame) and its origin (2,): image coordinates in the crop
+    are those in the frame minus the origin (a top-hat of the crop equals
+    the frame's within ``pad - size`` of its border)."""
+    H, W = frame.shape[:2]
+    ij = np.rint(np.asarray(xy, float).reshape(-1, 2) - pixel_offset).astype(int)
+    x0, y0 = np.maximum(ij.min(0) - pad, 0)
+    x1, y1 = np.minimum(ij.max(0) + pad + 1, [W, H])
+    return frame[y0:y1, x0:x1], np.array([x0, y0], float)
+
+
+def _behind(frame, background, size, noise):
+    """The scene behind the markers of a frame: the grey opening (the frame
+    without its small bright spots) where the jumper's body is, the static
+    background (scaled by the frame's brightness ratio) where the opening
+    shows it, within ``max(4 noise, 10)`` grey levels (the opening of a
+    noisy frame is biased low, the temporal median is not)."""
+    bg = np.asarray(background, np.float32) * frame_gain(frame, background)
+    op = _opening(frame, size)
+    return np.where(op >= bg - max(4 * noise, 10.0), bg, op)
 
 
 def _windows(img: np.ndarray, centres: np.ndarray, half: int, pixel_offset: float):
