@@ -329,18 +329,25 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
     out = table.copy()
     out["reason"] = out["reason"].astype(object)
     when, names = _frame_of(table, exposure_frames, stations, offsets)
-    tab = table.set_index(["exposure", "station", "marker"]).sort_index()
+    # the rows by (exposure, station, marker): the table's row (attribute
+    # access) and its label in ``out``, looked up without pandas masks
+    tab = {(r.exposure, r.station, r.marker): r for r in table.itertuples()}
+    at = {(r.exposure, r.station, r.marker): r.Index for r in table.itertuples()}
 
     def row(e, s, m):
-        try:
-            return tab.loc[(e, s, m)]
-        except KeyError:
-            return None
+        return tab.get((e, s, m))
+
+    def _set(e, s, m, **values):
+        i = at.get((e, s, m))
+        if i is not None:
+            out.loc[i, list(values)] = list(values.values())
 
     # per exposure: the hip in 3D (the flight direction) and the view biases
     cams = [cameras[s] for s in stations]
     singles = [m for m in pd.unique(table["marker"]) if m not in (right_m, left_m)]
     ok = table[table.status == "ok"]
+    singles_at = {k: g[["x", "y"]].to_numpy(float) for k, g in
+                  ok[ok.marker.isin(singles)].groupby(["exposure", "station"])}
     sidx = {s: i for i, s in enumerate(stations)}
     eidx = {e: i for i, e in enumerate(names)}
     bias, X_hip, vel = _hip_track(cams, ok, stations, names, singles, hip)
@@ -373,10 +380,8 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
         """The split points of exposure ``e`` under their labels."""
         for (s, p, sg_, sep), a in zip(split_views, assign):
             for m, q in ((right_m, p[a]), (left_m, p[1 - a])):
-                sel = (out.exposure == e) & (out.station == s) & (out.marker == m)
-                out.loc[sel, ["x", "y", "sigma"]] = [q[0], q[1], sg_]
-                out.loc[sel, "status"] = "ok"
-                out.loc[sel, "reason"] = SPLIT_REASON.format(sep) + note
+                _set(e, s, m, x=q[0], y=q[1], sigma=sg_, status="ok",
+                     reason=SPLIT_REASON.format(sep) + note)
             counts["resolved"] += 1
             notes.pop((e, s), None)
     counts = {"flagged": 0, "located": 0, "split": 0, "resolved": 0, "ambiguous": 0}
@@ -410,10 +415,9 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             cand = candidates[s][f] if candidates is not None else \
                 detect_markers(fr, bg, k=k_sigma, pixel_offset=pixel_offset)
             c = cand.xy
-            taken = ok[(ok.exposure == e) & (ok.station == s) & ok.marker.isin(singles)]
-            if len(taken) and len(c):
-                dd = np.hypot(c[:, None, 0] - taken.x.to_numpy()[None],
-                              c[:, None, 1] - taken.y.to_numpy()[None])
+            taken = singles_at.get((e, s))
+            if taken is not None and len(c):
+                dd = np.hypot(c[:, None, 0] - taken[None, :, 0], c[:, None, 1] - taken[None, :, 1])
                 # as bright as a single marker of this image (the pair's blob
                 # is one or two markers; gaps of snow and edges are fainter)
                 mine = dd.min(1) <= 1.0
@@ -449,10 +453,9 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                 m, r = next((m, r) for m, r in rs.items() if r.status == "ok")
                 off = float(np.hypot(r.x - where[0], r.y - where[1]))
                 if off > lone_tol:
-                    sel = (out.exposure == e) & (out.station == s) & (out.marker == m)
-                    out.loc[sel, "status"] = "ambiguous"
-                    out.loc[sel, "reason"] = (f"{off:.1f} px from the bindings' blob located "
-                                              "in 3D from the views")
+                    _set(e, s, m, status="ambiguous",
+                         reason=f"{off:.1f} px from the bindings' blob located in 3D from "
+                                "the views")
                     flagged.append(s)
                     counts["flagged"] += 1
         if isinstance(found, str):
