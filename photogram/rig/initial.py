@@ -1,0 +1,168 @@
+"""Start values of a multi-camera rig calibrated from a board.
+
+1. Intrinsics and the board's pose in every camera's frames: OpenCV's
+   ``calibrateCamera`` (Zhang's method: homographies, closed form, then its
+   own Levenberg-Marquardt) on each camera's detections alone.
+2. The cameras' relative poses: for every pair of cameras that see the
+   board in the same frame, ``T_ij = T_ib T_jb^-1`` (``T_cb`` board to
+   camera, OpenCV convention ``x = R X + t``); the pairs' estimates are
+   averaged (chordal mean of the rotations, median of the translations)
+   and chained along a spanning tree of the camera graph that prefers the
+   pairs with the most shared frames (as aniposelib and caliscope do).
+3. Every board pose in the world from the camera that sees it with the
+   most corners.
+
+All transforms are 4 x 4 homogeneous matrices in OpenCV's convention.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from photogram.errors import InputError
+
+__all__ = ["camera_intrinsics", "chordal_mean", "relative_poses", "spanning_tree",
+           "initial_rig"]
+
+
+def _T(R, t) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = np.ravel(t)
+    return T
+
+
+def _inv(T) -> np.ndarray:
+    R, t = T[:3, :3], T[:3, 3]
+    return _T(R.T, -R.T @ t)
+
+
+def chordal_mean(Rs) -> np.ndarray:
+    """The rotation nearest (Frobenius) to the mean of rotation matrices
+    (the chordal L2 mean; Hartley et al. 2013, "Rotation averaging")."""
+    M = np.sum(np.asarray(Rs, dtype=float), axis=0)
+    U, _, Vt = np.linalg.svd(M)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return U @ D @ Vt
+
+
+def camera_intrinsics(frames: dict, board_points: np.ndarray, image_size, *,
+                      fix_k3: bool = True, name: str = "camera"):
+    """OpenCV's calibration of one camera from its own detections.
+
+    Parameters
+    ----------
+    frames : dict frame -> (ids (n,), xy (n, 2))
+    board_points : (m, 3) the board's points in its frame (ids index rows)
+    image_size : (w, h)
+
+    Returns
+    -------
+    K : (3, 3), dist : (5,), poses : dict frame -> T_cb (4, 4), rms : float
+    """
+    import cv2
+    keys = [f for f, (ids, _) in frames.items() if len(ids) >= 6]
+    if len(keys) < 3:
+        raise InputError(f"camera {name}: the board is seen in {len(keys)} frame(s) with at "
+                         "least 6 corners; a calibration needs 3 or more",
+                         hint="film the board closer to this camera, at several tilts")
+    obj = [board_points[frames[f][0]].astype(np.float32) for f in keys]
+    img = [frames[f][1].astype(np.float32).reshape(-1, 1, 2) for f in keys]
+    flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
+    # planar board: initCameraMatrix2D inside calibrateCamera
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, tuple(int(v) for v in image_size),
+                                                     None, None, flags=flags)
+    poses = {}
+    for f, r, t in zip(keys, rvecs, tvecs):
+        poses[f] = _T(cv2.Rodrigues(r)[0], t)
+    return K, np.asarray(dist, float).ravel()[:5], poses, float(rms)
+
+
+def relative_poses(poses: dict) -> dict:
+    """Pairwise camera poses from shared frames.
+
+    Parameters
+    ----------
+    poses : dict camera -> dict frame -> T_cb
+
+    Returns
+    -------
+    dict (i, j) -> (T_ij (4, 4) mapping camera j's frame to camera i's,
+    number of shared frames)
+    """
+    names = list(poses)
+    out = {}
+    for a, i in enumerate(names):
+        for j in names[a + 1:]:
+            shared = sorted(set(poses[i]) & set(poses[j]))
+            if not shared:
+                continue
+            Ts = [poses[i][f] @ _inv(poses[j][f]) for f in shared]
+            R = chordal_mean([T[:3, :3] for T in Ts])
+            t = np.median([T[:3, 3] for T in Ts], axis=0)
+            out[(i, j)] = (_T(R, t), len(shared))
+            out[(j, i)] = (_inv(out[(i, j)][0]), len(shared))
+    return out
+
+
+def spanning_tree(names, pairs: dict, reference):
+    """Camera -> (parent, T_child_parent): a maximum spanning tree of the
+    camera graph weighted by shared frames (Prim's algorithm from
+    ``reference``). Raises InputError naming the cameras that share no
+    frame with the rest."""
+    tree = {reference: (None, np.eye(4))}
+    while len(tree) < len(names):
+        best = None
+        for (i, j), (T, n) in pairs.items():
+            if j in tree and i not in tree and (best is None or n > best[2]):
+                best = (i, j, n, T)
+        if best is None:
+            lost = [c for c in names if c not in tree]
+            raise InputError(f"camera(s) {', '.join(lost)} never see the board in the same "
+                             f"frame as camera {reference} or the cameras linked to it",
+                             hint="wave the board where these cameras and the others see it "
+                                  "at the same time")
+        i, j, _, T = best
+        tree[i] = (j, T)
+    return tree
+
+
+def initial_rig(detections: dict, board_points: np.ndarray, image_sizes: dict, *,
+                fix_k3: bool = True, reference=None):
+    """Start values of every camera and board pose (module doc).
+
+    Returns
+    -------
+    dict with ``K`` {camera: (3, 3)}, ``dist`` {camera: (5,)}, ``T_cw``
+    {camera: world-to-camera (4, 4)} with the world = the reference
+    camera's frame, ``T_wb`` {frame: board-to-world (4, 4)}, ``rms``
+    {camera: OpenCV's RMS}, ``reference``.
+    """
+    names = list(detections)
+    K, dist, poses, rms = {}, {}, {}, {}
+    for c in names:
+        K[c], dist[c], poses[c], rms[c] = camera_intrinsics(
+            detections[c], board_points, image_sizes[c], fix_k3=fix_k3, name=c)
+    if reference is None:        # the camera that shares the most frames
+        count = {c: sum(len(set(poses[c]) & set(poses[d])) for d in names if d != c)
+                 for c in names}
+        reference = max(names, key=lambda c: count[c])
+    pairs = relative_poses(poses)
+    tree = spanning_tree(names, pairs, reference)
+    T_cw = {}
+
+    def world_to(c):
+        if c not in T_cw:
+            parent, T = tree[c]
+            T_cw[c] = np.eye(4) if parent is None else T @ world_to(parent)
+        return T_cw[c]
+    for c in names:
+        world_to(c)
+    T_wb = {}
+    frames = sorted({f for c in names for f in poses[c]})
+    for f in frames:
+        seen = [c for c in names if f in poses[c]]
+        c = max(seen, key=lambda c: len(detections[c][f][0]))
+        T_wb[f] = _inv(T_cw[c]) @ poses[c][f]
+    return {"K": K, "dist": dist, "T_cw": T_cw, "T_wb": T_wb, "rms": rms,
+            "reference": reference}

@@ -1,0 +1,206 @@
+"""Multi-camera rig calibration from a board (photogram.rig, issue 20):
+the board-point residual block's Jacobians against finite differences, and
+the whole calibration against the truth on board corners projected by
+OpenCV itself (cv2.projectPoints) with noise."""
+
+import cv2
+import numpy as np
+import pytest
+
+from photogram.adjust.board_blocks import BoardPointBlock
+from photogram.adjust.state import Layout, State
+from photogram.errors import InputError
+from photogram.geometry import camera_model, rodrigues_to_matrix
+from photogram.geometry.camera import FLIP_YZ
+from photogram.io.targets import parse_target
+from photogram.rig import calibrate_rig
+from photogram.rig.initial import chordal_mean
+
+TARGET = parse_target("chessboard:8x6:0.08")
+
+
+def _look_at(C, target=np.zeros(3), up=np.array([0.0, 0.0, 1.0])):
+    """OpenCV world-to-camera R, t of a camera at C looking at target."""
+    z = target - C
+    z /= np.linalg.norm(z)
+    x = np.cross(z, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R = np.stack([x, y, z])
+    return R, -R @ C
+
+
+def _rig(n_cameras=4, seed=0):
+    rng = np.random.default_rng(seed)
+    cams = {}
+    for i in range(n_cameras):
+        a = 2 * np.pi * i / n_cameras + rng.uniform(-0.3, 0.3)
+        d = rng.uniform(2.5, 5.5)
+        C = np.array([d * np.cos(a), d * np.sin(a), rng.uniform(1.0, 2.5)])
+        R, t = _look_at(C, np.array([0.0, 0.0, 0.8]))
+        K = np.array([[rng.uniform(900, 1300), 0, 640 + rng.uniform(-20, 20)],
+                      [0, 0, 360 + rng.uniform(-20, 20)], [0, 0, 1.0]])
+        K[1, 1] = K[0, 0] * rng.uniform(0.998, 1.002)
+        dist = np.array([rng.uniform(-0.2, 0.05), rng.uniform(-0.05, 0.1),
+                         rng.uniform(-1e-3, 1e-3), rng.uniform(-1e-3, 1e-3), 0.0])
+        cams[f"cam{i + 1:02d}"] = (K, dist, R, t)
+    return cams
+
+
+def _poses(n, seed=0):
+    """Board-to-world poses: one on the floor (frame 0: board x = world X,
+    board y = -Y, board z = -Z, face up), the rest waved through the volume."""
+    rng = np.random.default_rng(seed + 1)
+    out = {0: (FLIP_YZ.copy(), np.array([-0.3, 0.2, 0.0]))}
+    for f in range(1, n):
+        # face a random horizontal direction, tilted
+        yaw = rng.uniform(0, 2 * np.pi)
+        R0 = rodrigues_to_matrix(np.array([np.pi / 2, 0, 0]))     # board upright
+        R = rodrigues_to_matrix(np.array([0, 0, yaw])) @ R0 @ \
+            rodrigues_to_matrix(rng.normal(0, 0.35, 3))
+        t = np.array([rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(0.3, 1.8)])
+        out[f] = (R, t)
+    return out
+
+
+def _detections(cams, poses, noise=0.1, seed=2):
+    rng = np.random.default_rng(seed)
+    P = TARGET.object_points()
+    dets, sizes = {}, {}
+    for c, (K, dist, R, t) in cams.items():
+        dets[c], sizes[c] = {}, (1280, 720)
+        for f, (Rb, tb) in poses.items():
+            Xw = P @ Rb.T + tb
+            Xc = Xw @ R.T + t
+            n_board = Rb[:, 2]                    # board z in the world
+            C = -R.T @ t
+            # the board's front (-z side) must face the camera
+            if np.any(Xc[:, 2] < 0.3) or (C - tb) @ (-n_board) <= 0:
+                continue
+            xy, _ = cv2.projectPoints(Xw, cv2.Rodrigues(R)[0], t, K, dist)
+            xy = xy.reshape(-1, 2)
+            inside = (xy[:, 0] > 5) & (xy[:, 0] < 1275) & (xy[:, 1] > 5) & (xy[:, 1] < 715)
+            if inside.sum() < 20:
+                continue
+            ids = np.flatnonzero(inside)
+            dets[c][f] = (ids, xy[ids] + rng.normal(0, noise, (len(ids), 2)))
+    return dets, sizes
+
+
+def _truth_in_floor_frame(cams, poses):
+    """The cameras with the world = floor board (frame 0) made Z-up, as
+    calibrate_rig defines it: X' = F (Rb0^T (X - tb0))."""
+    Rb0, tb0 = poses[0]
+    A = FLIP_YZ @ Rb0.T
+    out = {}
+    for c, (K, dist, R, t) in cams.items():
+        # X = A^T X' + tb0 -> x_cam = R A^T X' + (R tb0 + t)
+        out[c] = (R @ A.T, R @ tb0 + t)
+    return out
+
+
+def test_board_block_jacobians_match_finite_differences():
+    rng = np.random.default_rng(3)
+    model = camera_model("opencv")
+    n_c, n_b, N = 2, 3, 12
+    R = np.stack([rodrigues_to_matrix(rng.normal(0, 0.5, 3)) for _ in range(n_c + n_b)])
+    X0 = rng.normal(0, 1, (n_c + n_b, 3))
+    X0[:n_c] += np.array([0, 0, 8.0])
+    R[:n_c] = np.stack([FLIP_YZ @ _look_at(x)[0] for x in X0[:n_c]])
+    io = [np.array([1000.0, 1001, 640, 360, -0.1, 0.05, 1e-3, -1e-3, 0.01]) for _ in range(n_c)]
+    layout = Layout([9] * n_c, n_c + n_b, 0, np.zeros(0, bool),
+                    {"camera": [np.ones(9, bool)] * n_c, "station": np.ones((n_c + n_b, 6), bool),
+                     "point": np.zeros((0, 3), bool)})
+    cam = rng.integers(0, n_c, N)
+    pose = n_c + rng.integers(0, n_b, N)
+    p = rng.uniform(-0.3, 0.3, (N, 3))
+    block = BoardPointBlock(model, np.arange(n_c), cam, cam, pose, p,
+                            rng.normal(600, 50, (N, 2)), np.ones(N), layout)
+    state = State(np.zeros((0, 3)), R, X0, io)
+    e, J = block.evaluate(state)
+    h = 1e-6
+    # the engine's own update (R = expm([d]x) R0, X0 + d, io + d) column by column
+    for slot, cols in enumerate(block.slot_cols):
+        for k in range(cols.shape[1]):
+            num = np.zeros((N, 2))
+            for sgn in (1, -1):
+                dx = np.zeros(layout.n_columns)
+                for n in range(N):
+                    dx[cols[n, k]] = sgn * h * (1e3 if slot == 2 and k < 4 else 1.0)
+                en, _ = block.evaluate(state.updated(layout, dx), jacobians=False)
+                num += sgn * en
+            scale = h * (1e3 if slot == 2 and k < 4 else 1.0)
+            num /= 2 * scale
+            # rows touching the same column twice: the numerical derivative
+            # of each row is still its own (one column per row at a time)
+            np.testing.assert_allclose(J[slot][:, :, k], num, rtol=1e-5, atol=1e-6 * np.abs(
+                J[slot]).max())
+
+
+def test_chordal_mean_of_noisy_rotations():
+    rng = np.random.default_rng(4)
+    R0 = rodrigues_to_matrix(np.array([0.3, -0.2, 1.0]))
+    Rs = [rodrigues_to_matrix(rng.normal(0, 0.01, 3)) @ R0 for _ in range(200)]
+    M = chordal_mean(Rs)
+    ang = np.degrees(np.arccos((np.trace(M.T @ R0) - 1) / 2))
+    assert ang < 0.1
+    assert np.allclose(M @ M.T, np.eye(3), atol=1e-12)
+
+
+@pytest.mark.parametrize("noise,seed", [(0.1, 0), (0.5, 1)])
+def test_rig_recovers_the_truth_within_its_sigmas(noise, seed):
+    cams = _rig(4, seed)
+    poses = _poses(40, seed)
+    dets, sizes = _detections(cams, poses, noise, seed + 7)
+    assert all(0 in d for d in dets.values()), "the floor pose must be seen by every camera"
+    res = calibrate_rig(dets, sizes, TARGET, floor_frame=0, sigma_image=noise)
+    truth = _truth_in_floor_frame(cams, poses)
+    assert res.sigma0 == pytest.approx(1.0, abs=0.15)
+    z_centre, z_f, z_rot = [], [], []
+    for c, (K, dist, R, t) in cams.items():
+        rc = res.cameras[c]
+        Rt, tt = truth[c]
+        C_true = -Rt.T @ tt
+        dC = rc.centre - C_true
+        z_centre += list(dC / [rc.sigmas["X0"], rc.sigmas["Y0"], rc.sigmas["Z0"]])
+        z_f.append((rc.K[0, 0] - K[0, 0]) / rc.sigmas["fx"])
+        assert np.linalg.norm(dC) < 5e-3 * (noise / 0.1)          # 5 mm at 0.1 px
+        # the world's axes come from one board pose (the datum): the
+        # absolute angles share its error, within their sigmas
+        rv = FLIP_YZ @ cv2.Rodrigues(rc.R @ Rt.T)[0].ravel()
+        z_rot += list(np.degrees(rv) / [rc.sigmas["rx"], rc.sigmas["ry"], rc.sigmas["rz"]])
+        assert rc.rms_px == pytest.approx(noise * np.sqrt(2), rel=0.2)
+    # the cameras' relative orientations do not depend on the datum
+    names = list(cams)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            rel = res.cameras[a].R @ res.cameras[b].R.T
+            rel_true = truth[a][0] @ truth[b][0].T
+            ang = np.degrees(np.arccos(np.clip((np.trace(rel.T @ rel_true) - 1) / 2, -1, 1)))
+            # (cameras on opposite sides never see the board's face together:
+            # their relative orientation is chained through the others)
+            assert ang < 0.2 * (noise / 0.1)
+    # honest sigmas: the errors over the sigmas are about standard normal
+    z = np.asarray(z_centre + z_f + z_rot)
+    assert np.sqrt(np.mean(z ** 2)) < 2.0
+    assert np.abs(z).max() < 4.5
+    assert res.weakest == max(names, key=lambda c: res.cameras[c].centre_sigma)
+
+
+def test_a_camera_that_never_sees_the_board_is_named():
+    cams = _rig(3, 0)
+    dets, sizes = _detections(cams, _poses(20, 0))
+    dets["cam03"] = {}
+    with pytest.raises(InputError, match="cam03"):
+        calibrate_rig(dets, sizes, TARGET, floor_frame=0)
+
+
+def test_cameras_that_share_no_frame_are_named():
+    cams = _rig(3, 0)
+    dets, sizes = _detections(cams, _poses(30, 0))
+    # cam03 keeps only frames that no other camera sees
+    others = set(dets["cam01"]) | set(dets["cam02"])
+    dets["cam03"] = {f + 1000: v for f, v in dets["cam03"].items() if f not in others} or \
+        {f + 1000: v for f, v in dets["cam03"].items()}
+    with pytest.raises(InputError, match="cam03"):
+        calibrate_rig(dets, sizes, TARGET, floor_frame=0)
