@@ -321,6 +321,7 @@ class Project:
     targets: TargetSettings | None = None   # [targets]: None = no eccentricity correction
     mocap: object | None = None        # MocapSettings (photogram.project.reader_mocap)
     track: object | None = None        # TrackSettings (photogram.project.reader_track)
+    board: object | None = None        # BoardSettings (photogram.project.reader_board)
     sources: dict[str, Path] = field(default_factory=dict)  # table -> file
     warnings: list[str] = field(default_factory=list)  # found by the reader
 

@@ -57,6 +57,9 @@ def project_inputs(project) -> list[Path]:
     if ts is not None:          # [track]: videos, seed clicks, exposure frames
         out += [Path(p) for p in ts.videos.values()]
         out += [Path(p) for p in (ts.seeds, ts.exposures) if p is not None]
+    bs = getattr(project, "board", None)
+    if bs is not None:          # [board]: videos or image folders
+        out += [Path(p) for p in bs.cameras.values()]
     return out
 
 

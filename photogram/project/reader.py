@@ -46,7 +46,7 @@ __all__ = ["read_project", "SECTIONS", "STATION_COLUMNS", "POINT_COLUMNS"]
 
 SECTIONS = ("project", "cameras", "stations", "points", "observations",
             "constraints", "adjustment", "output", "intersect", "montecarlo", "mocap", "targets",
-            "track")
+            "track", "board")
 REQUIRED_SECTIONS = ("project", "cameras", "stations", "observations")
 INTERSECT_KEYS = ("fps", "points", "skis", "ski_length", "binding_fraction", "orientation",
                   "swap_skis")
@@ -111,6 +111,9 @@ def read_project(path: str | Path) -> Project:
     src = TomlSource.load(prj, what="project file")
     root = src.root()
     root.check_keys(SECTIONS, noun="section")
+    if "board" in root.data:        # a rig calibrated from a board (docs/board-calibration.md)
+        from photogram.project.reader_board import read_board_project
+        return read_board_project(prj, src, root)
     if "mocap" in root.data:        # a motion-capture project (docs/mocap.md)
         from photogram.project.reader_mocap import read_mocap_project
         return read_mocap_project(prj, src, root)
