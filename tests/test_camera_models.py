@@ -19,6 +19,8 @@ PARAMS = {
     "brown": np.array([1420.0, 321.5, 238.2, 2.3e-7, -3.0e-13, 6.0e-19,
                        6.0e-6, -4.0e-6, 4.0e-4, -3.0e-4]),
     "opencv": np.array([1420.0, 1425.0, 322.0, 238.0, -0.25, 0.3, 1.0e-3, -8.0e-4, -0.5]),
+    # Kannala-Brandt: theta_d = theta (1 + k1 theta^2 + ... + k4 theta^8)
+    "opencv_fisheye": np.array([1420.0, 1425.0, 322.0, 238.0, 0.05, -0.3, 0.8, -1.2]),
     # BAL (Snavely): f, k1, k2 of normalised radii; origin at the image centre
     "bal": np.array([1420.0, -0.25, 0.3]),
 }
@@ -28,6 +30,7 @@ TYPICAL = {
     "brown": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
                        1 / 400, 1 / 400, 1, 1]),
     "opencv": np.array([1420, 1420, 1420, 1420, 1, 1, 1, 1, 1]),
+    "opencv_fisheye": np.array([1420, 1420, 1420, 1420, 1, 1, 1, 1]),
     "bal": np.array([1420, 1, 1]),
 }
 STEP = {"angles": 1e-4, "rotation": 1e-4, "X0": 1e-3, "X": 1e-3}
@@ -124,12 +127,14 @@ def test_jacobian_shapes(model):
 
 # ---------------------------------------------------------------- registry
 def test_registry():
-    assert set(CAMERA_MODELS) == {"bal", "brown", "opencv"}
+    assert set(CAMERA_MODELS) == {"bal", "brown", "opencv", "opencv_fisheye"}
     assert camera_model("brown").parameter_names == (
         "c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2")
     assert camera_model("opencv").parameter_names == (
         "fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
     assert camera_model("bal").parameter_names == ("f", "k1", "k2")
+    assert camera_model("opencv_fisheye").parameter_names == (
+        "fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4")
     with pytest.raises(InputError, match="bal.*brown.*opencv"):
         camera_model("fisheye")
 
@@ -243,6 +248,43 @@ def test_opencv_equals_cv2_project_points():
         ref, _ = cv2.projectPoints(Xs, rvec, t_cv, K, p[4:])
         ours = o.project(Xs, a, c, p)
         assert np.allclose(ours, ref[:, 0, :], atol=1e-9)
+
+
+def test_opencv_fisheye_equals_cv2_fisheye_project_points():
+    """cv2.fisheye.projectPoints, also far off the axis (a wide lens: the
+    points of the scene seen with fx = 300 reach 60 degrees), and the
+    inverse (image_to_ray) against cv2.fisheye.undistortPoints."""
+    o = camera_model("opencv_fisheye")
+    X, angles, X0, _ = scene("opencv_fisheye", n=40, seed=5)
+    for f in (1420.0, 300.0):
+        p = PARAMS["opencv_fisheye"].copy()
+        p[:2] = f, f * 1.003
+        K = np.array([[p[0], 0, p[2]], [0, p[1], p[3]], [0, 0, 1]])
+        for station in range(3):
+            a, c = angles[station], X0[station]
+            Xs = (np.einsum("ji,nj->ni", opk_to_matrix(a), X - X0) + c)
+            R_cv, t_cv = opencv_pose(opk_to_matrix(a), c)
+            ref, _ = cv2.fisheye.projectPoints(Xs[:, None, :], cv2.Rodrigues(R_cv)[0], t_cv,
+                                               K, p[4:])
+            xy = o.project(Xs, a, c, p)
+            np.testing.assert_allclose(xy, ref[:, 0, :], rtol=0, atol=1e-7)
+        t = o.image_to_ray(xy, p)
+        und = cv2.fisheye.undistortPoints(xy[:, None, :], K, p[4:],
+                                          criteria=(cv2.TERM_CRITERIA_COUNT
+                                                    | cv2.TERM_CRITERIA_EPS, 100, 1e-14))
+        np.testing.assert_allclose(t, und[:, 0, :], atol=1e-6)
+        np.testing.assert_allclose(o.ray_to_image(t, p), xy, atol=1e-8)
+
+
+def test_opencv_fisheye_on_the_axis_has_its_limits():
+    """At r = 0 the model is the pinhole (s = 1) and its Jacobian finite."""
+    o = camera_model("opencv_fisheye")
+    p = PARAMS["opencv_fisheye"]
+    t = np.array([[0.0, 0.0], [1e-12, -1e-12], [1e-3, 2e-3]])
+    xy, dt, dio = o._forward(t, np.broadcast_to(p, (3, 8)))
+    assert np.allclose(xy[0], p[2:4]) and np.all(np.isfinite(dt)) and np.all(np.isfinite(dio))
+    np.testing.assert_allclose(dt[0], np.diag(p[:2]), rtol=1e-12)
+    np.testing.assert_allclose(dt[1], np.diag(p[:2]), rtol=1e-9)
 
 
 def test_frame_conversion_reproduces_pixels():

@@ -63,7 +63,22 @@ def _poses(n, seed=0):
     return out
 
 
-def _detections(cams, poses, noise=0.1, seed=2):
+def _fisheye_rig(n_cameras=4, seed=0):
+    """Wide cameras (fx about 420 px on 1280 x 720: 113 degrees across)
+    with Kannala-Brandt k1..k4."""
+    cams = _rig(n_cameras, seed)
+    rng = np.random.default_rng(seed + 5)
+    out = {}
+    for c, (K, dist, R, t) in cams.items():
+        K = K.copy()
+        K[0, 0] = rng.uniform(400, 440)
+        K[1, 1] = K[0, 0] * 1.001
+        D = np.array([rng.uniform(-0.05, 0.05), rng.uniform(-0.02, 0.02), 0.0, 0.0])
+        out[c] = (K, D, R, t)
+    return out
+
+
+def _detections(cams, poses, noise=0.1, seed=2, fisheye=False):
     rng = np.random.default_rng(seed)
     P = TARGET.object_points()
     dets, sizes = {}, {}
@@ -77,7 +92,11 @@ def _detections(cams, poses, noise=0.1, seed=2):
             # the board's front (-z side) must face the camera
             if np.any(Xc[:, 2] < 0.3) or (C - tb) @ (-n_board) <= 0:
                 continue
-            xy, _ = cv2.projectPoints(Xw, cv2.Rodrigues(R)[0], t, K, dist)
+            if fisheye:
+                xy, _ = cv2.fisheye.projectPoints(Xw[:, None, :], cv2.Rodrigues(R)[0], t, K,
+                                                  dist)
+            else:
+                xy, _ = cv2.projectPoints(Xw, cv2.Rodrigues(R)[0], t, K, dist)
             xy = xy.reshape(-1, 2)
             inside = (xy[:, 0] > 5) & (xy[:, 0] < 1275) & (xy[:, 1] > 5) & (xy[:, 1] < 715)
             if inside.sum() < 20:
@@ -204,3 +223,26 @@ def test_cameras_that_share_no_frame_are_named():
         {f + 1000: v for f, v in dets["cam03"].items()}
     with pytest.raises(InputError, match="cam03"):
         calibrate_rig(dets, sizes, TARGET, floor_frame=0)
+
+
+def test_fisheye_rig_recovers_the_truth():
+    """OpenCV's fisheye model (opencv_fisheye) through the same adjustment:
+    corners projected by cv2.fisheye.projectPoints, 0.1 px noise."""
+    cams = _fisheye_rig(4, 3)
+    poses = _poses(40, 3)
+    dets, sizes = _detections(cams, poses, 0.1, 11, fisheye=True)
+    res = calibrate_rig(dets, sizes, TARGET, model="opencv_fisheye", floor_frame=0,
+                        sigma_image=0.1)
+    truth = _truth_in_floor_frame(cams, poses)
+    assert res.sigma0 == pytest.approx(1.0, abs=0.15)
+    z = []
+    for c, (K, D, R, t) in cams.items():
+        rc = res.cameras[c]
+        assert rc.model == "opencv_fisheye" and rc.dist.shape == (4,)
+        C_true = -truth[c][0].T @ truth[c][1]
+        dC = rc.centre - C_true
+        assert np.linalg.norm(dC) < 0.01
+        z += list(dC / [rc.sigmas["X0"], rc.sigmas["Y0"], rc.sigmas["Z0"]])
+        z += [(rc.K[0, 0] - K[0, 0]) / rc.sigmas["fx"], (rc.dist[0] - D[0]) / rc.sigmas["k1"]]
+    z = np.asarray(z)
+    assert np.sqrt(np.mean(z ** 2)) < 2.0 and np.abs(z).max() < 4.5

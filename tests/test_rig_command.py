@@ -134,6 +134,7 @@ def test_no_floor_frame_takes_the_pose_seen_by_most_cameras(rig_set, tmp_path, c
     ('floor = "9999"', "floor"),
     ("fix_k3 = 3", "fix_k3"),
     ("stepp = 0.2", "stepp"),
+    ('model = "fisheye"', "opencv_fisheye"),
 ])
 def test_bad_board_projects_get_one_line_and_exit_2(rig_set, tmp_path, capsys, change, expect):
     folder, _ = rig_set
@@ -163,3 +164,14 @@ def test_a_camera_that_never_sees_the_board_is_named(rig_set, tmp_path, capsys):
     code = main(["calibrate", str(p), "--output", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "cam03" in err[0] and "not found" in err[0]
+
+
+def test_a_fisheye_rig_is_written_as_fisheye_in_calib_toml():
+    from photogram.io.exchange import View
+    from photogram.io.pose2sim import format_pose2sim
+    v = View("c1", "c1", np.array([[400.0, 0, 640], [0, 400, 360], [0, 0, 1]]),
+             np.array([0.01, -0.002, 0.0, 0.0]), np.eye(3), np.zeros(3), (1280, 720),
+             extra={"fisheye": True})
+    text = format_pose2sim([v])
+    assert "fisheye = true" in text
+    assert "distortions = [ 0.01, -0.002, 0.0, 0.0]" in text

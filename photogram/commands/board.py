@@ -59,7 +59,7 @@ def calibrate_board_project(project):
                        hint="give the frame number (video) or image name (without suffix) "
                             "where the board lies on the floor and is seen")
     result = calibrate_rig(frames["detections"], frames["image_sizes"], target,
-                           fix_k3=bs.fix_k3, floor_frame=bs.floor, sigma_image=bs.sigma_image,
+                           model=bs.model, fix_k3=bs.fix_k3, floor_frame=bs.floor, sigma_image=bs.sigma_image,
                            min_corners=bs.min_corners)
     result.summary["timings"] = {"detection_s": t1 - t0,
                                  "adjustment_s": time.perf_counter() - t1}
@@ -68,12 +68,14 @@ def calibrate_board_project(project):
 
 def _cameras_table(result, length_unit):
     import pandas as pd
-    from photogram.rig.calibrate import INTERIOR
+    from photogram.geometry import camera_model
     rows = []
     for name, c in result.cameras.items():
-        row = {"camera": name, "width": c.image_size[0], "height": c.image_size[1]}
-        vals = dict(zip(INTERIOR, [c.K[0, 0], c.K[1, 1], c.K[0, 2], c.K[1, 2], *c.dist]))
-        for k in INTERIOR:
+        row = {"camera": name, "model": c.model, "width": c.image_size[0],
+               "height": c.image_size[1]}
+        names = camera_model(c.model).parameter_names
+        vals = dict(zip(names, [c.K[0, 0], c.K[1, 1], c.K[0, 2], c.K[1, 2], *c.dist]))
+        for k in names:
             row[k], row[f"s_{k}"] = vals[k], c.sigmas[k]
         C = c.centre
         for k, v in zip(("X0", "Y0", "Z0"), C):
@@ -101,7 +103,9 @@ def _board_table(result):
 
 def _views(result):
     from photogram.io.exchange import View
-    return [View(n, n, c.K, c.dist, c.R, c.t, c.image_size) for n, c in result.cameras.items()]
+    return [View(n, n, c.K, c.dist, c.R, c.t, c.image_size,
+                 extra={"fisheye": c.model == "opencv_fisheye"})
+            for n, c in result.cameras.items()]
 
 
 def summary_of(result, frames, project) -> dict:

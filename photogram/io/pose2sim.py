@@ -81,8 +81,8 @@ def read_pose2sim(path) -> list[View]:
         name = str(sec.data.get("name", key))
         if sec.data.get("fisheye", False) is True:
             raise sec.error("fisheye", f"camera {name} is a fisheye camera",
-                            hint="photogram has no fisheye model; calibrate with the "
-                                 "standard (pinhole + Brown-Conrady) model")
+                            hint="photogram mocap does not take fisheye cameras yet; calibrate "
+                                 "with the standard (pinhole + Brown-Conrady) model")
         K = _array(sec, "matrix", (3, 3), "a 3 x 3 matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]")
         dist = _array(sec, "distortions", None, "a list of numbers [k1, k2, p1, p2]") \
             if "distortions" in sec else np.zeros(4)
@@ -148,14 +148,16 @@ def format_pose2sim(views: list[View], *, error: float = 0.0) -> str:
     for v in views:
         size = v.image_size if v.image_size is not None else (2 * v.K[0, 2], 2 * v.K[1, 2])
         dist = np.asarray(v.dist, float)
-        dist = dist[:4] if dist.size < 5 or dist[4] == 0 else dist[:5]
+        fisheye = bool(v.extra.get("fisheye", False))     # dist: k1 k2 k3 k4
+        if not fisheye:
+            dist = dist[:4] if dist.size < 5 or dist[4] == 0 else dist[:5]
         rvec = matrix_to_rodrigues(v.R_cv)
         name = v.name.replace("\\", "\\\\").replace('"', '\\"')
         out += [f'[{_section(v.name)}]', f'name = "{name}"',
                 f"size = {_vec([float(size[0]), float(size[1])])}",
                 "matrix = [ " + ", ".join(_vec(r) for r in v.K) + "]",
                 f"distortions = {_vec(dist)}", f"rotation = {_vec(rvec)}",
-                f"translation = {_vec(v.t_cv)}", "fisheye = false", ""]
+                f"translation = {_vec(v.t_cv)}", f"fisheye = {str(fisheye).lower()}", ""]
     out += ["[metadata]", "adjusted = false", f"error = {float(error)!r}", ""]
     return "\n".join(out)
 

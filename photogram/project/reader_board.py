@@ -12,6 +12,7 @@ every N seconds), in one line per camera::
     target = "charuco:7x5:0.08:0.06:DICT_5X5_100"
     cameras = { cam01 = "videos/cam01.avi", cam02 = "images/cam02" }
     floor = 0            # the frame (video) or image stem where the board lies on the floor
+    model = "opencv"     # or "opencv_fisheye" (OpenCV's fisheye model, Kannala-Brandt)
     step = 0.2           # videos: one frame every step seconds
     max_frames = 150     # at most this many frames, the sharpest covering the images best
     fix_k3 = true
@@ -34,8 +35,9 @@ from photogram.project.toml_source import Section, TomlSource
 
 __all__ = ["BoardSettings", "read_board_project", "BOARD_KEYS"]
 
-BOARD_KEYS = ("target", "cameras", "floor", "step", "max_frames", "fix_k3", "min_corners",
-              "sigma_image", "min_sharpness")
+BOARD_KEYS = ("target", "cameras", "floor", "model", "step", "max_frames", "fix_k3",
+              "min_corners", "sigma_image", "min_sharpness")
+BOARD_MODELS = ("opencv", "opencv_fisheye")
 _ALLOWED = ("project", "output", "board")
 
 
@@ -46,6 +48,7 @@ class BoardSettings:
     target: str
     cameras: dict                     # camera -> video file or image folder
     floor: str | None = None          # frame id (a video's frame number as text, or a stem)
+    model: str = "opencv"             # or "opencv_fisheye"
     step: float = 0.2
     max_frames: int = 150
     fix_k3: bool = True
@@ -84,6 +87,7 @@ def _read_board(sec: Section, prj: Path) -> BoardSettings:
     floor = sec.ident("floor", None)
     return BoardSettings(
         target=target, cameras=cameras, floor=floor,
+        model=sec.string("model", "opencv", choices=BOARD_MODELS),
         step=sec.number("step", 0.2, positive=True),
         max_frames=sec.integer("max_frames", 150, minimum=3),
         fix_k3=sec.boolean("fix_k3", True),

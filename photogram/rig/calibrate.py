@@ -36,6 +36,7 @@ from photogram.geometry.camera import FLIP_YZ
 __all__ = ["RigCamera", "RigResult", "calibrate_rig", "INTERIOR"]
 
 INTERIOR = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
+MODELS = ("opencv", "opencv_fisheye")
 _F4 = np.diag([1.0, -1.0, -1.0, 1.0])
 
 
@@ -45,7 +46,7 @@ class RigCamera:
 
     name: str
     K: np.ndarray
-    dist: np.ndarray                 # k1 k2 p1 p2 k3
+    dist: np.ndarray                 # k1 k2 p1 p2 k3 (opencv) or k1 k2 k3 k4 (fisheye)
     R: np.ndarray                    # world -> camera
     t: np.ndarray
     image_size: tuple
@@ -54,6 +55,7 @@ class RigCamera:
     median_residual: tuple = (float("nan"), float("nan"))
     n_frames: int = 0
     n_points: int = 0
+    model: str = "opencv"
 
     @property
     def centre(self) -> np.ndarray:
@@ -92,9 +94,9 @@ def _floor(init, detections, floor_frame):
                                                       for c in seen[f])))
 
 
-def calibrate_rig(detections: dict, image_sizes: dict, target, *, fix_k3: bool = True,
-                  floor_frame=None, sigma_image: float = 0.5, max_iterations: int = 50,
-                  min_corners: int = 6) -> RigResult:
+def calibrate_rig(detections: dict, image_sizes: dict, target, *, model: str = "opencv",
+                  fix_k3: bool = True, floor_frame=None, sigma_image: float = 0.5,
+                  max_iterations: int = 50, min_corners: int = 6) -> RigResult:
     """Calibrate every camera of a rig from board detections (module doc).
 
     Parameters
@@ -104,7 +106,10 @@ def calibrate_rig(detections: dict, image_sizes: dict, target, *, fix_k3: bool =
         coordinates); ``ids`` index ``target.object_points()``.
     image_sizes : dict camera -> (w, h)
     target : photogram.io.targets.Target (or its description string)
-    fix_k3 : hold k3 at 0 (a few board poses rarely separate k1, k2, k3)
+    model : "opencv" (pinhole with Brown-Conrady distortion) or
+        "opencv_fisheye" (Kannala-Brandt k1..k4, OpenCV's fisheye model)
+    fix_k3 : hold k3 at 0 (a few board poses rarely separate k1, k2, k3;
+        the opencv model only)
     floor_frame : the frame whose board pose defines the world (module doc)
     sigma_image : a-priori sigma of a corner (px); the reported sigmas are
         a-posteriori and do not depend on it
@@ -138,7 +143,11 @@ def calibrate_rig(detections: dict, image_sizes: dict, target, *, fix_k3: bool =
             raise InputError(f"camera {c}, frame {bad[0]}: corner ids outside the board's "
                              f"0..{len(board) - 1}", hint="the board description does not "
                                                           "match the detections")
-    init = initial_rig(dets, board, image_sizes, fix_k3=fix_k3)
+    if model not in MODELS:
+        raise InputError(f"unknown camera model {model!r} for a rig",
+                         hint="opencv or opencv_fisheye")
+    fisheye = model == "opencv_fisheye"
+    init = initial_rig(dets, board, image_sizes, fix_k3=fix_k3, fisheye=fisheye)
     names = list(dets)
     f0 = _floor(init, dets, floor_frame)
     # world' = the floor board's frame, Z up (module doc)
@@ -158,15 +167,16 @@ def calibrate_rig(detections: dict, image_sizes: dict, target, *, fix_k3: bool =
         X0[n_c + j] = T[:3, 3]
     io = [np.r_[init["K"][c][0, 0], init["K"][c][1, 1], init["K"][c][0, 2],
                 init["K"][c][1, 2], init["dist"][c]] for c in names]
-    model = camera_model("opencv")
-    free_io = np.ones(9, dtype=bool)
-    free_io[8] = not fix_k3
-    if fix_k3:
+    cam_model = camera_model(model)
+    names_io = cam_model.parameter_names
+    free_io = np.ones(len(names_io), dtype=bool)
+    if not fisheye and fix_k3:
+        free_io[8] = False
         for v in io:
             v[8] = 0.0
     station_free = np.ones((n_c + n_b, 6), dtype=bool)
     station_free[n_c + frames.index(f0)] = False
-    layout = Layout([9] * n_c, n_c + n_b, 0, np.zeros(0, bool),
+    layout = Layout([len(names_io)] * n_c, n_c + n_b, 0, np.zeros(0, bool),
                     {"camera": [free_io.copy() for _ in names], "station": station_free,
                      "point": np.zeros((0, 3), bool)})
     cam, pose, pts, xy, labels = [], [], [], [], []
@@ -179,7 +189,7 @@ def calibrate_rig(detections: dict, image_sizes: dict, target, *, fix_k3: bool =
             xy.append(p)
             labels += [(c, f, int(k)) for k in ids]
     cam = np.asarray(cam)
-    block = BoardPointBlock(model, np.arange(n_c), cam, cam, np.asarray(pose),
+    block = BoardPointBlock(cam_model, np.arange(n_c), cam, cam, np.asarray(pose),
                             np.vstack(pts), np.vstack(xy), np.full(len(cam), sigma_image),
                             layout, labels)
     state = State(np.zeros((0, 3)), R, X0, io)
@@ -201,7 +211,7 @@ def calibrate_rig(detections: dict, image_sizes: dict, target, *, fix_k3: bool =
         R_cv = FLIP_YZ @ state.R[i]
         t = -R_cv @ state.X0[i]
         cols = layout.camera_cols[i]
-        sig = {n: float(np.sqrt(max(Q[k, k], 0.0))) for n, k in zip(INTERIOR, cols)}
+        sig = {n: float(np.sqrt(max(Q[k, k], 0.0))) for n, k in zip(names_io, cols)}
         sc = layout.station_cols[i]
         for n, k in zip(("X0", "Y0", "Z0"), sc[:3]):
             sig[n] = float(np.sqrt(max(Q[k, k], 0.0)))
@@ -209,10 +219,10 @@ def calibrate_rig(detections: dict, image_sizes: dict, target, *, fix_k3: bool =
             sig[n] = float(np.degrees(np.sqrt(max(Q[k, k], 0.0))))   # rotation, deg
         m = cam == i
         r = e[m]
-        cams[c] = RigCamera(c, K, v[4:9].copy(), R_cv, t, tuple(image_sizes[c]), sig,
+        cams[c] = RigCamera(c, K, v[4:].copy(), R_cv, t, tuple(image_sizes[c]), sig,
                             float(np.sqrt(np.mean(np.sum(r ** 2, 1)))),
                             tuple(float(x) for x in np.median(r, axis=0)),
-                            len(dets[c]), int(m.sum()))
+                            len(dets[c]), int(m.sum()), model)
     boards = {}
     for j, f in enumerate(frames):
         Rb = state.R[n_c + j]

@@ -47,8 +47,10 @@ def chordal_mean(Rs) -> np.ndarray:
 
 
 def camera_intrinsics(frames: dict, board_points: np.ndarray, image_size, *,
-                      fix_k3: bool = True, name: str = "camera"):
-    """OpenCV's calibration of one camera from its own detections.
+                      fix_k3: bool = True, name: str = "camera", fisheye: bool = False):
+    """OpenCV's calibration of one camera from its own detections
+    (``cv2.calibrateCamera``, or ``cv2.fisheye.calibrate`` for the fisheye
+    model: then ``dist`` holds k1..k4).
 
     Parameters
     ----------
@@ -68,14 +70,40 @@ def camera_intrinsics(frames: dict, board_points: np.ndarray, image_size, *,
                          hint="film the board closer to this camera, at several tilts")
     obj = [board_points[frames[f][0]].astype(np.float32) for f in keys]
     img = [frames[f][1].astype(np.float32).reshape(-1, 1, 2) for f in keys]
-    flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
-    # planar board: initCameraMatrix2D inside calibrateCamera
-    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, tuple(int(v) for v in image_size),
-                                                     None, None, flags=flags)
+    size = tuple(int(v) for v in image_size)
+    if fisheye:
+        rms, K, dist, rvecs, tvecs = _fisheye_start(obj, img, size, name)
+    else:
+        flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
+        # planar board: initCameraMatrix2D inside calibrateCamera
+        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, size, None, None,
+                                                         flags=flags)
     poses = {}
     for f, r, t in zip(keys, rvecs, tvecs):
-        poses[f] = _T(cv2.Rodrigues(r)[0], t)
-    return K, np.asarray(dist, float).ravel()[:5], poses, float(rms)
+        poses[f] = _T(cv2.Rodrigues(np.asarray(r, float))[0], np.asarray(t, float))
+    n = 4 if fisheye else 5
+    return K, np.asarray(dist, float).ravel()[:n], poses, float(rms)
+
+
+def _fisheye_start(obj, img, size, name):
+    """``cv2.fisheye.calibrate`` (skew fixed, extrinsics recomputed per
+    iteration) from the pinhole start of ``initCameraMatrix2D``."""
+    import cv2
+    K0 = cv2.initCameraMatrix2D(obj, img, size)
+    flags = (cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
+             | cv2.fisheye.CALIB_USE_INTRINSIC_GUESS)
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-10)
+    try:
+        rms, K, D, rvecs, tvecs = cv2.fisheye.calibrate(
+            [o.reshape(-1, 1, 3).astype(np.float64) for o in obj],
+            [x.reshape(-1, 1, 2).astype(np.float64) for x in img], size, K0, np.zeros(4),
+            flags=flags, criteria=crit)
+    except cv2.error as exc:
+        raise InputError(f"camera {name}: OpenCV's fisheye calibration gives no start "
+                         f"({str(exc).strip().splitlines()[-1]})",
+                         hint="more board views at several tilts, or model = \"opencv\" for "
+                              "a lens of moderate field of view") from None
+    return rms, K, D, rvecs, tvecs
 
 
 def relative_poses(poses: dict) -> dict:
@@ -128,7 +156,7 @@ def spanning_tree(names, pairs: dict, reference):
 
 
 def initial_rig(detections: dict, board_points: np.ndarray, image_sizes: dict, *,
-                fix_k3: bool = True, reference=None):
+                fix_k3: bool = True, reference=None, fisheye: bool = False):
     """Start values of every camera and board pose (module doc).
 
     Returns
@@ -142,7 +170,8 @@ def initial_rig(detections: dict, board_points: np.ndarray, image_sizes: dict, *
     K, dist, poses, rms = {}, {}, {}, {}
     for c in names:
         K[c], dist[c], poses[c], rms[c] = camera_intrinsics(
-            detections[c], board_points, image_sizes[c], fix_k3=fix_k3, name=c)
+            detections[c], board_points, image_sizes[c], fix_k3=fix_k3, name=c,
+            fisheye=fisheye)
     if reference is None:        # the camera that shares the most frames
         count = {c: sum(len(set(poses[c]) & set(poses[d])) for d in names if d != c)
                  for c in names}
