@@ -246,3 +246,66 @@ def test_fisheye_rig_recovers_the_truth():
         z += [(rc.K[0, 0] - K[0, 0]) / rc.sigmas["fx"], (rc.dist[0] - D[0]) / rc.sigmas["k1"]]
     z = np.asarray(z)
     assert np.sqrt(np.mean(z ** 2)) < 2.0 and np.abs(z).max() < 4.5
+
+
+def test_scene_points_of_known_coordinates_fix_the_world():
+    """Pose2Sim's scene extrinsics: 8 points of known coordinates (its
+    demo's layout, a 2 x 0.6 m pattern on the floor, two 5 cm up) marked in
+    every camera with 0.5 px noise; no floor board: the cameras come out
+    in the scene's world directly."""
+    from photogram.rig import SceneControl
+    cams = _rig(4, 0)
+    poses = _poses(40, 0)
+    dets, sizes = _detections(cams, poses, 0.1, 7)
+    coords = np.array([[-1.0, 0.3, 0.0], [-1.0, 0.0, 0.0], [-1.0, 0.0, 0.05], [-1.0, -0.3, 0.0],
+                       [1.0, 0.3, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.05], [1.0, -0.3, 0.0]])
+    rng = np.random.default_rng(5)
+    obs = {}
+    for c, (K, dist, R, t) in cams.items():
+        xy, _ = cv2.projectPoints(coords, cv2.Rodrigues(R)[0], t, K, dist)
+        obs[c] = {f"S{k}": xy[k, 0] + rng.normal(0, 0.5, 2) for k in range(len(coords))}
+    scene = SceneControl({f"S{k}": (coords[k], 0.0) for k in range(len(coords))}, obs,
+                         sigma_image=0.5)
+    res = calibrate_rig(dets, sizes, TARGET, scene=scene, sigma_image=0.1)
+    assert res.floor_frame is None and res.summary["scene_rms_px"] < 1.0
+    for c, (K, dist, R, t) in cams.items():
+        rc = res.cameras[c]
+        dC = rc.centre - (-R.T @ t)
+        # 8 points marked at 0.5 px fix the world to 1-8 mm (sigmas)
+        assert np.linalg.norm(dC) < 0.03
+        assert np.all(np.abs(dC) < 4.5 * np.array([rc.sigmas["X0"], rc.sigmas["Y0"],
+                                                   rc.sigmas["Z0"]]))
+        # the world's axes from 8 points 0.6 m across marked at 0.5 px: a
+        # few tenths of a degree, within the propagated sigmas
+        rv = np.degrees(FLIP_YZ @ cv2.Rodrigues(rc.R @ R.T)[0].ravel())
+        assert np.linalg.norm(rv) < 0.5
+        assert np.all(np.abs(rv) < 4.5 * np.array([rc.sigmas["rx"], rc.sigmas["ry"],
+                                                   rc.sigmas["rz"]]))
+    with pytest.raises(InputError, match="not both"):
+        calibrate_rig(dets, sizes, TARGET, scene=scene, floor_frame=0)
+    few = SceneControl(scene.points, {c: {k: v for k, v in o.items() if k in ("S0", "S1")}
+                                      for c, o in obs.items()})
+    with pytest.raises(InputError, match="3 or more"):
+        calibrate_rig(dets, sizes, TARGET, scene=few)
+    stray = SceneControl(scene.points, {"cam09": obs["cam01"]})
+    with pytest.raises(InputError, match="cam09"):
+        calibrate_rig(dets, sizes, TARGET, scene=stray)
+
+
+def test_a_misnumbered_board_view_is_left_out():
+    """One camera's detection in one frame with its corners numbered the
+    other way round (a chessboard seen upside down): left out by its RMS,
+    named in the summary, and the rig as without it."""
+    cams = _rig(4, 0)
+    poses = _poses(40, 0)
+    dets, sizes = _detections(cams, poses, 0.1, 7)
+    clean = calibrate_rig(dets, sizes, TARGET, floor_frame=0, sigma_image=0.1)
+    f = next(f for f in sorted(dets["cam02"]) if f != 0 and len(dets["cam02"][f][0]) == 48
+             and sum(f in d for d in dets.values()) >= 3)
+    ids, xy = dets["cam02"][f]
+    dets["cam02"][f] = (47 - ids, xy)                  # 180 degrees
+    res = calibrate_rig(dets, sizes, TARGET, floor_frame=0, sigma_image=0.1)
+    assert list(res.summary["rejected_views"]) == [f"cam02 {f}"]
+    for c in cams:
+        assert np.linalg.norm(res.cameras[c].centre - clean.cameras[c].centre) < 1e-3
+    assert res.sigma0 == pytest.approx(clean.sigma0, rel=0.05)

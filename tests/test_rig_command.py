@@ -175,3 +175,42 @@ def test_a_fisheye_rig_is_written_as_fisheye_in_calib_toml():
     text = format_pose2sim([v])
     assert "fisheye = true" in text
     assert "distortions = [ 0.01, -0.002, 0.0, 0.0]" in text
+
+
+def test_scene_points_give_the_world(rig_set, tmp_path, capsys):
+    """[board] scene: 6 points of known coordinates on the floor and on a
+    box, marked (projected, 0.3 px noise) in every camera: the cameras in
+    that world, without a floor frame."""
+    folder, (cams, poses) = rig_set
+    rng = np.random.default_rng(9)
+    pts = np.array([[-0.6, -0.4, 0.0], [0.6, -0.4, 0.0], [0.6, 0.5, 0.0], [-0.6, 0.5, 0.0],
+                    [0.0, 0.0, 0.45], [0.3, 0.2, 0.45]])
+    (folder / "scene.csv").write_text("point,X,Y,Z\n" + "".join(
+        f"S{k},{x},{y},{z}\n" for k, (x, y, z) in enumerate(pts)))
+    rows = ["camera,point,x,y"]
+    for name, (K, R, t) in cams.items():
+        xy = (pts @ R.T + t) @ K.T
+        xy = xy[:, :2] / xy[:, 2:] + rng.normal(0, 0.3, (len(pts), 2))
+        rows += [f"{name},S{k},{x:.3f},{y:.3f}" for k, (x, y) in enumerate(xy)]
+    (folder / "marks.csv").write_text("\n".join(rows) + "\n")
+    text = _prj(folder).read_text().replace(
+        'floor = "0000"\n', 'scene = { points = "scene.csv", image_points = "marks.csv", '
+                            'sigma_image = 0.3 }\n')
+    p = folder / "scene.prj"
+    p.write_text(text)
+    assert main(["calibrate", str(p), "--output", str(tmp_path / "out")]) == 0
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["world"] == "scene" and s["scene_rms_px"] < 1.0
+    table = pd.read_csv(tmp_path / "out" / "cameras.csv")
+    views = {v.name: v for v in read_pose2sim(tmp_path / "out" / "Calib.toml")}
+    for name, (K, R, t) in cams.items():
+        v = views[name]
+        row = table[table.camera == name].iloc[0]
+        dC = -v.R_cv.T @ v.t_cv - (-R.T @ t)
+        assert np.all(np.abs(dC) < 4.5 * np.array([row.s_X0, row.s_Y0, row.s_Z0]))
+        assert np.linalg.norm(dC) < 0.05
+    bad = text.replace('marks.csv', 'scene.csv')
+    p.write_text(bad)
+    assert main(["calibrate", str(p), "--output", str(tmp_path / "o2")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "scene.csv" in err[0]

@@ -58,9 +58,16 @@ def calibrate_board_project(project):
                                 "in that frame",
                        hint="give the frame number (video) or image name (without suffix) "
                             "where the board lies on the floor and is seen")
+    scene = None
+    if bs.scene is not None:
+        from photogram.rig import SceneControl
+        scene = SceneControl(bs.scene["points"], bs.scene["image_points"],
+                             bs.scene["sigma_image"])
     result = calibrate_rig(frames["detections"], frames["image_sizes"], target,
-                           model=bs.model, fix_k3=bs.fix_k3, floor_frame=bs.floor, sigma_image=bs.sigma_image,
+                           model=bs.model, fix_k3=bs.fix_k3, floor_frame=bs.floor,
+                           scene=scene, sigma_image=bs.sigma_image,
                            min_corners=bs.min_corners)
+
     result.summary["timings"] = {"detection_s": t1 - t0,
                                  "adjustment_s": time.perf_counter() - t1}
     return result, frames
@@ -119,7 +126,11 @@ def summary_of(result, frames, project) -> dict:
     return {"command": "calibrate (board)", "status": result.status,
             "iterations": result.iterations, "sigma0": result.sigma0,
             "redundancy": result.redundancy, "floor_frame": result.floor_frame,
-            "floor_given": project.board.floor is not None, "weakest_camera": result.weakest,
+            "floor_given": project.board.floor is not None,
+            "world": "scene" if project.board.scene is not None else "floor",
+            "rejected_views": result.summary.get("rejected_views", {}),
+            "scene_rms_px": result.summary.get("scene_rms_px"),
+            "weakest_camera": result.weakest,
             "frames_chosen": len(frames["chosen"]), "board_poses": len(result.board_poses),
             "cameras": cams, "length_unit": project.units.length,
             "timings": result.summary.get("timings", {})}
@@ -154,9 +165,13 @@ def rig_and_write(project, output=None):
 def _log(result, summary) -> str:
     lines = [f"status: {result.status} after {result.iterations} iterations, sigma0 "
              f"{result.sigma0:.4f}, redundancy {result.redundancy}",
-             f"world: the board at frame {result.floor_frame}"
-             + ("" if summary["floor_given"] else " (seen by the most cameras; give [board] "
-                                                  "floor for the board on the floor)")]
+             (f"world: the scene points (RMS of their image points "
+              f"{summary['scene_rms_px']:.3f} px)" if summary["world"] == "scene" else
+              f"world: the board at frame {result.floor_frame}"
+              + ("" if summary["floor_given"] else " (seen by the most cameras; give [board] "
+                                                   "floor for the board on the floor)"))]
+    lines += [f"left out: {v} (RMS {r:.2f} px)" for v, r in
+              summary["rejected_views"].items()]
     for n, c in result.cameras.items():
         lines.append(f"{n}: {c.n_frames} frames, {c.n_points} corners, RMS {c.rms_px:.3f} px, "
                      f"median residual ({c.median_residual[0]:+.3f}, "
@@ -169,7 +184,7 @@ def _log(result, summary) -> str:
 def run(project, args=None):
     """Command-line entry: calibrate, write, print one line."""
     folder, result, summary = rig_and_write(project)
-    if not summary["floor_given"]:
+    if not summary["floor_given"] and summary["world"] == "floor":
         log.warning("calibrate: no [board] floor frame given: the world is the board at frame "
                     "%s (seen by the most cameras)", result.floor_frame)
     if not getattr(args, "quiet", False):

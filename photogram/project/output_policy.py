@@ -60,6 +60,7 @@ def project_inputs(project) -> list[Path]:
     bs = getattr(project, "board", None)
     if bs is not None:          # [board]: videos or image folders
         out += [Path(p) for p in bs.cameras.values()]
+        out += [Path(p) for p in (bs.scene or {}).get("files", [])]
     return out
 
 

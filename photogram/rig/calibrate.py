@@ -8,13 +8,14 @@ scale); frames where several cameras see the board tie the cameras
 together, frames seen by one camera still inform its interior orientation.
 The residual block is :class:`photogram.adjust.board_blocks.BoardPointBlock`.
 
-**Datum.** The world is the board at one pose, the *floor pose* (the board
-laid on the floor, or the pose seen by the most cameras when none is
-given), held fixed: ``X = x_b``, ``Y = -y_b``, ``Z = -z_b`` with ``x_b,
-y_b`` the board's axes (OpenCV's board frame: x along the first row of
-corners, y down the columns, z into the board), so that the world's Z
-points up out of a board lying face up. Six fixed parameters: a minimum
-datum, the sigmas are those of the cameras relative to that board pose.
+**Datum** (:mod:`photogram.rig.datum`): the board at one pose, the
+*floor pose* (the board laid on the floor, or the pose seen by the most
+cameras when none is given), held fixed, world Z up out of the board; or
+scene points of known coordinates marked in the images (control points,
+no board pose held).
+
+**Gross errors**: views (a camera's detection in a frame) far off the
+others are left out and the rig solved again (:func:`_solve`).
 
 **Statistics.** sigma0 from the residuals; every sigma is a-posteriori
 (sigma0 times the cofactor's root, as OpenCV's ``stdDeviations`` and DBAT
@@ -32,12 +33,12 @@ import numpy as np
 
 from photogram.errors import InputError
 from photogram.geometry.camera import FLIP_YZ
+from photogram.rig.datum import SceneControl
 
-__all__ = ["RigCamera", "RigResult", "calibrate_rig", "INTERIOR"]
+__all__ = ["RigCamera", "RigResult", "SceneControl", "calibrate_rig", "INTERIOR", "MODELS"]
 
 INTERIOR = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
 MODELS = ("opencv", "opencv_fisheye")
-_F4 = np.diag([1.0, -1.0, -1.0, 1.0])
 
 
 @dataclass
@@ -94,42 +95,7 @@ def _floor(init, detections, floor_frame):
                                                       for c in seen[f])))
 
 
-def calibrate_rig(detections: dict, image_sizes: dict, target, *, model: str = "opencv",
-                  fix_k3: bool = True, floor_frame=None, sigma_image: float = 0.5,
-                  max_iterations: int = 50, min_corners: int = 6) -> RigResult:
-    """Calibrate every camera of a rig from board detections (module doc).
-
-    Parameters
-    ----------
-    detections : dict camera -> dict frame -> (ids (n,), xy (n, 2))
-        Board corners (OpenCV's pixel convention: pixel centres at integer
-        coordinates); ``ids`` index ``target.object_points()``.
-    image_sizes : dict camera -> (w, h)
-    target : photogram.io.targets.Target (or its description string)
-    model : "opencv" (pinhole with Brown-Conrady distortion) or
-        "opencv_fisheye" (Kannala-Brandt k1..k4, OpenCV's fisheye model)
-    fix_k3 : hold k3 at 0 (a few board poses rarely separate k1, k2, k3;
-        the opencv model only)
-    floor_frame : the frame whose board pose defines the world (module doc)
-    sigma_image : a-priori sigma of a corner (px); the reported sigmas are
-        a-posteriori and do not depend on it
-    min_corners : detections with fewer corners are left out
-
-    Returns
-    -------
-    RigResult
-    """
-    from photogram.adjust.board_blocks import BoardPointBlock
-    from photogram.adjust.solver import Problem, SolverOptions, solve
-    from photogram.adjust.state import Layout, State
-    from photogram.geometry import camera_model
-    from photogram.io.targets import parse_target
-    from photogram.rig.initial import _inv, initial_rig
-    from photogram.stats.covariance import cofactors
-
-    if isinstance(target, str):
-        target = parse_target(target)
-    board = target.object_points()
+def _checked(detections, board, min_corners):
     dets = {c: {f: (np.asarray(ids, int).ravel(), np.asarray(xy, float).reshape(-1, 2))
                 for f, (ids, xy) in fr.items() if len(ids) >= min_corners}
             for c, fr in detections.items()}
@@ -143,92 +109,249 @@ def calibrate_rig(detections: dict, image_sizes: dict, target, *, model: str = "
             raise InputError(f"camera {c}, frame {bad[0]}: corner ids outside the board's "
                              f"0..{len(board) - 1}", hint="the board description does not "
                                                           "match the detections")
+    return dets
+
+
+def _check_scene(scene, names):
+    for c in scene.observations:
+        if c not in names:
+            raise InputError(f"the scene's image points name camera {c!r}, which the rig does "
+                             "not have", hint="cameras of the rig: " + ", ".join(names))
+        for p in scene.observations[c]:
+            if p not in scene.points:
+                raise InputError(f"the scene's image points of camera {c} name point {p!r}, "
+                                 "which has no coordinates",
+                                 hint="give its X, Y, Z in the scene's points table")
+
+
+class _Rig:
+    """The adjustment problem of a rig (built once; views can be switched
+    off and the problem solved again)."""
+
+    def __init__(self, dets, board, image_sizes, init, W, model, fix_k3, sigma_image,
+                 fixed_frame, scene):
+        from photogram.adjust.board_blocks import BoardPointBlock
+        from photogram.adjust.residual_blocks import ImagePointBlock, PointPriorBlock
+        from photogram.adjust.solver import Problem
+        from photogram.adjust.state import Layout, State
+        from photogram.geometry import camera_model
+        from photogram.rig.initial import _inv
+        self.names = names = list(dets)
+        self.frames = frames = [f for f in init["T_wb"] if any(f in d for d in dets.values())]
+        n_c, n_b = len(names), len(frames)
+        self.n_c = n_c
+        Winv = _inv(W)
+        R = np.zeros((n_c + n_b, 3, 3))
+        X0 = np.zeros((n_c + n_b, 3))
+        for i, c in enumerate(names):
+            T = init["T_cw"][c] @ Winv                     # world -> camera (OpenCV)
+            R[i] = FLIP_YZ @ T[:3, :3]
+            X0[i] = -T[:3, :3].T @ T[:3, 3]
+        for j, f in enumerate(frames):
+            T = W @ init["T_wb"][f]                        # board -> world
+            R[n_c + j] = T[:3, :3].T
+            X0[n_c + j] = T[:3, 3]
+        io = [np.r_[init["K"][c][0, 0], init["K"][c][1, 1], init["K"][c][0, 2],
+                    init["K"][c][1, 2], init["dist"][c]] for c in names]
+        self.model = camera_model(model)
+        self.names_io = self.model.parameter_names
+        free_io = np.ones(len(self.names_io), dtype=bool)
+        if model == "opencv" and fix_k3:
+            free_io[8] = False
+            for v in io:
+                v[8] = 0.0
+        station_free = np.ones((n_c + n_b, 6), dtype=bool)
+        if fixed_frame is not None:
+            station_free[n_c + frames.index(fixed_frame)] = False
+        sc_names = list(scene.points) if scene is not None else []
+        self.scene_names = sc_names
+        sc_xyz = np.array([scene.points[p][0] for p in sc_names], float).reshape(-1, 3)
+        sc_sig = np.array([scene.points[p][1] for p in sc_names], float)
+        point_free = np.repeat((sc_sig > 0)[:, None], 3, axis=1)
+        self.layout = layout = Layout(
+            [len(self.names_io)] * n_c, n_c + n_b, len(sc_names), np.zeros(len(sc_names), bool),
+            {"camera": [free_io.copy() for _ in names], "station": station_free,
+             "point": point_free})
+        cam, pose, pts, xy, labels = [], [], [], [], []
+        fidx = {f: j for j, f in enumerate(frames)}
+        for i, c in enumerate(names):
+            for f, (ids, p) in dets[c].items():
+                cam += [i] * len(ids)
+                pose += [n_c + fidx[f]] * len(ids)
+                pts.append(board[ids])
+                xy.append(p)
+                labels += [(c, f, int(k)) for k in ids]
+        self.cam = np.asarray(cam)
+        self.labels = labels
+        self.board_block = BoardPointBlock(
+            self.model, np.arange(n_c), self.cam, self.cam, np.asarray(pose), np.vstack(pts),
+            np.vstack(xy), np.full(len(cam), sigma_image), layout, labels)
+        blocks = [self.board_block]
+        self.scene_block = None
+        if sc_names:
+            rows = [(names.index(c), sc_names.index(p), xy_)
+                    for c, obs in scene.observations.items() for p, xy_ in obs.items()]
+            ci = np.array([r[0] for r in rows])
+            self.scene_block = ImagePointBlock(
+                self.model, np.arange(n_c), ci, ci, np.array([r[1] for r in rows]),
+                np.array([r[2] for r in rows], float), np.full(len(rows), scene.sigma_image),
+                layout, labels=[(names[r[0]], sc_names[r[1]]) for r in rows])
+            blocks.append(self.scene_block)
+            weighted = np.flatnonzero(sc_sig > 0)
+            if len(weighted):
+                blocks.append(PointPriorBlock(weighted, sc_xyz[weighted],
+                                              np.repeat(sc_sig[weighted, None], 3, 1), layout))
+        state = State(sc_xyz.copy(), R, X0, io)
+        self.problem = Problem(state, layout, blocks)
+
+    def view_rms(self):
+        """RMS (px) of every active (camera, frame) view of the board."""
+        e, _ = self.board_block.evaluate(self.problem.state, jacobians=False)
+        active = self.problem.active[0]
+        out = {}
+        keys = [(lab[0], lab[1]) for lab in self.labels]
+        for k, (key, r) in enumerate(zip(keys, e)):
+            if active[k]:
+                out.setdefault(key, []).append(float(r @ r))
+        return {k: float(np.sqrt(np.mean(v))) for k, v in out.items()}
+
+
+
+def _solve(build, dets, max_iterations, reject_px, max_rounds=3):
+    """Build the rig from the detections and solve; views (a camera's
+    detection in a frame) whose RMS exceeds ``reject_px`` and 5 times the
+    median view RMS are left out and the rig built and solved again (a
+    wrongly numbered or mis-detected board; a board pose no camera sees
+    any more goes with them), at most ``max_rounds`` times. Returns the
+    rig, the solver summary and the views left out with their RMS."""
+    from photogram.adjust.solver import SolverOptions, solve
+    rejected = {}
+
+    def without(d, bad):
+        return {c: {f: v for f, v in fr.items() if (c, f) not in bad} for c, fr in d.items()}
+    if reject_px > 0:           # gross errors at the start values (10 times looser)
+        rms = build(dets).view_rms()
+        med = float(np.median(list(rms.values())))
+        bad = {k: v for k, v in rms.items() if v > max(10 * reject_px, 10 * med)}
+        rejected.update(bad)
+        dets = without(dets, bad)
+    for round_ in range(max_rounds + 1):
+        rig = build(dets)
+        s = solve(rig.problem, SolverOptions(max_iterations=max_iterations, tolerance=1e-10))
+        last = reject_px <= 0 or round_ == max_rounds
+        if s.status != "converged" and last:
+            raise InputError(f"the rig adjustment did not converge ({s.status}: {s.message})",
+                             hint="check the detections (a wrong board description) or give "
+                                  "more frames seen by several cameras")
+        if reject_px <= 0:
+            break
+        rms = rig.view_rms()
+        med = float(np.median(list(rms.values())))
+        bad = {k: v for k, v in rms.items() if v > max(reject_px, 5 * med)}
+        if not bad and s.status == "converged":
+            break
+        rejected.update(bad)
+        dets = without(dets, bad)
+    return rig, s, rejected
+
+
+def calibrate_rig(detections: dict, image_sizes: dict, target, *, model: str = "opencv",
+                  fix_k3: bool = True, floor_frame=None, scene: SceneControl | None = None,
+                  sigma_image: float = 0.5, max_iterations: int = 50, min_corners: int = 6,
+                  reject_px: float = 3.0) -> RigResult:
+    """Calibrate every camera of a rig from board detections (module doc).
+
+    Parameters
+    ----------
+    detections : dict camera -> dict frame -> (ids (n,), xy (n, 2))
+        Board corners (OpenCV's pixel convention: pixel centres at integer
+        coordinates); ``ids`` index ``target.object_points()``.
+    image_sizes : dict camera -> (w, h)
+    target : photogram.io.targets.Target (or its description string)
+    model : "opencv" (pinhole with Brown-Conrady distortion) or
+        "opencv_fisheye" (Kannala-Brandt k1..k4, OpenCV's fisheye model)
+    fix_k3 : hold k3 at 0 (a few board poses rarely separate k1, k2, k3;
+        the opencv model only)
+    floor_frame : the frame whose board pose defines the world
+        (:mod:`photogram.rig.datum`); None: the pose seen by the most cameras
+    scene : control points and their image points instead of the floor
+        (:class:`photogram.rig.datum.SceneControl`)
+    sigma_image : a-priori sigma of a corner (px); the reported sigmas are
+        a-posteriori and do not depend on it
+    min_corners : detections with fewer corners are left out
+    reject_px : a view whose RMS exceeds this and 5 times the median view
+        RMS is left out (0: never)
+
+    Returns
+    -------
+    RigResult
+    """
+    from photogram.io.targets import parse_target
+    from photogram.rig.datum import floor_transform, scene_transform
+    from photogram.rig.initial import initial_rig
+    from photogram.stats.covariance import cofactors
+
+    if isinstance(target, str):
+        target = parse_target(target)
     if model not in MODELS:
         raise InputError(f"unknown camera model {model!r} for a rig",
                          hint="opencv or opencv_fisheye")
+    if scene is not None and floor_frame is not None:
+        raise InputError("a rig's world comes from the floor frame or from scene points, not "
+                         "both", hint="give one of them")
+    board = target.object_points()
+    dets = _checked(detections, board, min_corners)
+    if scene is not None:
+        _check_scene(scene, list(dets))
     fisheye = model == "opencv_fisheye"
     init = initial_rig(dets, board, image_sizes, fix_k3=fix_k3, fisheye=fisheye)
-    names = list(dets)
-    f0 = _floor(init, dets, floor_frame)
-    # world' = the floor board's frame, Z up (module doc)
-    W = _F4 @ _inv(init["T_wb"][f0])                   # old world -> new world
-    Winv = _inv(W)
-    frames = list(init["T_wb"])
-    n_c, n_b = len(names), len(frames)
-    R = np.zeros((n_c + n_b, 3, 3))
-    X0 = np.zeros((n_c + n_b, 3))
-    for i, c in enumerate(names):
-        T = init["T_cw"][c] @ Winv                     # new world -> camera (OpenCV)
-        R[i] = FLIP_YZ @ T[:3, :3]
-        X0[i] = -T[:3, :3].T @ T[:3, 3]
-    for j, f in enumerate(frames):
-        T = W @ init["T_wb"][f]                        # board -> new world
-        R[n_c + j] = T[:3, :3].T
-        X0[n_c + j] = T[:3, 3]
-    io = [np.r_[init["K"][c][0, 0], init["K"][c][1, 1], init["K"][c][0, 2],
-                init["K"][c][1, 2], init["dist"][c]] for c in names]
-    cam_model = camera_model(model)
-    names_io = cam_model.parameter_names
-    free_io = np.ones(len(names_io), dtype=bool)
-    if not fisheye and fix_k3:
-        free_io[8] = False
-        for v in io:
-            v[8] = 0.0
-    station_free = np.ones((n_c + n_b, 6), dtype=bool)
-    station_free[n_c + frames.index(f0)] = False
-    layout = Layout([len(names_io)] * n_c, n_c + n_b, 0, np.zeros(0, bool),
-                    {"camera": [free_io.copy() for _ in names], "station": station_free,
-                     "point": np.zeros((0, 3), bool)})
-    cam, pose, pts, xy, labels = [], [], [], [], []
-    fidx = {f: j for j, f in enumerate(frames)}
-    for i, c in enumerate(names):
-        for f, (ids, p) in dets[c].items():
-            cam += [i] * len(ids)
-            pose += [n_c + fidx[f]] * len(ids)
-            pts.append(board[ids])
-            xy.append(p)
-            labels += [(c, f, int(k)) for k in ids]
-    cam = np.asarray(cam)
-    block = BoardPointBlock(cam_model, np.arange(n_c), cam, cam, np.asarray(pose),
-                            np.vstack(pts), np.vstack(xy), np.full(len(cam), sigma_image),
-                            layout, labels)
-    state = State(np.zeros((0, 3)), R, X0, io)
-    problem = Problem(state, layout, [block])
-    s = solve(problem, SolverOptions(max_iterations=max_iterations, tolerance=1e-10))
-    if s.status not in ("converged",):
-        raise InputError(f"the rig adjustment did not converge ({s.status}: {s.message})",
-                         hint="check the detections (a wrong board description) or give more "
-                              "frames seen by several cameras")
-    state = problem.state
-    cof = cofactors(problem)
-    s0sq = s.sigma0 ** 2
-    Q = cof.Qcc * s0sq
-    e, _ = block.evaluate(state, jacobians=False)
+    if scene is not None:
+        f0, W = None, scene_transform(scene, init, fisheye)
+    else:
+        f0 = _floor(init, dets, floor_frame)
+        W = floor_transform(init["T_wb"][f0])
+
+    def build(d):
+        return _Rig(d, board, image_sizes, init, W, model, fix_k3, sigma_image, f0, scene)
+    rig, s, rejected = _solve(build, dets, max_iterations, reject_px)
+    return _result(rig, s, rejected, image_sizes, init, f0, cofactors(rig.problem))
+
+
+def _result(rig, s, rejected, image_sizes, init, f0, cof) -> RigResult:
+    state, layout, names, n_c = rig.problem.state, rig.layout, rig.names, rig.n_c
+    Q = cof.Qcc * s.sigma0 ** 2
+    e, _ = rig.board_block.evaluate(state, jacobians=False)
+    active = rig.problem.active[0]
     cams = {}
     for i, c in enumerate(names):
         v = state.io[i]
         K = np.array([[v[0], 0, v[2]], [0, v[1], v[3]], [0, 0, 1.0]])
         R_cv = FLIP_YZ @ state.R[i]
         t = -R_cv @ state.X0[i]
-        cols = layout.camera_cols[i]
-        sig = {n: float(np.sqrt(max(Q[k, k], 0.0))) for n, k in zip(names_io, cols)}
+        sig = {n: float(np.sqrt(max(Q[k, k], 0.0)))
+               for n, k in zip(rig.names_io, layout.camera_cols[i])}
         sc = layout.station_cols[i]
         for n, k in zip(("X0", "Y0", "Z0"), sc[:3]):
             sig[n] = float(np.sqrt(max(Q[k, k], 0.0)))
         for n, k in zip(("rx", "ry", "rz"), sc[3:]):
             sig[n] = float(np.degrees(np.sqrt(max(Q[k, k], 0.0))))   # rotation, deg
-        m = cam == i
+        m = (rig.cam == i) & active
         r = e[m]
+        n_frames = len({lab[1] for lab, a in zip(rig.labels, m) if a})
         cams[c] = RigCamera(c, K, v[4:].copy(), R_cv, t, tuple(image_sizes[c]), sig,
                             float(np.sqrt(np.mean(np.sum(r ** 2, 1)))),
                             tuple(float(x) for x in np.median(r, axis=0)),
-                            len(dets[c]), int(m.sum()), model)
-    boards = {}
-    for j, f in enumerate(frames):
-        Rb = state.R[n_c + j]
-        boards[f] = (Rb.T.copy(), state.X0[n_c + j].copy())
+                            n_frames, int(m.sum()), rig.model.name)
+    boards = {f: (state.R[n_c + j].T.copy(), state.X0[n_c + j].copy())
+              for j, f in enumerate(rig.frames)}
     weakest = max(names, key=lambda c: cams[c].centre_sigma)
+    summary = {"observations": int(2 * active.sum()), "board_poses": len(rig.frames),
+               "cameras": n_c, "rejected_views": {f"{c} {f}": v for (c, f), v in
+                                                  rejected.items()}}
+    if rig.scene_block is not None:
+        es, _ = rig.scene_block.evaluate(state, jacobians=False)
+        summary["scene_rms_px"] = float(np.sqrt(np.mean(np.sum(es ** 2, 1))))
+        summary["scene_points"] = {p: [float(x) for x in state.points[k]]
+                                   for k, p in enumerate(rig.scene_names)}
     return RigResult(cams, boards, f0, float(s.sigma0), int(s.redundancy), int(s.iterations),
-                     s.status, weakest, init["rms"], Q,
-                     {"observations": int(2 * len(cam)), "board_poses": n_b,
-                      "cameras": n_c})
+                     s.status, weakest, init["rms"], Q, summary)

@@ -126,11 +126,30 @@ def relative_poses(poses: dict) -> dict:
             if not shared:
                 continue
             Ts = [poses[i][f] @ _inv(poses[j][f]) for f in shared]
-            R = chordal_mean([T[:3, :3] for T in Ts])
-            t = np.median([T[:3, 3] for T in Ts], axis=0)
-            out[(i, j)] = (_T(R, t), len(shared))
-            out[(j, i)] = (_inv(out[(i, j)][0]), len(shared))
+            T = _robust_mean(Ts)
+            out[(i, j)] = (T, len(shared))
+            out[(j, i)] = (_inv(T), len(shared))
     return out
+
+
+def _angle_deg(Ra, Rb) -> float:
+    c = (np.trace(Ra.T @ Rb) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+def _robust_mean(Ts, max_deg: float = 3.0):
+    """Mean of rigid transforms: the chordal mean of the rotations and the
+    median of the translations, then again over those within ``max_deg``
+    and 5 % of the translation's length of it (a board numbered the other
+    way round in one camera gives a frame 180 degrees off)."""
+    Rs = np.array([T[:3, :3] for T in Ts])
+    ts = np.array([T[:3, 3] for T in Ts])
+    R, t = chordal_mean(Rs), np.median(ts, axis=0)
+    ok = np.array([_angle_deg(R, Ri) < max_deg and np.linalg.norm(ti - t)
+                   < 0.05 * max(np.linalg.norm(t), 1e-12) for Ri, ti in zip(Rs, ts)])
+    if ok.sum() >= max(1, len(Ts) // 2) and not ok.all():
+        R, t = chordal_mean(Rs[ok]), np.median(ts[ok], axis=0)
+    return _T(R, t)
 
 
 def spanning_tree(names, pairs: dict, reference):
@@ -190,8 +209,13 @@ def initial_rig(detections: dict, board_points: np.ndarray, image_sizes: dict, *
     T_wb = {}
     frames = sorted({f for c in names for f in poses[c]})
     for f in frames:
+        # the camera whose board pose agrees with the most others (then the
+        # most corners): a view numbered the other way round is outvoted
         seen = [c for c in names if f in poses[c]]
-        c = max(seen, key=lambda c: len(detections[c][f][0]))
-        T_wb[f] = _inv(T_cw[c]) @ poses[c][f]
+        cand = {c: _inv(T_cw[c]) @ poses[c][f] for c in seen}
+        votes = {c: sum(_angle_deg(cand[c][:3, :3], cand[d][:3, :3]) < 5.0 for d in seen)
+                 for c in seen}
+        c = max(seen, key=lambda c: (votes[c], len(detections[c][f][0])))
+        T_wb[f] = cand[c]
     return {"K": K, "dist": dist, "T_cw": T_cw, "T_wb": T_wb, "rms": rms,
             "reference": reference}
