@@ -214,3 +214,38 @@ def test_scene_points_give_the_world(rig_set, tmp_path, capsys):
     assert main(["calibrate", str(p), "--output", str(tmp_path / "o2")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "scene.csv" in err[0]
+
+
+def _to_video(folder, name, fps):
+    files = sorted((folder / name).glob("*.png"))
+    first = cv2.imread(str(files[0]))
+    path = folder / f"{name}_{int(fps)}.avi"
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps,
+                        (first.shape[1], first.shape[0]))
+    for f in files:
+        w.write(cv2.imread(str(f)))
+    w.release()
+    return path
+
+
+def test_videos_are_read_by_time_step_and_must_share_their_frame_rate(rig_set, tmp_path,
+                                                                      capsys):
+    folder, (cams, _) = rig_set
+    for name in cams:
+        _to_video(folder, name, 10.0)
+    text = _prj(folder).read_text()
+    for name in cams:
+        text = text.replace(f'{name} = "{name}"', f'{name} = "{name}_10.avi"')
+    text = text.replace('floor = "0000"', 'floor = "0"\nstep = 0.2')
+    p = folder / "video.prj"
+    p.write_text(text)
+    assert main(["calibrate", str(p), "--output", str(tmp_path / "v")]) == 0
+    s = json.loads((tmp_path / "v" / "summary.json").read_text())
+    # 24 frames at 10 fps, one every 0.2 s: frames 0, 2, ..., 22
+    assert all(c["frames_read"] == 12 for c in s["cameras"].values())
+    assert s["floor_frame"] == "0"
+    _to_video(folder, "cam03", 25.0)
+    p.write_text(text.replace('cam03 = "cam03_10.avi"', 'cam03 = "cam03_25.avi"'))
+    code = main(["calibrate", str(p), "--output", str(tmp_path / "v2")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "cam03" in err[0] and "25" in err[0]
