@@ -27,9 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.geometry.camera import (CameraModel, ideal_projection, newton_invert,
-                                       pose_jacobians, register_model,
-                                       rotation_observations)
+from photogram.geometry.camera import register_model
+from photogram.geometry.forward_model import ForwardModel
 
 __all__ = ["OpenCVFisheyeModel"]
 
@@ -37,7 +36,7 @@ _EPS = 1e-8
 
 
 @register_model
-class OpenCVFisheyeModel(CameraModel):
+class OpenCVFisheyeModel(ForwardModel):
     """OpenCV's fisheye model.
 
     ``parameter_names = ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4")``;
@@ -102,53 +101,3 @@ class OpenCVFisheyeModel(CameraModel):
         dio[:, 1, 3] = 1.0
         dio[:, :, 4:8] = dk * f[:, :, None]
         return xy, dt, dio
-
-    def project(self, X, angles, X0, io, jacobians=False):
-        """Forward projection, identical to ``cv2.fisheye.projectPoints``."""
-        X, angles, X0, io, Xc, R, d = self._prepare(X, angles, X0, io)
-        t, J_xc, _ = ideal_projection(Xc, 1.0, jacobians=True)
-        xy, dt, dio = self._forward(t, io)
-        if not jacobians:
-            return xy
-        jac = pose_jacobians(dt @ J_xc, R, d, angles, Xc)
-        jac["io"] = dio
-        return xy, jac
-
-    def residuals(self, xy_obs, X, angles, X0, io, jacobians=True):
-        """``r = xy_obs - project(...)`` (n, 2) [, Jacobian dict]."""
-        n = np.atleast_2d(np.asarray(X)).shape[0]
-        xy_obs = np.asarray(xy_obs, dtype=float).reshape(n, 2)
-        if not jacobians:
-            return xy_obs - self.project(X, angles, X0, io)
-        xy, jac = self.project(X, angles, X0, io, jacobians=True)
-        return xy_obs - xy, {key: -value for key, value in jac.items()}
-
-    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True):
-        """:meth:`residuals` with world-to-camera matrices R (n,3,3)."""
-        X, R, X0, io, Xc, d = rotation_observations(X, R, X0, io, self.n_params)
-        xy_obs = np.asarray(xy_obs, dtype=float).reshape(len(X), 2)
-        t, J_xc, _ = ideal_projection(Xc, 1.0, jacobians=True)
-        xy, dt, dio = self._forward(t, io)
-        if not jacobians:
-            return xy_obs - xy
-        jac = pose_jacobians(-(dt @ J_xc), R, d, None, Xc)
-        jac["io"] = -dio
-        return xy_obs - xy, jac
-
-    def ray_to_image(self, t, io):
-        t = np.atleast_2d(np.asarray(t, dtype=float))
-        io = np.broadcast_to(np.asarray(io, dtype=float), (len(t), self.n_params))
-        return self._forward(t, io)[0]
-
-    def image_to_ray(self, xy, io):
-        """Normalised coordinates of pixels (Newton's method, as
-        ``cv2.fisheye.undistortPoints`` but converged to 1e-12)."""
-        xy = np.atleast_2d(np.asarray(xy, dtype=float))
-        io = np.broadcast_to(np.asarray(io, dtype=float), (len(xy), self.n_params))
-        start = (xy - io[:, 2:4]) / io[:, 0:2]
-
-        def fun(t):
-            value, dt, _ = self._forward(t, io)
-            return value, dt
-
-        return newton_invert(fun, xy, start, np.maximum(1.0, np.abs(start).max(axis=1)))

@@ -23,13 +23,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.geometry.camera import (CameraModel, ideal_projection, newton_invert,
-                                       pose_jacobians, register_model,
-                                       rotation_observations)
+from photogram.geometry.camera import register_model
+from photogram.geometry.forward_model import ForwardModel
 
 
 @register_model
-class OpenCVModel(CameraModel):
+class OpenCVModel(ForwardModel):
     """Forward Brown-Conrady model of OpenCV.
 
     ``parameter_names = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2",
@@ -97,60 +96,3 @@ class OpenCVModel(CameraModel):
         dio[:, 0, 2] = 1.0
         dio[:, 1, 3] = 1.0
         return xy, dt, dio
-
-    def project(self, X, angles, X0, io, jacobians=False):
-        """Forward projection (steps 1-3), identical to ``cv2.projectPoints``.
-
-        With ``jacobians=True`` returns ``(xy, jac)``.
-        """
-        X, angles, X0, io, Xc, R, d = self._prepare(X, angles, X0, io)
-        t, J_xc, _ = ideal_projection(Xc, 1.0, jacobians=True)
-        xy, dt, dio = self._forward(t, io)
-        if not jacobians:
-            return xy
-        jac = pose_jacobians(dt @ J_xc, R, d, angles, Xc)
-        jac["io"] = dio
-        return xy, jac
-
-    def residuals(self, xy_obs, X, angles, X0, io, jacobians=True):
-        """Residual ``r = xy_obs - project(...)`` (n, 2) and, with
-        ``jacobians=True``, its Jacobian dict (the negated projection one)."""
-        n = np.atleast_2d(np.asarray(X)).shape[0]
-        xy_obs = np.asarray(xy_obs, dtype=float).reshape(n, 2)
-        if not jacobians:
-            return xy_obs - self.project(X, angles, X0, io)
-        xy, jac = self.project(X, angles, X0, io, jacobians=True)
-        return xy_obs - xy, {key: -value for key, value in jac.items()}
-
-    def residuals_rotation(self, xy_obs, X, R, X0, io, jacobians=True):
-        """:meth:`residuals` with world-to-camera matrices R (n,3,3) instead
-        of angles; the Jacobian dict has no ``"angles"``."""
-        X, R, X0, io, Xc, d = rotation_observations(X, R, X0, io, self.n_params)
-        xy_obs = np.asarray(xy_obs, dtype=float).reshape(len(X), 2)
-        t, J_xc, _ = ideal_projection(Xc, 1.0, jacobians=True)
-        xy, dt, dio = self._forward(t, io)
-        if not jacobians:
-            return xy_obs - xy
-        jac = pose_jacobians(-(dt @ J_xc), R, d, None, Xc)
-        jac["io"] = -dio
-        return xy_obs - xy, jac
-
-    # ------------------------------------------------------------------
-    def ray_to_image(self, t, io):
-        """Pixels of normalised coordinates t (n,2) (closed form)."""
-        t = np.atleast_2d(np.asarray(t, dtype=float))
-        io = np.broadcast_to(np.asarray(io, dtype=float), (len(t), self.n_params))
-        return self._forward(t, io)[0]
-
-    def image_to_ray(self, xy, io):
-        """Normalised coordinates of pixels (undistortion by Newton's method,
-        as ``cv2.undistortPoints`` but converged to 1e-12)."""
-        xy = np.atleast_2d(np.asarray(xy, dtype=float))
-        io = np.broadcast_to(np.asarray(io, dtype=float), (len(xy), self.n_params))
-        start = (xy - io[:, 2:4]) / io[:, 0:2]
-
-        def fun(t):
-            value, dt, _ = self._forward(t, io)
-            return value, dt
-
-        return newton_invert(fun, xy, start, np.maximum(1.0, np.abs(start).max(axis=1)))
