@@ -205,16 +205,17 @@ class _Rig:
         self.problem = Problem(state, layout, blocks)
 
     def view_rms(self):
-        """RMS (px) of every active (camera, frame) view of the board."""
+        """RMS (px) of every (camera, frame) view of the board."""
+        if not hasattr(self, "_views"):
+            keys = [(lab[0], lab[1]) for lab in self.labels]
+            self._view_keys = list(dict.fromkeys(keys))
+            index = {k: i for i, k in enumerate(self._view_keys)}
+            self._views = np.array([index[k] for k in keys])
         e, _ = self.board_block.evaluate(self.problem.state, jacobians=False)
-        active = self.problem.active[0]
-        out = {}
-        keys = [(lab[0], lab[1]) for lab in self.labels]
-        for k, (key, r) in enumerate(zip(keys, e)):
-            if active[k]:
-                out.setdefault(key, []).append(float(r @ r))
-        return {k: float(np.sqrt(np.mean(v))) for k, v in out.items()}
-
+        n = len(self._view_keys)
+        ss = np.bincount(self._views, np.sum(e * e, axis=1), minlength=n)
+        cnt = np.bincount(self._views, minlength=n)
+        return {k: float(np.sqrt(ss[i] / cnt[i])) for i, k in enumerate(self._view_keys)}
 
 
 def _solve(build, dets, max_iterations, reject_px, max_rounds=3):
