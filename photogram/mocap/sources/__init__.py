@@ -94,6 +94,8 @@ def open_source(settings, camera_names: list[str], folder: Path, *,
         return CsvSource(src.path, skeleton(settings.skeleton), camera_names)
     from photogram.mocap.sources.images import ImageSequence
     images = {c: ImageSequence(p) for c, p in _camera_paths(src, camera_names, err).items()}
+    from photogram.mocap.sources.images import check_frame_rates
+    check_frame_rates(images, settings.fps, err)
     if src.kind == "mediapipe":
         from photogram.mocap.sources.mediapipe import MediapipeDetector
         return ImageSource("mediapipe", MediapipeDetector(), images)

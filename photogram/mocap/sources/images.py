@@ -10,13 +10,16 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.project.limits import check_frame_size, check_image
 
-__all__ = ["ImageSequence", "IMAGE_SUFFIXES"]
+__all__ = ["ImageSequence", "IMAGE_SUFFIXES", "check_frame_rates"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
 
 class ImageSequence:
     """Frames of a folder of images or of a video; iterable more than once."""
+
+    #: frames per second of a video (0: unknown, or a folder of images)
+    fps = 0.0
 
     def __init__(self, path: Path):
         self.path = Path(path)
@@ -33,6 +36,7 @@ class ImageSequence:
             if not cap.isOpened():
                 raise InputError("cannot open the video", file=self.path)
             self._n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+            self.fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
             cap.release()
             self.files = None
         else:
@@ -72,3 +76,16 @@ def as_uint8_rgb(image) -> np.ndarray:
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, axis=2)
     return img.astype(np.uint8, copy=False)
+
+
+def check_frame_rates(images: dict, fps: float, error) -> None:
+    """Every video runs at the project's frame rate (``[mocap] fps``): the
+    frames of the cameras are the same instants. ``error(keypath, what,
+    hint)`` makes the one-line InputError (the setting's)."""
+    for camera, seq in images.items():
+        if seq.fps > 0 and abs(seq.fps - fps) > 1e-3 * fps:
+            raise error(("source", "cameras"),
+                        f"camera {camera}: its video {seq.path.name} runs at {seq.fps:g} "
+                        f"frames/s, the project at fps = {fps:g}",
+                        hint="convert the videos to one frame rate (e.g. ffmpeg -r), or set "
+                             "[mocap] fps if it is wrong")
