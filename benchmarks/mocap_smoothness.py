@@ -34,6 +34,13 @@ settings the pipeline builds.
 Goal at the default: median jerk <= 1.2 x Pose2Sim's, mean reprojection
 error no worse than Pose2Sim's.
 
+Skiing must keep its accuracy (SIMULATED): ``projects/ski-ptz`` (one run,
+279 frames at 50 fps, ``photogram mocap``'s pipeline) with the old and the
+new default, MPJPE and knee-flexion error against the truth; harsher, not
+tuned on: a session of seed 9 with turns twice as fast (6 runs of 140
+frames over the same speeds, so the motion's frequencies double), at 50
+and at 25 fps.
+
 Run: .venv/bin/python benchmarks/mocap_smoothness.py [projects/pose2sim-demo/demo.prj]
 """
 
@@ -112,6 +119,38 @@ def pipeline_reconstruction(obs, result, ms, rec_keys, filter_keys):
     return X
 
 
+def ski_accuracy():
+    """MPJPE (m) and knee-flexion MAE (deg) of the old and new defaults on
+    projects/ski-ptz and on faster turns (module doc)."""
+    from photogram.mocap.body.skeleton import SKI24
+    from photogram.mocap.evaluation.metrics import accuracy_3d, biomechanics
+    from photogram.simulation.ski.simulate import simulate_session
+    out = {}
+    project = read_project("projects/ski-ptz/ski-ptz.prj")
+    ms = project.mocap
+    for name in ("old", "new"):
+        rec_keys, filter_keys = OLD if name == "old" else ({}, {})
+        project.mocap = replace(ms, reconstruction=rec_keys, filter=filter_keys)
+        a = run_mocap(project).accuracy
+        out[f"ski-ptz {name}"] = (a["mpjpe"], a["knee_flexion_mae"])
+
+    def knee(X, sim):
+        b = biomechanics(X, SKI24, sim.fps, sim.breaks, sim.slope_normal)
+        t = biomechanics(sim.joints, SKI24, sim.fps, sim.breaks, sim.slope_normal)
+        return float(np.nanmean(np.concatenate([np.abs(b[k] - t[k]) for k in
+                                                ("knee_flexion_r", "knee_flexion_l")])))
+    for fps in (50.0, 25.0):
+        sim = simulate_session(seed=9, n_runs=6, frames_per_run=140, fps=fps)
+        for name in ("old", "new"):
+            rec_keys, filter_keys = OLD if name == "old" else ({}, {})
+            s = ReconstructionSettings(**{"fps": fps, **rec_keys})
+            X = reconstruct(sim.observations, sim.cameras, SKI24, s, sim.breaks).joints
+            X, _ = filter_joints(X, fps, FilterSettings(**filter_keys), sim.breaks)
+            out[f"fast turns {fps:g} fps {name}"] = (accuracy_3d(X, sim.joints, SKI24)["mpjpe"],
+                                                     knee(X, sim))
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("project", nargs="?", default="projects/pose2sim-demo/demo.prj")
@@ -172,6 +211,12 @@ def main():
         mean, per = reprojection(X, cams, obs, joints)
         harsh["3cam " + name] = (jerk, mean)
         print(f"{name:42s} {jerk:10.0f} {mean:8.2f}  " + " ".join(f"{v:7.2f}" for v in per))
+    print("\nskiing (SIMULATED): MPJPE, knee flexion MAE; old default -> new default")
+    ski = ski_accuracy()
+    for key in ("ski-ptz", "fast turns 50 fps", "fast turns 25 fps"):
+        (m0, k0), (m1, k1) = ski[key + " old"], ski[key + " new"]
+        print(f"{key:42s} MPJPE {1000 * m0:.2f} -> {1000 * m1:.2f} mm, knee {k0:.2f} -> "
+              f"{k1:.2f} deg")
     ok = new[0] <= 1.2 * ref[0] and new[1] <= ref[1]
     hn = harsh["new default (12 Hz + Butterworth 6 Hz)"]
     h3 = harsh["3cam new default (12 Hz + Butterworth 6 Hz)"]
@@ -181,6 +226,10 @@ def main():
           f"harsh_noise_jerk_old={harsh['old default (n_dct 25, no filter)'][0]:.0f} "
           f"harsh_noise_jerk_new={hn[0]:.0f} harsh_noise_reproj_clean_px={hn[1]:.2f} "
           f"harsh_3cam_jerk_new={h3[0]:.0f} harsh_3cam_reproj_px={h3[1]:.2f} "
+          f"ski_mpjpe_old_mm={1000 * ski['ski-ptz old'][0]:.2f} "
+          f"ski_mpjpe_new_mm={1000 * ski['ski-ptz new'][0]:.2f} "
+          f"fast_turns_mpjpe_old_mm={1000 * ski['fast turns 50 fps old'][0]:.2f} "
+          f"fast_turns_mpjpe_new_mm={1000 * ski['fast turns 50 fps new'][0]:.2f} "
           f"goals={'met' if ok else 'missed'}")
     return 0
 
