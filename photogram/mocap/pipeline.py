@@ -7,9 +7,10 @@ Pose2Sim calibration; rotations per frame from ``camera_frames``); open the
 source and track the athlete in every camera; map the detections onto the
 reconstruction skeleton (``skeleton`` of ``[mocap]``; default: the source's,
 a generic skeleton); cut the frame range; reconstruct
-(:mod:`photogram.mocap.reconstruction.reconstruct`); compute the per-frame quantities
-(:mod:`photogram.mocap.evaluation.metrics`), the reprojection errors per camera and the
-bone-length variation; compare with ``truth`` (a joints table) and with
+(:mod:`photogram.mocap.reconstruction.reconstruct`); post-filter the joints
+(``[mocap.filter]``, :mod:`photogram.mocap.reconstruction.filtering`);
+compute the per-frame quantities (:mod:`photogram.mocap.evaluation.metrics`),
+the reprojection errors per camera and the bone-length variation; compare with ``truth`` (a joints table) and with
 ``reference_trc`` (e.g. Pose2Sim's triangulation: its points projected with
 the same cameras against the same detections).
 """
