@@ -10,9 +10,10 @@ a generic skeleton); cut the frame range; reconstruct
 (:mod:`photogram.mocap.reconstruction.reconstruct`); post-filter the joints
 (``[mocap.filter]``, :mod:`photogram.mocap.reconstruction.filtering`);
 compute the per-frame quantities (:mod:`photogram.mocap.evaluation.metrics`),
-the reprojection errors per camera and the bone-length variation; compare with ``truth`` (a joints table) and with
-``reference_trc`` (e.g. Pose2Sim's triangulation: its points projected with
-the same cameras against the same detections).
+the reprojection errors per camera and the bone-length variation; compare
+with ``truth`` (a joints table) and with ``reference_trc`` (e.g. Pose2Sim's
+triangulation: its points projected with the same cameras against the same
+detections).
 """
 
 from __future__ import annotations
