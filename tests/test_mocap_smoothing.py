@@ -223,6 +223,10 @@ def test_the_filter_is_reported_and_the_unfiltered_joints_kept(small_project):
     X, U = r.reconstruction.joints, r.reconstruction.unfiltered
     assert U is not None and X.shape == U.shape and not np.allclose(X, U, equal_nan=True)
     assert np.array_equal(np.isnan(X), np.isnan(U))
+    from photogram.mocap.outputs import summary
+    rs = summary(r, p)["reconstruction"]
+    assert rs["filter"]["type"] == "butterworth" and rs["filter"]["cutoff_hz"] == 6.0
+    assert rs["stages"][-1]["cutoff_hz"] == 12.0 and rs["stages"][-1]["coefficients"] == 25
     # the two runs (60 frames each) are filtered apart: the result of each
     # depends only on its own frames
     from photogram.mocap.reconstruction.filtering import filter_joints as fj

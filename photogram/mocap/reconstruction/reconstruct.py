@@ -317,7 +317,7 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
             stage_it = max(stage_it, it)
         iterations += stage_it
         stages.append({"sigma2": sigma2, "coefficients": min(k or n_max, n_max),
-                       "frame_step": step,
+                       "cutoff_hz": s.cutoff if k is None else None, "frame_step": step,
                        "lambda_limbs": lam, "energy": stage_E, "iterations": stage_it,
                        "seconds": time.perf_counter() - t0})
         log.debug("stage sigma2=%g k=%d step=%d energy=%.6g iterations=%d %.2fs", sigma2,
