@@ -69,7 +69,8 @@ def summary(result, project) -> dict:
         "reconstruction": {"solver": rec.solver, "energy": rec.energy,
                            "iterations": rec.iterations, "seconds": rec.seconds,
                            "windows": rec.n_windows, "stages": rec.stages,
-                           "settings": dict(ms.reconstruction)},
+                           "settings": dict(ms.reconstruction),
+                           "filter": result.info.get("filter")},
         "limb_lengths": {f"{a}-{b_}": float(v) for (a, b_), v in
                          zip(result.skeleton.limbs, rec.limb_lengths)},
         "reprojection": result.reprojection,

@@ -7,11 +7,13 @@ Pose2Sim calibration; rotations per frame from ``camera_frames``); open the
 source and track the athlete in every camera; map the detections onto the
 reconstruction skeleton (``skeleton`` of ``[mocap]``; default: the source's,
 a generic skeleton); cut the frame range; reconstruct
-(:mod:`photogram.mocap.reconstruction.reconstruct`); compute the per-frame quantities
-(:mod:`photogram.mocap.evaluation.metrics`), the reprojection errors per camera and the
-bone-length variation; compare with ``truth`` (a joints table) and with
-``reference_trc`` (e.g. Pose2Sim's triangulation: its points projected with
-the same cameras against the same detections).
+(:mod:`photogram.mocap.reconstruction.reconstruct`); post-filter the joints
+(``[mocap.filter]``, :mod:`photogram.mocap.reconstruction.filtering`);
+compute the per-frame quantities (:mod:`photogram.mocap.evaluation.metrics`),
+the reprojection errors per camera and the bone-length variation; compare
+with ``truth`` (a joints table) and with ``reference_trc`` (e.g. Pose2Sim's
+triangulation: its points projected with the same cameras against the same
+detections).
 """
 
 from __future__ import annotations
@@ -170,6 +172,7 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
         rs["limb_lengths"] = read_limb_lengths(ms.limb_lengths, skeleton)
     from photogram.project.model import LENGTH_UNITS
     rs.setdefault("limb_unit", 0.01 / LENGTH_UNITS[project.units.length])   # 1 cm
+    rs["fps"] = ms.fps
     rotation_info = {}
     if estimate:
         from photogram.mocap.motion.unknown_rotations import measure_differences
@@ -190,6 +193,7 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     log.info("reconstruction: %d frames, %d windows, %s, energy %.6g, %d iterations, %.1f s",
              len(frames), rec.n_windows, rec.solver, rec.energy, rec.iterations, rec.seconds)
     timings["reconstruction_s"] = rec.seconds
+    rec, filter_report = _post_filter(rec, ms, breaks, project.warnings)
     bio = biomechanics(rec.joints, skeleton, ms.fps, breaks, ms.up, ms.outside_leg)
     result = MocapResult(
         skeleton=skeleton, fps=ms.fps, frames=frames, cameras=cameras, observations=obs,
@@ -197,7 +201,7 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
         reprojection=reprojection_errors(rec.joints, cameras, obs),
         bones=bone_lengths(rec.joints, skeleton), breaks=breaks,
         info={"source": source.describe(), "timings": timings, "rotation": ms.rotation,
-              **rotation_info})
+              "filter": filter_report, **rotation_info})
     from photogram.mocap.evaluation.checks import check_fit
     for note in check_fit(result.reprojection, cameras.image_size[:, 0]):
         log.warning("warning: %s", note)
@@ -220,6 +224,20 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     if ms.reference_trc is not None:
         _compare_reference(result, ms)
     return result
+
+
+def _post_filter(rec: Reconstruction, ms, breaks, warnings: list):
+    """The zero-lag filter of ``[mocap.filter]`` (default Butterworth, order
+    4, 6 Hz: :mod:`photogram.mocap.reconstruction.filtering`) on the joints,
+    before any metric; the unfiltered joints stay in ``rec.unfiltered``."""
+    from photogram.mocap.reconstruction.filtering import FilterSettings, filter_joints
+    X, report = filter_joints(rec.joints, ms.fps, FilterSettings(**ms.filter), breaks)
+    if report.get("note"):
+        log.warning("warning: filter: %s", report["note"])
+        warnings.append("filter: " + report["note"])
+    if report["type"] == "none":
+        return rec, report
+    return replace(rec, joints=X, unfiltered=rec.joints), report
 
 
 # --------------------------------------------------------------------------

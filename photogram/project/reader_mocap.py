@@ -26,7 +26,7 @@ __all__ = ["MocapSettings", "MocapSource", "read_mocap_project", "MOCAP_KEYS", "
 MOCAP_KEYS = ("fps", "skeleton", "calibration", "camera_frames", "frames", "up", "limb_lengths",
               "truth", "reference_trc", "outside_leg", "runs", "source", "tracking",
               "reconstruction", "rotation", "rotation_differences", "images", "homography",
-              "truth_rotations")
+              "truth_rotations", "filter")
 ROTATION_MODES = ("known", "estimate")
 HOMOGRAPHY_KEYS = ("n_features", "ransac_px", "min_inliers", "box_margin", "median", "sigma",
                    "max_failed")
@@ -38,7 +38,9 @@ RECONSTRUCTION_KEYS = ("solver", "n_dct", "window", "overlap", "sigma2", "lambda
                        "lambda_limbs", "gnc_start", "max_iterations", "tolerance",
                        "symmetric_limbs", "min_confidence", "support_frames", "limb_unit",
                        "step_tol", "n_rotation_dct", "lambda_rot", "bootstrap_iterations",
-                       "pose_basis", "rotation_basis", "rotation_prior")
+                       "pose_basis", "rotation_basis", "rotation_prior", "cutoff_hz")
+FILTER_KEYS = ("type", "order", "cutoff_hz")
+FILTER_TYPES = ("butterworth", "none")
 _FORBIDDEN = ("points", "observations", "constraints", "intersect", "montecarlo",
               "adjustment", "targets")
 
@@ -79,6 +81,7 @@ class MocapSettings:
     images: dict | None = None          # camera -> video file or image folder (absolute)
     homography: dict = field(default_factory=dict)
     truth_rotations: Path | None = None
+    filter: dict = field(default_factory=dict)     # [mocap.filter] (post-filter of the joints)
     toml: TomlSource | None = None
 
     def error(self, keypath, what: str, hint: str | None = None) -> InputError:
@@ -153,6 +156,41 @@ def _numbers(sec: Section, key: str, length: int, default):
     return tuple(float(v) for v in value)
 
 
+def _check_cutoffs(sec: Section, subs: dict, fps: float) -> None:
+    """``cutoff_hz`` of ``[mocap.reconstruction]``: below fps/2, not with ``n_dct``."""
+    rec = subs["reconstruction"]
+    if "cutoff_hz" not in rec:
+        return
+    sub = sec.table("reconstruction")
+    if "n_dct" in rec:
+        raise sub.error("cutoff_hz", f"give either n_dct or cutoff_hz in {sub.label}, not both",
+                        hint="cutoff_hz chooses the DCT terms by frequency, n_dct counts them")
+    if rec["cutoff_hz"] >= fps / 2:
+        raise sub.error("cutoff_hz", f"cutoff_hz in {sub.label} must be below fps/2 = "
+                                     f"{fps / 2:g} Hz, not {rec['cutoff_hz']:g}")
+
+
+def _read_filter(sub: Section | None, fps: float) -> dict:
+    """``[mocap.filter]``: type, even order >= 2, cutoff_hz below fps/2."""
+    if sub is None:
+        return {}
+    sub.check_keys(FILTER_KEYS)
+    out = {}
+    if "type" in sub:
+        out["type"] = sub.string("type", choices=FILTER_TYPES)
+    if "order" in sub:
+        out["order"] = sub.integer("order", minimum=2)
+        if out["order"] % 2:
+            raise sub.error("order", f"order in {sub.label} must be even, not {out['order']}",
+                            hint="the zero-lag filter runs a Butterworth of order/2 twice")
+    if "cutoff_hz" in sub:
+        out["cutoff_hz"] = sub.number("cutoff_hz", positive=True)
+        if out["cutoff_hz"] >= fps / 2:
+            raise sub.error("cutoff_hz", f"cutoff_hz in {sub.label} must be below fps/2 = "
+                                         f"{fps / 2:g} Hz, not {out['cutoff_hz']:g}")
+    return out
+
+
 def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
     sec.check_keys(MOCAP_KEYS, required=("source",))
     source = _read_source(sec.table("source"), folder)
@@ -201,6 +239,8 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
     if "images" in sec:
         images = _camera_paths(sec.table("images"), folder, "a video file or a folder of "
                                "images, relative to the project folder")
+    fps = sec.number("fps", 50.0, positive=True)
+    _check_cutoffs(sec, subs, fps)
     rotation = sec.string("rotation", "known", choices=ROTATION_MODES)
     rot_diff = _path(sec, "rotation_differences", folder)
     if rotation == "estimate" and rot_diff is None and images is None:
@@ -211,7 +251,7 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
     return MocapSettings(
         rotation=rotation, rotation_differences=rot_diff, images=images,
         homography=subs["homography"], truth_rotations=_path(sec, "truth_rotations", folder),
-        source=source, fps=sec.number("fps", 50.0, positive=True),
+        source=source, fps=fps, filter=_read_filter(sec.table("filter", required=False), fps),
         skeleton=sec.string("skeleton", None),
         calibration=_path(sec, "calibration", folder),
         camera_frames=_path(sec, "camera_frames", folder), frames=frames, up=up,

@@ -10,8 +10,17 @@ norm="ortho")``)::
 
     B[t, 0] = sqrt(1/T),   B[t, k] = sqrt(2/T) cos(pi k (2t + 1) / (2T))
 
-so that keeping K coefficients is a low-pass filter with cut-off
-``K / (2T)`` cycles per frame.
+so that keeping K coefficients is a low-pass filter: basis k oscillates at
+``k / (2T)`` cycles per frame, ``k fps / (2T)`` Hz.
+
+Cut-off in Hz (:func:`coefficients_for_cutoff`): the count is chosen per
+window so that every basis function at or below the cut-off ``fc`` is kept
+and none above it, ``K = floor(2 T fc / fps) + 1`` (basis 0, the constant,
+plus the ``floor(2 T fc / fps)`` oscillating ones), at most T. This is the
+form implemented (not the nearest count ``round(2 T fc / fps)``): 12 Hz at
+50 fps over 50 frames gives K = 25, the paper's N_Pi; at 60 fps, K = 21.
+A window shorter than ``window`` (a short segment) gets its own smaller
+count, so the cut-off in Hz is the same in every window.
 
 Windowing (our choice; the paper optimises sequences in windows without
 details available here): a sequence is cut into windows of ``window`` frames
@@ -23,9 +32,10 @@ is optimised on its own (all windows at once, as one batch) and the
 trajectories are blended with the weights ``sin^2(pi (t + 1/2) / T)``
 normalised per frame: with a hop of T/2 every frame is the sum of one
 window's middle and another's end, the weights adding up to one (sin^2 +
-cos^2). With 25 coefficients over 50 frames the cut-off is a quarter of the
-frame rate (12.5 Hz at 50 fps); a straight run at 17 m/s is represented to
-5 mm (weighted RMS) by such a window, against 1.1 cm over 100 frames.
+cos^2). With 25 coefficients over 50 frames the basis reaches 12 Hz at 50
+fps (the default cut-off, ``cutoff_hz`` of ``ReconstructionSettings``); a
+straight run at 17 m/s is represented to 5 mm (weighted RMS) by such a
+window, against 1.1 cm over 100 frames.
 
 ``breaks`` lists the first frames of independent segments (e.g. several
 runs in one project): windows never cross them.
@@ -39,7 +49,8 @@ import numpy as np
 
 from photogram.errors import InputError
 
-__all__ = ["dct_basis", "Window", "plan_windows", "blend_weights"]
+__all__ = ["dct_basis", "Window", "plan_windows", "blend_weights", "coefficients_for_cutoff",
+           "basis_frequencies"]
 
 
 def dct_basis(T: int, K: int) -> np.ndarray:
@@ -52,6 +63,30 @@ def dct_basis(T: int, K: int) -> np.ndarray:
     B = np.sqrt(2.0 / T) * np.cos(np.pi * k * (2 * t + 1) / (2 * T))
     B[:, 0] = np.sqrt(1.0 / T)
     return B
+
+
+def basis_frequencies(T: int, fps: float) -> np.ndarray:
+    """Frequency (Hz) of every basis function of a window of T frames,
+    ``k fps / (2T)`` for k = 0 ... T-1 (module doc)."""
+    return np.arange(T) * float(fps) / (2.0 * T)
+
+
+def coefficients_for_cutoff(T: int, cutoff_hz: float, fps: float) -> int:
+    """Number of DCT coefficients of a window of T frames whose basis
+    frequencies are at or below ``cutoff_hz``: ``floor(2 T fc / fps) + 1``,
+    between 1 and T (module doc).
+
+    Raises
+    ------
+    InputError
+        ``T < 1``, a cut-off or frame rate that is not positive.
+    """
+    if T < 1:
+        raise InputError(f"a window needs at least 1 frame, got {T}")
+    if not (cutoff_hz > 0 and fps > 0):
+        raise InputError(f"cutoff_hz and fps must be positive, got {cutoff_hz} and {fps}")
+    n = int(np.floor(2.0 * T * float(cutoff_hz) / float(fps) + 1e-9)) + 1
+    return int(min(max(n, 1), T))
 
 
 @dataclass(frozen=True)
@@ -67,9 +102,13 @@ class Window:
         return self.start + self.length
 
 
-def plan_windows(n_frames: int, window: int = 50, overlap: int = 25, n_coefficients: int = 25,
+def plan_windows(n_frames: int, window: int = 50, overlap: int = 25, n_coefficients=25,
                  breaks=()) -> list[Window]:
     """Cut ``n_frames`` into overlapping windows (module doc).
+
+    ``n_coefficients``: a count (a shorter window keeps at most its length)
+    or a function of the window's length (e.g. the count of a cut-off,
+    :func:`coefficients_for_cutoff`).
 
     Raises
     ------
@@ -83,17 +122,19 @@ def plan_windows(n_frames: int, window: int = 50, overlap: int = 25, n_coefficie
     if not 0 <= overlap < window:
         raise InputError(f"overlap must be in [0, window), not {overlap}")
     hop = window - overlap
+    count = n_coefficients if callable(n_coefficients) else (
+        lambda length: min(int(n_coefficients), length))
     cuts = sorted({0, n_frames} | {int(b) for b in breaks if 0 < int(b) < n_frames})
     out = []
     for s, e in zip(cuts[:-1], cuts[1:]):
         n = e - s
         if n <= window:
-            out.append(Window(s, n, min(n_coefficients, n)))
+            out.append(Window(s, n, count(n)))
             continue
         starts = list(range(s, e - window + 1, hop))
         if starts[-1] + window < e:
             starts.append(e - window)
-        out += [Window(st, window, min(n_coefficients, window)) for st in starts]
+        out += [Window(st, window, count(window)) for st in starts]
     return out
 
 

@@ -58,8 +58,12 @@ ABLATIONS = {"ours": ("dct", "dct", True), "ours-a": ("free", "dct", True),
 
 
 def estimate_settings(**overrides) -> ReconstructionSettings:
-    """ReconstructionSettings with the defaults of the unknown-rotation case."""
-    return ReconstructionSettings(**{**ESTIMATE_DEFAULTS, "rotation": "estimate", **overrides})
+    """ReconstructionSettings with the defaults of the unknown-rotation case
+    (a ``cutoff_hz`` given replaces the default count ``n_dct`` = 11)."""
+    defaults = dict(ESTIMATE_DEFAULTS)
+    if overrides.get("cutoff_hz") is not None:
+        defaults.pop("n_dct")
+    return ReconstructionSettings(**{**defaults, "rotation": "estimate", **overrides})
 
 
 @dataclass
@@ -154,7 +158,8 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
                          f"{s.pose_basis!r}, {s.rotation_basis!r}")
     cams = replace(cameras, R=np.broadcast_to(np.eye(3), (1, C, 3, 3)).copy())
     if s.pose_basis == "free":
-        windows, batches = _batches(obs, cams, skeleton, replace(s, n_dct=s.window), breaks)
+        windows, batches = _batches(obs, cams, skeleton,
+                                    replace(s, n_dct=s.window, cutoff_hz=None), breaks)
         batches = [(ws, idx, _free_points(b)) for ws, idx, b in batches]
     else:
         windows, batches = _batches(obs, cams, skeleton, s, breaks)

@@ -1,8 +1,12 @@
 """3D reconstruction of a sequence from multi-view 2D detections (sections
 4.3-4.4 of the paper, with known camera rotations).
 
-Every joint coordinate is an inverse DCT of ``n_dct`` coefficients per
-window (:mod:`photogram.mocap.reconstruction.dct`); the coefficients minimise the energy of
+Every joint coordinate is an inverse DCT per window
+(:mod:`photogram.mocap.reconstruction.dct`) whose basis is chosen by a cut-off
+frequency, ``cutoff_hz`` (default 12 Hz: ``floor(2 T fc / fps) + 1``
+coefficients in a window of T frames, 25 over 50 frames at 50 fps, the
+paper's N_Pi), or by an explicit count ``n_dct`` (which then wins; the
+project file refuses both); the coefficients minimise the energy of
 :mod:`photogram.mocap.reconstruction.energy` (robust confidence-weighted reprojection term,
 lambda_rep = 80, sigma^2 = 100 px^2; limb-length prior, lambda_limbs = 1).
 All joints start at the centre of the cameras (the mean projection centre),
@@ -45,23 +49,31 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.mocap.body.skeleton import Skeleton
 from photogram.mocap.reconstruction.cameras import MocapCameras
-from photogram.mocap.reconstruction.dct import blend_weights, dct_basis, plan_windows
+from photogram.mocap.reconstruction.dct import (blend_weights, coefficients_for_cutoff, dct_basis,
+                                                plan_windows)
 from photogram.mocap.reconstruction.energy import WindowBatch
 from photogram.mocap.reconstruction.solvers import solve_gauss_newton, solve_lbfgs
 
 __all__ = ["ReconstructionSettings", "Reconstruction", "reconstruct", "limb_lengths",
-           "SOLVERS"]
+           "SOLVERS", "DEFAULT_CUTOFF_HZ"]
 
 log = logging.getLogger(__name__)
 SOLVERS = ("gauss-newton", "lbfgs")
 MAX_CONDITION = 100.0    # of the DCT basis on the frames a joint is detected in
+#: default DCT cut-off (Hz): 25 coefficients over 50 frames at 50 fps (the paper's N_Pi for
+#: skiing); the smoothing proper is the Butterworth post-filter at 6 Hz
+#: (:mod:`photogram.mocap.reconstruction.filtering`), which unlike a lower DCT cut-off
+#: keeps the fast translation of a skier at the ends of the windows (docs/mocap.md)
+DEFAULT_CUTOFF_HZ = 12.0
 
 
 @dataclass
 class ReconstructionSettings:
     """Settings of :func:`reconstruct` (defaults: the paper's values)."""
 
-    n_dct: int = 25
+    n_dct: int | None = None        # explicit coefficients per window (wins over cutoff_hz)
+    cutoff_hz: float | None = None  # DCT cut-off (Hz); None: DEFAULT_CUTOFF_HZ unless n_dct
+    fps: float = 50.0               # frame rate of the observations (for cutoff_hz)
     window: int = 50
     overlap: int = 10
     sigma2: float = 100.0
@@ -85,6 +97,32 @@ class ReconstructionSettings:
     pose_basis: str = "dct"         # or "free" (ablation: a position per joint and frame)
     rotation_basis: str = "dct"     # or "free" (ablation: angles per frame)
     rotation_prior: bool = True     # False: no E_rot (ablation)
+
+    def __post_init__(self):
+        if self.n_dct is not None and self.cutoff_hz is not None:
+            raise InputError(f"give either n_dct ({self.n_dct}) or cutoff_hz "
+                             f"({self.cutoff_hz}) for the reconstruction, not both",
+                             hint="cutoff_hz = 12 keeps the DCT terms up to 12 Hz; n_dct a count")
+        if self.n_dct is not None and self.n_dct < 1:
+            raise InputError(f"n_dct must be at least 1, not {self.n_dct}")
+        if self.cutoff_hz is not None and not 0 < self.cutoff_hz < self.fps / 2:
+            raise InputError(f"cutoff_hz must be in (0, fps/2 = {self.fps / 2:g}) Hz, not "
+                             f"{self.cutoff_hz}")
+
+    @property
+    def cutoff(self) -> float | None:
+        """The DCT cut-off in Hz in use (None when ``n_dct`` counts)."""
+        if self.n_dct is not None:
+            return None
+        return DEFAULT_CUTOFF_HZ if self.cutoff_hz is None else float(self.cutoff_hz)
+
+    def coefficients(self, length: int) -> int:
+        """DCT coefficients of a window of ``length`` frames: ``n_dct``
+        (at most ``length``), else the count of the cut-off,
+        :func:`~photogram.mocap.reconstruction.dct.coefficients_for_cutoff`."""
+        if self.n_dct is not None:
+            return min(int(self.n_dct), int(length))
+        return coefficients_for_cutoff(int(length), self.cutoff, self.fps)
 
     def stages(self) -> list[float]:
         s, out = float(self.gnc_start), []
@@ -110,6 +148,7 @@ class Reconstruction:
     solver: str
     n_windows: int
     stages: list = field(default_factory=list)
+    unfiltered: np.ndarray | None = None    # the joints before a post-filter (pipeline)
 
 
 # --------------------------------------------------------------------------
@@ -154,7 +193,8 @@ def _batches(obs, cameras: MocapCameras, skeleton: Skeleton, settings, breaks):
     scale = cameras.pixel_scale(F).transpose(1, 2, 0)                      # (C, 2, F)
     R = cameras.rotations(F).transpose(1, 2, 3, 0)                         # (C, 3, 3, F)
     RX0 = np.einsum("cabf,cb->caf", R, cameras.X0)
-    windows = plan_windows(F, settings.window, settings.overlap, settings.n_dct, breaks)
+    windows = plan_windows(F, settings.window, settings.overlap, settings.coefficients,
+                           breaks)
     limbs = skeleton.limb_indices()
     groups: dict[tuple, list] = {}
     for w in windows:
@@ -207,11 +247,12 @@ def _coefficients(seen: np.ndarray, B: np.ndarray, max_cond: float | None = None
 def _stage_plan(s: ReconstructionSettings):
     """(sigma^2, coefficients, frame step) of every continuation stage: the
     stages with sigma^2 >= 1e4 px^2 only place the athlete roughly, so they
-    use at most 10 coefficients and every third frame."""
+    use at most 10 coefficients and every third frame; the others all of
+    each window's coefficients (``None``)."""
     out = []
     for sigma2 in s.stages():
         coarse = sigma2 >= 1e4 - 1e-9 and sigma2 > s.sigma2
-        out.append((sigma2, min(10, s.n_dct) if coarse else s.n_dct, 3 if coarse else 1))
+        out.append((sigma2, 10 if coarse else None, 3 if coarse else 1))
     return out
 
 
@@ -253,6 +294,7 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
     solver = solve_gauss_newton if s.solver == "gauss-newton" else solve_lbfgs
     stages, iterations = [], 0
     plan = _stage_plan(s)
+    n_max = max(batch.B.shape[1] for _, _, batch in batches)
     lengths = given if given is not None else np.full(len(skeleton.limbs), np.nan)
     for n, (sigma2, k, step) in enumerate(plan):
         last = n == len(plan) - 1
@@ -266,7 +308,7 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
             use = batch.subsample(step)
             if lam:
                 use = use.with_limb_mask(batch.limb_mask * np.isfinite(lengths))
-            kk = min(k, use.B.shape[0], batch.B.shape[1])
+            kk = min(k or batch.B.shape[1], use.B.shape[0], batch.B.shape[1])
             a, E, it = solver(use, coeffs[b][..., :kk].copy(), sigma2, L, s.lambda_rep, lam,
                               s.max_iterations, s.tolerance if last else 1e-4,
                               second_order=last, step_tol=s.step_tol if last else 0.0)
@@ -274,11 +316,12 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
             stage_E += float(np.sum(E))
             stage_it = max(stage_it, it)
         iterations += stage_it
-        stages.append({"sigma2": sigma2, "coefficients": k, "frame_step": step,
+        stages.append({"sigma2": sigma2, "coefficients": min(k or n_max, n_max),
+                       "cutoff_hz": s.cutoff if k is None else None, "frame_step": step,
                        "lambda_limbs": lam, "energy": stage_E, "iterations": stage_it,
                        "seconds": time.perf_counter() - t0})
-        log.debug("stage sigma2=%g k=%d step=%d energy=%.6g iterations=%d %.2fs", sigma2, k,
-                  step, stage_E, stage_it, time.perf_counter() - t0)
+        log.debug("stage sigma2=%g k=%d step=%d energy=%.6g iterations=%d %.2fs", sigma2,
+                  stages[-1]["coefficients"], step, stage_E, stage_it, time.perf_counter() - t0)
     X, views = _blend(batches, coeffs, F, J, s.overlap)
     n_views = np.sum(np.isfinite(obs[..., 0]) & (np.nan_to_num(obs[..., 2]) >
                                                   s.min_confidence), axis=1)
