@@ -1,0 +1,531 @@
+"""Synchronisation of the cameras: per-camera frame offsets from the 2D
+detections (issue 20, item 5; docs/mocap.md, "Synchronisation").
+
+Convention: camera c has the **offset** ``o_c`` (frames) when its frame
+``f + o_c`` shows the instant of frame ``f`` of the reference camera (it
+started recording ``o_c`` frames earlier). Applying the offset gives the
+camera the detections ``obs_c[f + o_c]`` at frame ``f``
+(:func:`shift_series`); a fractional offset interpolates linearly between
+the two neighbouring frames.
+
+Estimation, in two steps:
+
+1. **coarse, integer** (:func:`coarse_offsets`), as Pose2Sim's
+   ``synchronization.py`` (``synchronize_cams_all``, ``time_lagged_cross_corr``):
+   a speed profile per camera, low-pass filtered (Butterworth, 6 Hz,
+   forward-backward), and the lag of the highest Pearson correlation with
+   the reference camera's profile. Pose2Sim sums the absolute vertical
+   speeds of the keypoints in pixels; here the keypoints are first made
+   independent of the projection: centred on the athlete's median joint
+   and divided by the median distance of the joints to it, per frame, so
+   that panning, zoom and distance (moving cameras) do not enter, and the
+   speed is that of the normalised pose (2D norm, summed over joints).
+2. **fine, fractional** (:func:`refine_offset`): the joints are
+   triangulated from the *other* cameras (their offsets applied;
+   confidence-weighted midpoint of the world rays, Cauchy-reweighted) and
+   projected into the camera under test at its frames ``f + k``; the mean
+   squared reprojection error ``E(k)`` (truncated at 5 x its median, so that
+   outliers count as a constant) is computed at integer shifts ``k``
+   around the coarse value (moving while a neighbour is lower) and the
+   vertex of the parabola through ``E(k-1), E(k), E(k+1)`` is the
+   fractional offset. Near the minimum ``E(k) = s^2 + |v|^2 (k - o)^2`` to
+   first order in the image velocity ``v``: a parabola whose vertex is the
+   offset. Integer shifts only are evaluated (no interpolation of the
+   camera's own detections, which would lower the noise term at half
+   frames and pull the vertex there).
+
+**Uncertainty**: a moving-block bootstrap over frames (blocks of 10
+frames, 400 replicates; the per-frame sums of the errors are resampled and
+the vertex recomputed), reported as the standard deviation of the
+replicates. Chosen over the curvature of ``E`` (which assumes independent
+errors of known variance) and the spread over joints (the joints of a
+frame share the pose's motion and the detector's errors): detector errors
+and the pose's motion are correlated over neighbouring frames, and blocks
+keep that correlation. Offsets are re-referenced to the reference camera
+(the one with the most detections; its offset is 0 by definition) and a
+camera's uncertainty combines its own and the reference's in quadrature.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import butter, sosfiltfilt
+
+__all__ = ["shift_series", "shift_rotations", "speed_profile", "coarse_offsets",
+           "world_bearings", "triangulate_bearings", "refine_offset", "estimate_offsets",
+           "SyncEstimate", "MIN_CONFIDENCE"]
+
+#: detections used (Pose2Sim's likelihood threshold, as the reprojection errors)
+MIN_CONFIDENCE = 0.3
+_BLOCK = 10
+_REPLICATES = 400
+
+
+# --------------------------------------------------------------------------
+# applying offsets
+def shift_series(a: np.ndarray, offset: float, *, edge: bool = False) -> np.ndarray:
+    """``b[f] = a[f + offset]`` along axis 0, linearly interpolated for a
+    fractional offset.
+
+    Parameters
+    ----------
+    a : ndarray (F, ...)
+    offset : float
+        Frames (docs/mocap.md, "Synchronisation").
+    edge : bool
+        Outside ``a``: NaN (False, detections) or the nearest frame (True,
+        camera parameters).
+
+    Returns
+    -------
+    ndarray (F, ...)
+        A NaN in either neighbour gives NaN (no extrapolation over gaps).
+    """
+    a = np.asarray(a, dtype=float)
+    F = a.shape[0]
+    t = np.arange(F) + float(offset)
+    if edge:
+        t = np.clip(t, 0, F - 1)
+    lo = np.floor(t + 1e-9).astype(int)
+    w = t - lo
+    w = np.where(np.abs(w) < 1e-9, 0.0, w)
+    inside = (lo >= 0) & (lo <= F - 1) & ((lo < F - 1) | (w == 0))
+    lo_c = np.clip(lo, 0, F - 1)
+    hi_c = np.clip(lo + 1, 0, F - 1)
+    shape = (F,) + (1,) * (a.ndim - 1)
+    wv = w.reshape(shape)
+    a_hi = np.where(wv > 0, a[hi_c], 0.0)
+    out = (1 - wv) * a[lo_c] + wv * a_hi
+    out[~inside] = np.nan
+    return out
+
+
+def shift_observations(obs_c: np.ndarray, offset: float) -> np.ndarray:
+    """The detections (F, J, 3) of one camera shifted by ``offset``
+    (:func:`shift_series`); a detection interpolated between two frames
+    needs both (its confidence the lower of the two); missing: x, y NaN,
+    confidence 0."""
+    obs_c = np.asarray(obs_c, dtype=float)
+    xy = np.where((np.nan_to_num(obs_c[..., 2]) > 0)[..., None], obs_c[..., :2], np.nan)
+    out = np.empty(obs_c.shape)
+    out[..., :2] = shift_series(xy, offset)
+    frac = offset - np.floor(offset)
+    conf = np.nan_to_num(obs_c[..., 2])
+    lo = shift_series(conf, np.floor(offset))
+    hi = shift_series(conf, np.floor(offset) + 1) if frac > 1e-9 else lo
+    c = np.fmin(lo, hi)
+    ok = np.all(np.isfinite(out[..., :2]), -1) & np.isfinite(c)
+    out[..., 2] = np.where(ok, np.nan_to_num(c), 0.0)
+    out[~ok, :2] = np.nan
+    return out
+
+
+def shift_rotations(R: np.ndarray, offset: float) -> np.ndarray:
+    """Rotations (F, 3, 3) shifted by ``offset`` (edge frames repeated): the
+    matrices interpolated linearly, then the nearest rotation (SVD)."""
+    M = shift_series(R, offset, edge=True)
+    U, _, Vt = np.linalg.svd(M)
+    d = np.sign(np.linalg.det(U @ Vt))
+    U[..., :, 2] *= d[..., None]
+    return U @ Vt
+
+
+# --------------------------------------------------------------------------
+# coarse: speed profiles and their correlation (Pose2Sim)
+def speed_profile(obs_c: np.ndarray, fps: float, min_confidence: float = MIN_CONFIDENCE,
+                  cutoff_hz: float = 6.0) -> np.ndarray:
+    """Speed (F,) of the projection-normalised pose of one camera.
+
+    Per frame the joints are centred on their median and divided by their
+    median distance to it; each joint's normalised track is linearly
+    interpolated over missing frames (as Pose2Sim's
+    ``interpolate_zeros_nans``), the speed is the sum over joints of the 2D
+    frame-to-frame displacement, low-pass filtered (Butterworth of order 2
+    applied forward and backward, ``cutoff_hz``; Pose2Sim's
+    ``filter_cutoff`` 6 Hz). NaN where no joint is tracked.
+    """
+    ok = (np.nan_to_num(obs_c[..., 2]) >= min_confidence) & np.all(
+        np.isfinite(obs_c[..., :2]), -1)
+    xy = np.where(ok[..., None], obs_c[..., :2], np.nan)
+    F, J = ok.shape
+    with np.errstate(invalid="ignore"):
+        enough = ok.sum(1) >= 3
+        centre = np.full((F, 2), np.nan)
+        scale = np.full(F, np.nan)
+        if enough.any():
+            centre[enough] = np.nanmedian(xy[enough], axis=1)
+            scale[enough] = np.nanmedian(np.linalg.norm(xy[enough] - centre[enough, None],
+                                                        axis=-1), axis=1)
+    p = (xy - centre[:, None]) / np.where(scale > 0, scale, np.nan)[:, None, None]
+    good = np.all(np.isfinite(p), -1)
+    keep = good.sum(0) >= max(4, F // 2)
+    if not keep.any():
+        return np.full(F, np.nan)
+    t = np.arange(F)
+    tracks = []
+    for j in np.nonzero(keep)[0]:
+        g = good[:, j]
+        tracks.append(np.stack([np.interp(t, t[g], p[g, j, k], left=np.nan, right=np.nan)
+                                for k in range(2)], -1))
+    P = np.stack(tracks, 1)                                   # (F, J', 2)
+    v = np.full(F, np.nan)
+    v[1:] = np.nansum(np.linalg.norm(np.diff(P, axis=0), axis=-1), axis=1)
+    v[1:][np.all(~np.isfinite(np.diff(P, axis=0)[..., 0]), axis=1)] = np.nan
+    fin = np.isfinite(v)
+    if fin.sum() < 16 or cutoff_hz >= fps / 2:
+        return v
+    seg = _longest_run(fin)
+    sos = butter(2, cutoff_hz / (fps / 2), output="sos")
+    out = np.full(F, np.nan)
+    vi = np.interp(t[seg], t[fin], v[fin])
+    out[seg] = sosfiltfilt(sos, vi, padlen=min(len(vi) - 1, 15))
+    return out
+
+
+def _longest_run(mask):
+    idx = np.nonzero(mask)[0]
+    return slice(int(idx[0]), int(idx[-1]) + 1)
+
+
+def lagged_correlation(ref: np.ndarray, other: np.ndarray, max_lag: int,
+                       min_overlap: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Pearson r between ``ref[f]`` and ``other[f + k]`` for k in
+    ``-max_lag..max_lag`` (Pose2Sim's ``time_lagged_cross_corr``; NaN
+    frames left out; NaN where fewer than ``min_overlap`` frames overlap)."""
+    lags = np.arange(-max_lag, max_lag + 1)
+    r = np.full(len(lags), np.nan)
+    F = len(ref)
+    for i, k in enumerate(lags):
+        a = ref[max(0, -k):F - max(0, k)]
+        b = other[max(0, k):F + min(0, k)]
+        ok = np.isfinite(a) & np.isfinite(b)
+        if ok.sum() >= min_overlap and np.std(a[ok]) > 0 and np.std(b[ok]) > 0:
+            r[i] = np.corrcoef(a[ok], b[ok])[0, 1]
+    return lags, r
+
+
+def coarse_offsets(obs: np.ndarray, fps: float, reference: int, max_lag: int):
+    """Integer offsets (C,) and their peak correlations (C,) against camera
+    ``reference`` (:func:`speed_profile`, :func:`lagged_correlation`); a
+    camera without a usable profile gets 0 and correlation NaN."""
+    C = obs.shape[1]
+    prof = [speed_profile(obs[:, c], fps) for c in range(C)]
+    off = np.zeros(C, int)
+    peak = np.full(C, np.nan)
+    peak[reference] = 1.0
+    for c in range(C):
+        if c == reference:
+            continue
+        lags, r = lagged_correlation(prof[reference], prof[c], max_lag)
+        if np.any(np.isfinite(r)):
+            i = int(np.nanargmax(r))
+            off[c], peak[c] = int(lags[i]), float(r[i])
+    return off, peak
+
+
+# --------------------------------------------------------------------------
+# fine: triangulate from the others, reproject into the camera under test
+def world_bearings(cameras, obs: np.ndarray, min_confidence: float = MIN_CONFIDENCE):
+    """Unit rays (F, C, J, 3) in world axes of the detections (NaN: not
+    used) and their weights (F, C, J) (the confidences). ``cameras``:
+    :class:`photogram.mocap.reconstruction.cameras.MocapCameras` (ideal
+    coordinates ``t`` of its ``to_rays``: camera direction ``(t_x, -t_y,
+    -1)``, world ``R^T d``)."""
+    F = obs.shape[0]
+    ok = (np.nan_to_num(obs[..., 2]) >= min_confidence) & np.all(np.isfinite(obs[..., :2]), -1)
+    xy = np.where(ok[..., None], obs[..., :2], np.nan)
+    t = cameras.to_rays(xy)
+    d = np.stack([t[..., 0], -t[..., 1], -np.ones(t.shape[:-1])], -1)
+    R = cameras.rotations(F)
+    u = np.einsum("fcba,fcjb->fcja", R, d)
+    u /= np.linalg.norm(u, axis=-1, keepdims=True)
+    w = np.where(ok & np.all(np.isfinite(u), -1), obs[..., 2], 0.0)
+    u[w == 0] = np.nan
+    return u, w
+
+
+def triangulate_bearings(u: np.ndarray, w: np.ndarray, X0: np.ndarray,
+                         iterations: int = 4) -> np.ndarray:
+    """Points (F, J, 3) closest to the rays ``X0[c] + s u[f, c, j]``
+    (weighted least squares of the perpendicular distances, the midpoint
+    method of Hartley & Zisserman, section 12.1, generalised to n rays),
+    reweighted by a Cauchy function of the ray's angular residual (scale:
+    2 x the median residual); NaN where fewer than two rays."""
+    ok = w > 0
+    uu = np.where(ok[..., None], u, 0.0)
+    P = np.eye(3) - uu[..., :, None] * uu[..., None, :]          # (F, C, J, 3, 3)
+    X0c = X0[None, :, None, :]
+    weights = w.copy()
+    X = np.full(u.shape[:1] + u.shape[2:], np.nan)
+    two = ok.sum(1) >= 2
+    for it in range(iterations):
+        A = np.einsum("fcj,fcjab->fjab", weights, P)
+        b = np.einsum("fcj,fcjab,cb->fja", weights, P, X0)
+        det = np.linalg.det(A)
+        good = two & (np.abs(det) > 1e-12)
+        X = np.full(b.shape, np.nan)
+        X[good] = np.linalg.solve(A[good], b[good][..., None])[..., 0]
+        d = X[:, None] - X0c                                       # (F, C, J, 3)
+        dist = np.linalg.norm(d, axis=-1)
+        perp = np.linalg.norm(np.einsum("fcjab,fcjb->fcja", P, d), axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ang = np.where(ok, perp / dist, np.nan)
+        if it == iterations - 1 or not np.any(np.isfinite(ang)):
+            break
+        scale = 2.0 * np.nanmedian(ang) + 1e-12
+        weights = np.where(ok, w / (1.0 + (np.nan_to_num(ang) / scale) ** 2), 0.0)
+    return X
+
+
+def ray_distance_lags(u: np.ndarray, X0: np.ndarray, ref: int, c: int, max_lag: int):
+    """Median distance (world unit) between the rays of camera ``ref`` at
+    frame f and those of camera ``c`` at frame f + k, for k in
+    ``-max_lag..max_lag`` (the epipolar constraint: rays of the same joint
+    at the same instant meet; NaN with fewer than 20 pairs)."""
+    F = u.shape[0]
+    lags = np.arange(-max_lag, max_lag + 1)
+    out = np.full(len(lags), np.nan)
+    base = X0[c] - X0[ref]
+    for i, k in enumerate(lags):
+        a = u[max(0, -k):F - max(0, k), ref]
+        b = u[max(0, k):F + min(0, k), c]
+        n = np.cross(a, b)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = np.abs(n @ base) / np.linalg.norm(n, axis=-1)
+        d = d[np.isfinite(d)]
+        if len(d) >= 20:
+            out[i] = np.median(d)
+    return lags, out
+
+
+def _projected(cameras, c: int, X: np.ndarray, k: int) -> np.ndarray:
+    """Projections (F, J, 2) of X (F, J, 3) (frame f) into camera c at its
+    frames f + k (its per-frame rotation and zoom; edge frames repeated)."""
+    F = X.shape[0]
+    cam = cameras.select_cameras([cameras.names[c]])
+    if cam.n_frames:
+        cam = cam.select_frames(np.clip(np.arange(F) + k, 0, cam.n_frames - 1))
+    return cam.project(X)[:, 0]
+
+
+def _residuals(cameras, c, X, obs_c, k):
+    """(F, J, 2) reprojection residuals, detection ``obs_c[f + k]`` minus
+    X[f] projected into camera c at its frame f + k (NaN: not available)."""
+    det = shift_series(np.where((np.nan_to_num(obs_c[..., 2]) >= MIN_CONFIDENCE)[..., None],
+                                obs_c[..., :2], np.nan), k)
+    return det - _projected(cameras, c, X, k)
+
+
+def _vertex(Em, E0, Ep):
+    den = Em - 2 * E0 + Ep
+    with np.errstate(invalid="ignore", divide="ignore"):
+        v = 0.5 * (Em - Ep) / den
+    return np.where(den > 0, np.clip(v, -1.0, 1.0), np.where(Em < Ep, -1.0, 1.0))
+
+
+def _block_weights(F: int, rng, block: int = _BLOCK, replicates: int = _REPLICATES):
+    """(B, F) how often each frame is drawn by a moving-block bootstrap
+    (Kunsch 1989): ceil(F / block) blocks of ``block`` consecutive frames."""
+    block = max(1, min(block, F))
+    n_blocks = int(np.ceil(F / block))
+    starts = rng.integers(0, F - block + 1, (replicates, n_blocks))
+    idx = (starts[..., None] + np.arange(block)).reshape(replicates, -1)[:, :F]
+    W = np.zeros((replicates, F))
+    np.add.at(W, (np.repeat(np.arange(replicates), idx.shape[1]), idx.ravel()), 1.0)
+    return W
+
+
+def _segment_distance(p, q):
+    """Distance (...) from the origin to the segments p-q (..., 2)."""
+    d = q - p
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.clip(-np.sum(p * d, -1) / np.sum(d * d, -1), 0.0, 1.0)
+    t = np.nan_to_num(t)
+    return np.linalg.norm(p + t[..., None] * d, axis=-1)
+
+
+def _weighted_parabola(r):
+    """Vertex (frames, in -1..1 about the middle shift) of the weighted
+    mean squared residuals of ``r`` (3, F, J, 2) (shifts k-1, k, k+1).
+
+    The weight of a detection is a Cauchy function (scale 2.385 x 1.4826 x
+    the median: 95 % efficiency) of the smallest residual it reaches over
+    the shifts k-1..k+1, the detection interpolated linearly in time (the
+    distance from the origin to the polyline r[0], r[1], r[2]): an outlier
+    fits at no shift, and the weight does not depend on where the vertex
+    lies (weights taken at a trial vertex would pull the estimate towards
+    it). ``E`` is the weighted mean squared deviation of the residuals from
+    their weighted mean (per shift): a static bias of the camera (e.g. a
+    principal point off by 20 px) would otherwise move the vertex by
+    ``-b . mean(v) / mean|v|^2`` when the athlete drifts in the image.
+    Returns the vertex, the per-frame sums (w |r|^2 (3, F), w r (3, F, 2),
+    w (F,)) and E (3,)."""
+    sq = np.sum(r * r, -1)                                          # (3, F, J)
+    use = np.all(np.isfinite(sq), 0)
+    sq = np.where(use[None], sq, 0.0)
+    rr = np.where(use[None, ..., None], r, 0.0)
+    e = np.minimum(_segment_distance(rr[0], rr[1]), _segment_distance(rr[1], rr[2]))
+    scale = 2.385 * 1.4826 * float(np.median(e[use])) + 1e-9
+    w = np.where(use, 1.0 / (1.0 + (e / scale) ** 2), 0.0)
+    sums = (np.einsum("fj,kfj->kf", w, sq), np.einsum("fj,kfjd->kfd", w, rr), w.sum(1))
+    E = _spread(sums[0].sum(1), sums[1].sum(1), sums[2].sum())
+    return float(_vertex(E[0], E[1], E[2])), sums, E
+
+
+def _spread(S2, S1, n):
+    """Weighted mean squared deviation from the weighted mean residual,
+    from the sums of w |r|^2 (..., 3), w r (..., 3, 2) and w (...)."""
+    n = np.asarray(n, float)[..., None]
+    return S2 / n - np.sum((S1 / n[..., None]) ** 2, -1)
+
+
+def refine_offset(cameras, c: int, X: np.ndarray, obs_c: np.ndarray, start: int,
+                  max_lag: int, rng) -> dict:
+    """Fractional offset of camera c (module doc, step 2) against the points
+    X (F, J, 3) triangulated from the other cameras, starting at the
+    integer shift ``start``.
+
+    Returns
+    -------
+    dict
+        ``offset`` (frames), ``sigma`` (block bootstrap), ``shift`` (the
+        integer shift at the minimum), ``errors_px`` (weighted RMS
+        residuals at shifts -1, 0, +1 about it), ``n`` (detections used),
+        ``bracketed`` (the minimum lies between the shifts tried); offset
+        NaN when the camera has fewer than 10 usable detections.
+    """
+    cache = {}
+
+    def res(k):
+        if k not in cache:
+            cache[k] = _residuals(cameras, c, X, obs_c, k)
+        return cache[k]
+
+    k = int(start)
+    tried = set()
+    while True:
+        r = np.stack([res(k - 1), res(k), res(k + 1)])
+        n_use = int(np.all(np.isfinite(r), axis=(0, 3)).sum())
+        if n_use < 10:
+            return {"offset": np.nan, "sigma": np.nan, "shift": k, "errors_px": None, "n": 0,
+                    "bracketed": False}
+        s, (S2, S1, n), E = _weighted_parabola(r)
+        tried.add(k)
+        step = int(np.sign(s)) if abs(s) >= 1.0 else 0
+        if step == 0 or abs(k + step) > max_lag or (k + step) in tried:
+            break
+        k += step
+    frames = np.nonzero(n > 0)[0]
+    W = _block_weights(len(frames), rng)
+    Eb = _spread(W @ S2[:, frames].T, np.einsum("bf,kfd->bkd", W, S1[:, frames]),
+                 W @ n[frames])                                      # (B, 3)
+    boot = _vertex(Eb[:, 0], Eb[:, 1], Eb[:, 2])
+    return {"offset": float(k + s), "sigma": float(np.std(boot)), "shift": k,
+            "errors_px": [float(np.sqrt(e)) for e in E], "n": n_use,
+            "bracketed": bool(step == 0)}
+
+
+# --------------------------------------------------------------------------
+@dataclass
+class SyncEstimate:
+    """Offsets (frames) per camera against ``reference`` (module doc)."""
+
+    names: list
+    reference: str
+    offsets: np.ndarray          # (C,) fractional, reference 0
+    sigma: np.ndarray            # (C,) block bootstrap (with the reference's)
+    coarse: np.ndarray           # (C,) integer, from the speed profiles
+    correlation: np.ndarray      # (C,) peak Pearson r of the speed profiles
+    details: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        """For summary.json."""
+        out = {"reference": self.reference, "unit": "frames",
+               "convention": "frame f + offset of the camera shows frame f of the reference",
+               "uncertainty": "1 sigma, moving-block bootstrap over frames (10-frame blocks)",
+               "cameras": {}}
+        for i, name in enumerate(self.names):
+            d = self.details.get(name, {})
+            out["cameras"][name] = {
+                "offset": _num(self.offsets[i]), "sigma": _num(self.sigma[i]),
+                "coarse": int(self.coarse[i]), "correlation": _num(self.correlation[i]),
+                "errors_px": d.get("errors_px"), "n": d.get("n", 0),
+                "bracketed": d.get("bracketed", False)}
+        return out
+
+    def lines(self) -> list[str]:
+        """One log line per camera."""
+        return [f"synchronisation: {name} offset {self.offsets[i]:+.2f} +- "
+                f"{self.sigma[i]:.2f} frames against {self.reference} (coarse "
+                f"{int(self.coarse[i]):+d}, speed correlation {self.correlation[i]:.2f})"
+                for i, name in enumerate(self.names)]
+
+
+def _num(v):
+    return float(v) if np.isfinite(v) else None
+
+
+def estimate_offsets(obs: np.ndarray, cameras, fps: float, *, max_lag: int | None = None,
+                     reference: int | None = None, seed: int = 0) -> SyncEstimate:
+    """Offsets of every camera (module doc): coarse integer offsets from the
+    speed profiles, then two passes of :func:`refine_offset` (the others at
+    the coarse offsets, then at the first pass's fractional offsets).
+
+    Parameters
+    ----------
+    obs : ndarray (F, C, J, 3)
+        Detections x, y, confidence (unshifted).
+    cameras : MocapCameras
+        Per-frame rotations/zoom numbered like the detections.
+    fps : float
+    max_lag : int, optional
+        Largest offset searched (default F // 4).
+    reference : int, optional
+        Default: the camera with the most detections.
+    seed : int
+        Of the bootstrap.
+    """
+    F, C = obs.shape[:2]
+    valid = (np.nan_to_num(obs[..., 2]) >= MIN_CONFIDENCE).sum(axis=(0, 2))
+    ref = int(np.argmax(valid)) if reference is None else int(reference)
+    max_lag = max(1, F // 4) if max_lag is None else int(max_lag)
+    speed_lag, corr = coarse_offsets(obs, fps, ref, max_lag)
+    u, w = world_bearings(cameras, obs)
+    coarse = np.zeros(C, int)
+    for c in range(C):
+        if c != ref and valid[c] > 0:
+            lags, d = ray_distance_lags(u, cameras.X0, ref, c, max_lag)
+            if np.any(np.isfinite(d)):
+                coarse[c] = int(lags[np.nanargmin(d)])
+    rng = np.random.default_rng(seed)
+    current = coarse.astype(float)
+    details = {}
+    for _ in range(2):
+        new = current.copy()
+        for c in range(C):
+            others = [o for o in range(C) if o != c and valid[o] > 0]
+            if len(others) < 2 or valid[c] == 0:
+                details[cameras.names[c]] = {"offset": np.nan, "sigma": np.nan, "n": 0}
+                new[c] = np.nan
+                continue
+            us = np.stack([shift_series(u[:, o], current[o]) for o in others], 1)
+            us /= np.linalg.norm(us, axis=-1, keepdims=True)
+            ws = np.stack([np.nan_to_num(shift_series(w[:, o], current[o])) for o in others], 1)
+            ws = np.where(np.all(np.isfinite(us), -1), ws, 0.0)
+            X = triangulate_bearings(us, ws, cameras.X0[others])
+            start = int(np.rint(current[c])) if np.isfinite(current[c]) else 0
+            r = refine_offset(cameras, c, X, obs[:, c], start, max_lag, rng)
+            details[cameras.names[c]] = r
+            new[c] = r["offset"]
+        current = np.where(np.isfinite(new), new, current)
+    off = np.array([details[n]["offset"] for n in cameras.names], float)
+    sig = np.array([details[n]["sigma"] for n in cameras.names], float)
+    off_rel = off - off[ref]
+    sig_rel = np.sqrt(sig ** 2 + sig[ref] ** 2)
+    sig_rel[ref] = 0.0
+    for c, name in enumerate(cameras.names):
+        details[name]["speed_lag"] = int(speed_lag[c])
+    return SyncEstimate(list(cameras.names), cameras.names[ref], off_rel, sig_rel, coarse,
+                        corr, details)
