@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
-__all__ = ["shift_series", "shift_rotations", "speed_profile", "coarse_offsets",
+__all__ = ["shift_series", "shift_observations", "shift_rotations", "apply_offsets", "speed_profile", "coarse_offsets",
            "world_bearings", "triangulate_bearings", "refine_offset", "estimate_offsets",
            "SyncEstimate", "MIN_CONFIDENCE"]
 
@@ -130,6 +130,27 @@ def shift_rotations(R: np.ndarray, offset: float) -> np.ndarray:
     d = np.sign(np.linalg.det(U @ Vt))
     U[..., :, 2] *= d[..., None]
     return U @ Vt
+
+
+def apply_offsets(obs: np.ndarray, cameras, offsets: dict):
+    """Detections (F, C, J, 3) and cameras with ``offsets`` (camera index ->
+    frames) applied: the camera's detections shifted
+    (:func:`shift_observations`) and, when they are given per frame, its
+    rotations (:func:`shift_rotations`) and interior orientation (zoom),
+    which are numbered like its detections."""
+    from dataclasses import replace
+    obs = np.array(obs, dtype=float)
+    R = np.array(cameras.R)
+    io = [np.array(p) for p in cameras.io]
+    for c, o in offsets.items():
+        if o == 0:
+            continue
+        obs[:, c] = shift_observations(obs[:, c], o)
+        if R.shape[0] > 1:
+            R[:, c] = shift_rotations(R[:, c], o)
+        if io[c].shape[0] > 1:
+            io[c] = shift_series(io[c], o, edge=True)
+    return obs, replace(cameras, R=R, io=io)
 
 
 # --------------------------------------------------------------------------
