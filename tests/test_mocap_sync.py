@@ -207,3 +207,58 @@ def test_bad_offsets_are_one_line_and_exit_2(project, capsys, value, words):
     assert "ski.prj" in err
     for w in words:
         assert w in err, err
+
+
+def _delay_camera(folder: Path, camera: str, frames: int, last: int):
+    """Re-number ``camera``'s rows of detections.csv and camera_frames.csv
+    as a camera started ``frames`` frames earlier (its frame f + frames
+    shows frame f); its first camera_frames rows repeat frame 0."""
+    for name in ("detections.csv", "camera_frames.csv"):
+        path = folder / name
+        lines = path.read_text().splitlines()
+        out, header, first_rows = [], None, []
+        for line in lines:
+            if line.startswith("#"):
+                out.append(line)
+                continue
+            f = line.split(",")
+            if header is None:
+                header = f
+                out.append(line)
+                continue
+            if f[header.index("camera")] != camera:
+                out.append(line)
+                continue
+            frame = int(f[0])
+            if name == "camera_frames.csv" and frame == 0:
+                first_rows += [",".join([str(k)] + f[1:]) for k in range(frames)]
+            if frame + frames <= last:
+                out.append(",".join([str(frame + frames)] + f[1:]))
+        path.write_text("\n".join(out + first_rows) + "\n")
+
+
+def test_offsets_applied_and_estimated_in_a_run(project):
+    """SIMULATED end to end: camera C3 recorded 2 frames early (detections
+    and per-frame rotations/zoom re-numbered). Unapplied, C3 does not fit;
+    offsets = { C3 = 2 } restores it; "estimate" finds +2 and applies it."""
+    _delay_camera(project.parent, "C3", 2, 39)
+    text = project.read_text()
+
+    def run(extra):
+        project.write_text(text.replace("[mocap]\n", f"[mocap]\n{extra}\n", 1))
+        assert main(["mocap", "-q", "--force", str(project)]) == 0
+        return json.loads((project.parent / "results" / "summary.json").read_text())
+
+    raw, given, est = run(""), run("offsets = { C3 = 2 }"), run('offsets = "estimate"')
+    med = {k: s["reprojection"]["C3"]["median_px"] for k, s in
+           (("raw", raw), ("given", given), ("est", est))}
+    others = max(v["median_px"] for k, v in given["reprojection"].items() if k != "C3")
+    assert med["raw"] > 5 * others and med["given"] < 1.5 * others, med
+    assert given["synchronisation"]["applied"] == {"C3": 2.0}
+    cams = est["synchronisation"]["estimate"]["cameras"]
+    assert abs(cams["C3"]["offset"] - 2.0) < max(3 * cams["C3"]["sigma"], 0.1), cams["C3"]
+    assert all(abs(c["offset"]) < max(3 * c["sigma"], 0.1) for n, c in cams.items() if n != "C3")
+    assert abs(est["synchronisation"]["applied"]["C3"] - 2.0) < 0.1
+    assert est["reprojection"]["C3"]["median_px"] < 1.5 * others
+    print({k: s["accuracy"]["mpjpe"] for k, s in (("raw", raw), ("given", given), ("est", est))})
+    assert est["accuracy"]["mpjpe"] <= 1.1 * given["accuracy"]["mpjpe"]

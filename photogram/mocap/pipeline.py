@@ -259,8 +259,13 @@ def _synchronise(obs, cameras: MocapCameras, ms):
             log.info(line)
         info["estimate"] = est.as_dict()
         info["seconds"] = time.perf_counter() - t0
-        applied = ({n: float(o) for n, o in zip(est.names, est.offsets) if np.isfinite(o)}
-                   if ms.offsets == "estimate" else {})
+        applied = {}
+        if ms.offsets == "estimate":
+            for n, o, s in zip(est.names, est.offsets, est.sigma):
+                if np.isfinite(o):     # within max(2 sigma, 0.1) of an integer: that integer
+                    o = float(np.rint(o)) if abs(o - np.rint(o)) <= max(2 * s, 0.1) else float(o)
+                    if o != 0:
+                        applied[n] = o
     if applied:
         obs, cameras = apply_offsets(obs, cameras,
                                      {cameras.index(n): o for n, o in applied.items()})

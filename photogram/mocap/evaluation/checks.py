@@ -22,8 +22,8 @@ that look like the wrong unit (issue 16, item 10).
 * :func:`check_bias`: a camera whose median residual vector (x, y) is
   longer than half its median reprojection error and than 2 px has a static
   bias (noise alone leaves a vector near zero): a warning naming it and
-  the vector (principal point, rotation, or a shifted image, rather than a
-  synchronisation offset, which moves with the athlete).
+  the vector (principal point, rotation, a shifted image, or a frame
+  offset while the athlete crosses the image steadily).
 """
 
 from __future__ import annotations
@@ -198,5 +198,7 @@ def check_bias(reprojection: dict, min_px: float = 2.0) -> list[str]:
     if not biased:
         return []
     return [f"static bias of the detections against the reconstruction (median residual "
-            f"vector): {_names(biased)}; a camera whose calibration (principal point, "
-            f"rotation) or image is offset, not random error"]
+            f"vector): {_names(biased)}; not random error: the camera's calibration "
+            f"(principal point, rotation) or image is offset, or its frames are (an athlete "
+            f"moving steadily across the image; offsets = \"report\" in [mocap] measures "
+            f"that)"]
