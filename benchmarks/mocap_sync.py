@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import time
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -60,7 +61,8 @@ def desynchronised(sim, offsets: dict, rng, noise: float = 1.0, outliers: float 
         one = replace(cams.select_cameras([cams.names[c]]), R=R[:, c:c + 1], io=[io[c]])
         xy[:, c] = one.project(shift_series(sim.joints, -o))[:, 0]
     cams = replace(cams, R=R, io=io)
-    with np.errstate(invalid="ignore"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)     # frames outside the recording
         height = np.nanmax(xy[..., 1], axis=2) - np.nanmin(xy[..., 1], axis=2)
     u = rng.uniform(0, 1, (F, C, J))
     sigma = noise * 0.008 * height[..., None] * (0.5 + u)
