@@ -184,6 +184,13 @@ def test_injected_bias_in_results_and_estimate_reported(project):
     assert any("static bias" in w and "C3" in w for w in s["warnings"])
     csv = (project.parent / "results" / "reprojection.csv").read_text()
     assert "median_dx_px" in csv.splitlines()[0]
+    pypdf = pytest.importorskip("pypdf")
+    assert main(["report", str(project.parent / "results")]) == 0
+    text = "\n".join(p.extract_text() for p in
+                     pypdf.PdfReader(str(project.parent / "results" / "report.pdf")).pages)
+    row = next(line for line in text.splitlines() if line.split()[:1] == ["C3"]
+               and "median_dx_px" in text)
+    assert abs(float(row.split()[2]) - r["median_dx_px"]) < 0.01 * abs(r["median_dx_px"])
     sync = s["synchronisation"]
     assert sync["mode"] == "report" and sync["applied"] == {}
     for name, c in sync["estimate"]["cameras"].items():
