@@ -38,7 +38,7 @@ Estimation, in two steps:
    the camera's own detections would lower the noise term at half frames
    and pull the vertex there). The passes over all cameras are repeated,
    the others at their latest fractional offsets, until no offset changes
-   by more than 0.005 frames (at most 8 passes): two cameras with
+   by more than 0.01 frames (at most 8 passes): two cameras with
    fractional offsets bias each other's triangulations until both are
    known.
 
@@ -61,7 +61,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
-__all__ = ["shift_series", "shift_observations", "shift_rotations", "apply_offsets", "speed_profile", "coarse_offsets",
+__all__ = ["shift_series", "shift_observations", "shift_rotations", "apply_offsets",
+           "speed_profile", "lagged_correlation", "coarse_offsets", "ray_distance_lags",
            "world_bearings", "triangulate_bearings", "refine_offset", "estimate_offsets",
            "SyncEstimate", "MIN_CONFIDENCE"]
 
@@ -279,29 +280,35 @@ def triangulate_bearings(u: np.ndarray, w: np.ndarray, X0: np.ndarray,
                          iterations: int = 4) -> np.ndarray:
     """Points (F, J, 3) closest to the rays ``X0[c] + s u[f, c, j]``
     (weighted least squares of the perpendicular distances, the midpoint
-    method of Hartley & Zisserman, section 12.1, generalised to n rays),
-    reweighted by a Cauchy function of the ray's angular residual (scale:
-    2 x the median residual); NaN where fewer than two rays."""
+    method of Hartley & Zisserman, section 12.1, generalised to n rays:
+    ``sum w (I - u u^T) X = sum w (I - u u^T) X0``), reweighted by a Cauchy
+    function of the ray's angular residual (scale: 2 x the median
+    residual); NaN where fewer than two rays."""
     ok = w > 0
-    uu = np.where(ok[..., None], u, 0.0)
-    P = np.eye(3) - uu[..., :, None] * uu[..., None, :]          # (F, C, J, 3, 3)
+    uu = np.where(ok[..., None], u, 0.0)                            # (F, C, J, 3)
     X0c = X0[None, :, None, :]
-    weights = w.copy()
-    X = np.full(u.shape[:1] + u.shape[2:], np.nan)
+    ux0 = np.sum(uu * X0c, -1)                                      # (F, C, J)
+    weights = np.where(ok, w, 0.0)
     two = ok.sum(1) >= 2
+    eye = np.eye(3)
+    X = np.full(u.shape[:1] + u.shape[2:], np.nan)
     for it in range(iterations):
-        A = np.einsum("fcj,fcjab->fjab", weights, P)
-        b = np.einsum("fcj,fcjab,cb->fja", weights, P, X0)
+        sw = weights.sum(1)                                         # (F, J)
+        wu = (weights[..., None] * uu).transpose(0, 2, 3, 1)         # (F, J, 3, C)
+        A = sw[..., None, None] * eye - wu @ uu.transpose(0, 2, 1, 3)
+        b = weights.transpose(0, 2, 1) @ X0 - np.einsum("fjac,fcj->fja", wu, ux0)
         det = np.linalg.det(A)
-        good = two & (np.abs(det) > 1e-12)
+        good = two & (np.abs(det) > 1e-12 * np.maximum(sw, 1e-300) ** 3)
         X = np.full(b.shape, np.nan)
         X[good] = np.linalg.solve(A[good], b[good][..., None])[..., 0]
-        d = X[:, None] - X0c                                       # (F, C, J, 3)
-        dist = np.linalg.norm(d, axis=-1)
-        perp = np.linalg.norm(np.einsum("fcjab,fcjb->fcja", P, d), axis=-1)
+        if it == iterations - 1:
+            break
+        d = X[:, None] - X0c                                        # (F, C, J, 3)
+        along = np.sum(uu * d, -1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            ang = np.where(ok, perp / dist, np.nan)
-        if it == iterations - 1 or not np.any(np.isfinite(ang)):
+            ang = np.linalg.norm(d - along[..., None] * uu, axis=-1) / np.linalg.norm(d, axis=-1)
+        ang = np.where(ok, ang, np.nan)
+        if not np.any(np.isfinite(ang)):
             break
         scale = 2.0 * np.nanmedian(ang) + 1e-12
         weights = np.where(ok, w / (1.0 + (np.nan_to_num(ang) / scale) ** 2), 0.0)
@@ -468,13 +475,14 @@ class SyncEstimate:
     coarse: np.ndarray           # (C,) integer, from the speed profiles
     correlation: np.ndarray      # (C,) peak Pearson r of the speed profiles
     details: dict = field(default_factory=dict)
+    changes: list = field(default_factory=list)   # largest offset change per pass
 
     def as_dict(self) -> dict:
         """For summary.json."""
         out = {"reference": self.reference, "unit": "frames",
                "convention": "frame f + offset of the camera shows frame f of the reference",
                "uncertainty": "1 sigma, moving-block bootstrap over frames (10-frame blocks)",
-               "cameras": {}}
+               "pass_changes": [round(c, 5) for c in self.changes], "cameras": {}}
         for i, name in enumerate(self.names):
             d = self.details.get(name, {})
             out["cameras"][name] = {
@@ -498,7 +506,7 @@ def _num(v):
 
 def estimate_offsets(obs: np.ndarray, cameras, fps: float, *, max_lag: int | None = None,
                      reference: int | None = None, seed: int = 0, passes: int = 8,
-                     tolerance: float = 0.005) -> SyncEstimate:
+                     tolerance: float = 0.01) -> SyncEstimate:
     """Offsets of every camera (module doc): coarse integer offsets from the
     rays (:func:`ray_distance_lags`), then passes of :func:`refine_offset`
     over all cameras (the others at their latest offsets) until the offsets
@@ -533,6 +541,7 @@ def estimate_offsets(obs: np.ndarray, cameras, fps: float, *, max_lag: int | Non
     rng = np.random.default_rng(seed)
     current = coarse.astype(float)
     details = {}
+    history = []
     for _ in range(passes):
         new = current.copy()
         for c in range(C):
@@ -551,6 +560,7 @@ def estimate_offsets(obs: np.ndarray, cameras, fps: float, *, max_lag: int | Non
             details[cameras.names[c]] = r
             new[c] = r["offset"]
         change = np.nanmax(np.abs(new - current)) if np.any(np.isfinite(new)) else 0.0
+        history.append(float(change))
         current = np.where(np.isfinite(new), new, current)
         if change < tolerance:
             break
@@ -562,4 +572,4 @@ def estimate_offsets(obs: np.ndarray, cameras, fps: float, *, max_lag: int | Non
     for c, name in enumerate(cameras.names):
         details[name]["speed_lag"] = int(speed_lag[c])
     return SyncEstimate(list(cameras.names), cameras.names[ref], off_rel, sig_rel, coarse,
-                        corr, details)
+                        corr, details, history)
