@@ -60,6 +60,28 @@ def test_shift_observations_needs_both_neighbours():
     assert np.isnan(out[5, 1, 0])                          # beyond the end
 
 
+def test_lagged_correlation_finds_a_known_lag():
+    """Pose2Sim's time-lagged Pearson correlation: ``other[f + k] = ref[f]``."""
+    from photogram.mocap.evaluation.sync import lagged_correlation
+    rng = np.random.default_rng(4)
+    ref = np.convolve(rng.normal(size=300), np.ones(7) / 7, mode="same")
+    other = np.roll(ref, 5) * 3.0 + 10.0                   # scale and offset do not matter
+    lags, r = lagged_correlation(ref[20:-20], other[20:-20], 12)
+    assert lags[np.nanargmax(r)] == 5 and np.nanmax(r) > 0.99
+
+
+def test_a_camera_without_detections_gets_no_offset(sim):
+    bench = _bench()
+    obs, cams = bench.desynchronised(sim, {1: 2.0}, np.random.default_rng(5))
+    obs[:, 5, :, :2] = np.nan
+    obs[:, 5, :, 2] = 0.0
+    est = estimate_offsets(obs, cams, sim.fps, reference=0)
+    assert np.isnan(est.offsets[5]) and abs(est.offsets[1] - 2.0) < 0.05
+    d = est.as_dict()["cameras"]
+    assert d["C6"]["offset"] is None and d["C2"]["speed_lag"] is not None
+    json.dumps(est.as_dict(), allow_nan=False)
+
+
 def _check_recovered(est, truth, max_err, max_z):
     err = est.offsets - truth
     z = np.abs(err[1:]) / est.sigma[1:]
@@ -75,8 +97,7 @@ def test_known_integer_and_fractional_offsets_are_recovered(sim):
     obs, cams = bench.desynchronised(sim, bench.TRUE_OFFSETS, np.random.default_rng(11))
     truth = np.array([bench.TRUE_OFFSETS.get(c, 0.0) for c in range(6)])
     est = estimate_offsets(obs, cams, sim.fps, reference=0, seed=1)
-    assert list(est.coarse) == [int(np.rint(t + 1e-9)) if abs(t - np.rint(t)) < 0.45 else
-                                est.coarse[i] for i, t in enumerate(truth)]
+    assert np.all(np.abs(est.coarse - truth) <= 0.5 + 1e-9), est.coarse
     err, z = _check_recovered(est, truth, 0.06, 4.0)
     assert np.mean(z <= 2.0) >= 0.6                        # the sigma is not a fiction
     # applying the estimate re-synchronises: a second estimate is ~0

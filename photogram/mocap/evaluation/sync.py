@@ -488,6 +488,7 @@ class SyncEstimate:
             out["cameras"][name] = {
                 "offset": _num(self.offsets[i]), "sigma": _num(self.sigma[i]),
                 "coarse": int(self.coarse[i]), "correlation": _num(self.correlation[i]),
+                "speed_lag": d.get("speed_lag"),
                 "errors_px": d.get("errors_px"), "n": d.get("n", 0),
                 "bracketed": d.get("bracketed", False)}
         return out
