@@ -12,7 +12,8 @@ file                     content
 ``metrics.csv``          per frame: CoM, speed, knee and hip flexion, lean,
                          outside leg, fore/aft angle and distance
 ``detections.csv``       the tracked 2D detections used (long format) and the boxes
-``reprojection.csv``     per camera: median, mean, 90th percentile (px), count
+``reprojection.csv``     per camera: median, median residual vector (x, y), mean,
+                         90th percentile (px), count
 ``bones.csv``            per limb: mean length, standard deviation, CV
 ``summary.json``         settings, counts, solver, timings, accuracy (truth),
                          comparison with the reference
@@ -84,6 +85,8 @@ def summary(result, project) -> dict:
     }
     if result.info.get("rotation") == "estimate":
         out["rotation"] = _rotation_summary(result)
+    if "sync" in result.info:
+        out["synchronisation"] = result.info["sync"]
     if result.accuracy is not None:
         out["accuracy"] = result.accuracy
     if result.reference is not None:
@@ -146,6 +149,8 @@ def write_outputs(result, project, folder: Path, log_text: str = "") -> list[Pat
     rp = result.reprojection
     written.append(atomic_write_text(folder / "reprojection.csv", format_table({
         "camera": list(rp), "median_px": [rp[c]["median_px"] for c in rp],
+        "median_dx_px": [rp[c].get("median_dx_px") for c in rp],
+        "median_dy_px": [rp[c].get("median_dy_px") for c in rp],
         "mean_px": [rp[c]["mean_px"] for c in rp], "p90_px": [rp[c]["p90_px"] for c in rp],
         "n": [rp[c]["n"] for c in rp]})))
     bones = result.bones

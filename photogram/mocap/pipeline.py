@@ -76,7 +76,9 @@ def reprojection_errors(X, cameras: MocapCameras, obs, min_confidence=REFERENCE_
                         joints=None) -> dict:
     """Per camera: median, mean and 90th percentile (px) of the distance
     between the projection of X (F, J, 3) and the detections (F, C, J, 3)
-    with confidence >= ``min_confidence`` (optionally only ``joints``)."""
+    with confidence >= ``min_confidence`` (optionally only ``joints``), and
+    the median residual vector (detection minus projection, x and y:
+    :func:`photogram.mocap.evaluation.metrics.median_residual`)."""
     proj = cameras.project(X)
     err = np.linalg.norm(proj - obs[..., :2], axis=-1)
     use = np.nan_to_num(obs[..., 2]) >= min_confidence
@@ -84,10 +86,14 @@ def reprojection_errors(X, cameras: MocapCameras, obs, min_confidence=REFERENCE_
         keep = np.zeros(obs.shape[2], bool)
         keep[list(joints)] = True
         use &= keep[None, None, :]
+    from photogram.mocap.evaluation.metrics import median_residual
+    vec = median_residual(proj, obs[..., :2], use)
     out = {}
     for c, name in enumerate(cameras.names):
         e = err[:, c][use[:, c] & np.isfinite(err[:, c])]
         out[name] = {"median_px": float(np.median(e)) if len(e) else None,
+                     "median_dx_px": float(vec[c, 0]) if len(e) else None,
+                     "median_dy_px": float(vec[c, 1]) if len(e) else None,
                      "mean_px": float(np.mean(e)) if len(e) else None,
                      "p90_px": float(np.percentile(e, 90)) if len(e) else None,
                      "n": int(len(e))}
@@ -148,6 +154,9 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
             except InputError as exc:
                 raise ms.error(("skeleton",), exc.what, hint=exc.hint) from None
             skeleton = target
+    sync_info = None
+    if ms.offsets is not None:
+        obs, cameras, sync_info = _synchronise(obs, cameras, ms)
     frames = first + np.arange(F)
     lo, hi = 0, F
     if ms.frames is not None:
@@ -201,9 +210,12 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
         reprojection=reprojection_errors(rec.joints, cameras, obs),
         bones=bone_lengths(rec.joints, skeleton), breaks=breaks,
         info={"source": source.describe(), "timings": timings, "rotation": ms.rotation,
-              "filter": filter_report, **rotation_info})
+              "filter": filter_report, **rotation_info,
+              **({"sync": sync_info} if sync_info else {})})
     from photogram.mocap.evaluation.checks import check_fit
-    for note in check_fit(result.reprojection, cameras.image_size[:, 0]):
+    from photogram.mocap.evaluation.checks import check_bias
+    for note in (check_fit(result.reprojection, cameras.image_size[:, 0])
+                 + check_bias(result.reprojection)):
         log.warning("warning: %s", note)
         project.warnings.append(note)
     if estimate and ms.truth_rotations is not None:
@@ -238,6 +250,48 @@ def _post_filter(rec: Reconstruction, ms, breaks, warnings: list):
     if report["type"] == "none":
         return rec, report
     return replace(rec, joints=X, unfiltered=rec.joints), report
+
+
+def _synchronise(obs, cameras: MocapCameras, ms):
+    """``offsets`` of [mocap] (docs/mocap.md, "Synchronisation"): estimate
+    ("estimate", "report") and apply ("estimate", a table) the cameras'
+    frame offsets; returns the detections, cameras and summary entry."""
+    from photogram.mocap.evaluation.sync import apply_offsets, estimate_offsets
+    F = obs.shape[0]
+    info = {"mode": ms.offsets if isinstance(ms.offsets, str) else "given"}
+    if isinstance(ms.offsets, dict):
+        applied = {}
+        for name, o in ms.offsets.items():
+            if name not in cameras.names:
+                raise ms.error(("offsets", name), f"offsets names camera {name!r}, which the "
+                               f"project does not have",
+                               hint="cameras: " + ", ".join(cameras.names))
+            if abs(o) >= F:
+                raise ms.error(("offsets", name), f"offset {o:g} of camera {name} is not "
+                               f"shorter than the sequence ({F} frames)",
+                               hint=f"give an offset between -{F - 1} and {F - 1} frames")
+            applied[name] = o
+    else:
+        t0 = time.perf_counter()
+        est = estimate_offsets(obs, cameras, ms.fps)
+        for line in est.lines():
+            log.info(line)
+        info["estimate"] = est.as_dict()
+        info["seconds"] = time.perf_counter() - t0
+        applied = {}
+        if ms.offsets == "estimate":
+            for n, o, s in zip(est.names, est.offsets, est.sigma):
+                if np.isfinite(o):     # within max(2 sigma, 0.1) of an integer: that integer
+                    o = float(np.rint(o)) if abs(o - np.rint(o)) <= max(2 * s, 0.1) else float(o)
+                    if o != 0:
+                        applied[n] = o
+    if applied:
+        obs, cameras = apply_offsets(obs, cameras,
+                                     {cameras.index(n): o for n, o in applied.items()})
+        log.info("synchronisation: offsets applied (frames): " + ", ".join(
+            f"{n} {o:+.3g}" for n, o in applied.items()))
+    info["applied"] = applied
+    return obs, cameras, info
 
 
 # --------------------------------------------------------------------------
@@ -311,6 +365,10 @@ def _compare_reference(result: MocapResult, ms) -> None:
         "confidence_threshold": REFERENCE_CONFIDENCE,
         "reprojection": {c: {"ours_median_px": mine[c]["median_px"],
                              "reference_median_px": theirs[c]["median_px"],
+                             "ours_median_vector_px": [mine[c]["median_dx_px"],
+                                                       mine[c]["median_dy_px"]],
+                             "reference_median_vector_px": [theirs[c]["median_dx_px"],
+                                                            theirs[c]["median_dy_px"]],
                              "n": mine[c]["n"]} for c in result.cameras.names},
         "bone_cv": {k: {"ours": cv_ours[k][2], "reference": cv_ref.get(k, (0, 0, np.nan))[2],
                         "ours_mean_m": cv_ours[k][0],

@@ -26,7 +26,8 @@ __all__ = ["MocapSettings", "MocapSource", "read_mocap_project", "MOCAP_KEYS", "
 MOCAP_KEYS = ("fps", "skeleton", "calibration", "camera_frames", "frames", "up", "limb_lengths",
               "truth", "reference_trc", "outside_leg", "runs", "source", "tracking",
               "reconstruction", "rotation", "rotation_differences", "images", "homography",
-              "truth_rotations", "filter")
+              "truth_rotations", "filter", "offsets")
+OFFSET_MODES = ("estimate", "report")
 ROTATION_MODES = ("known", "estimate")
 HOMOGRAPHY_KEYS = ("n_features", "ransac_px", "min_inliers", "box_margin", "median", "sigma",
                    "max_failed")
@@ -82,6 +83,7 @@ class MocapSettings:
     homography: dict = field(default_factory=dict)
     truth_rotations: Path | None = None
     filter: dict = field(default_factory=dict)     # [mocap.filter] (post-filter of the joints)
+    offsets: str | dict | None = None   # "estimate", "report" or camera -> frames
     toml: TomlSource | None = None
 
     def error(self, keypath, what: str, hint: str | None = None) -> InputError:
@@ -249,7 +251,8 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
                         hint='add [mocap.images] (camera = "video.mp4" or a folder) or '
                              'rotation_differences = "file.csv"')
     return MocapSettings(
-        rotation=rotation, rotation_differences=rot_diff, images=images,
+        offsets=_read_offsets(sec), rotation=rotation, rotation_differences=rot_diff,
+        images=images,
         homography=subs["homography"], truth_rotations=_path(sec, "truth_rotations", folder),
         source=source, fps=fps, filter=_read_filter(sec.table("filter", required=False), fps),
         skeleton=sec.string("skeleton", None),
@@ -260,6 +263,32 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
         outside_leg=sec.string("outside_leg", "extended", choices=("extended", "flexed")),
         runs=tuple(sorted(set(runs))), tracking=subs["tracking"],
         reconstruction=subs["reconstruction"], toml=src)
+
+
+def _read_offsets(sec: Section):
+    """``offsets``: "estimate" (estimate and apply), "report" (estimate only)
+    or a table camera -> frames (docs/mocap.md, "Synchronisation"); the
+    camera names are checked by the pipeline."""
+    if "offsets" not in sec:
+        return None
+    value = sec.data["offsets"]
+    if isinstance(value, str):
+        return sec.string("offsets", choices=OFFSET_MODES)
+    if not isinstance(value, dict):
+        raise sec.error("offsets", f"offsets in {sec.label} must be \"estimate\", \"report\" "
+                                   f"or a table of frames per camera",
+                        hint='e.g. offsets = { cam_03 = 1 }')
+    sub = sec.table("offsets")
+    out = {}
+    for name, v in value.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or v != v or abs(v) == float(
+                "inf"):
+            raise sub.error(name, f"offset of camera {name} in {sub.label} must be a number of "
+                                  f"frames, not {v!r}",
+                            hint=f"e.g. {name} = 1 (its frame f + 1 shows frame f of the "
+                                 f"others; fractional: interpolated)")
+        out[name] = float(v)
+    return out
 
 
 def read_mocap_project(prj: Path, src: TomlSource, root: Section) -> Project:

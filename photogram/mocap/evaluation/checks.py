@@ -19,6 +19,11 @@ that look like the wrong unit (issue 16, item 10).
   reprojection error exceeds 5 % of its image width (96 px of 1920) does not
   fit the joints: a warning naming it (wrong angles, unit, position, or
   frame numbering).
+* :func:`check_bias`: a camera whose median residual vector (x, y) is
+  longer than half its median reprojection error and than 2 px has a static
+  bias (noise alone leaves a vector near zero): a warning naming it and
+  the vector (principal point, rotation, a shifted image, or a frame
+  offset while the athlete crosses the image steadily).
 """
 
 from __future__ import annotations
@@ -29,11 +34,14 @@ import numpy as np
 
 from photogram.errors import InputError
 
-__all__ = ["check_coverage", "check_angle_unit", "check_fit", "TWO_PI", "POOR_FIT"]
+__all__ = ["check_coverage", "check_angle_unit", "check_fit", "check_bias", "TWO_PI",
+           "POOR_FIT", "BIAS_SHARE"]
 
 TWO_PI = 2 * math.pi
 #: a camera whose median reprojection error exceeds this fraction of its image width
 POOR_FIT = 0.05
+#: a median residual vector longer than this share of the median error is a static bias
+BIAS_SHARE = 0.5
 
 
 def _names(items, limit: int = 8) -> str:
@@ -171,3 +179,26 @@ def check_fit(reprojection: dict, image_width) -> list[str]:
             f"{_names(poor)}; the reconstruction does not fit these cameras' detections "
             f"(camera angles in the wrong unit, wrong positions or rotations, or frames "
             f"numbered differently?)"]
+
+
+def check_bias(reprojection: dict, min_px: float = 2.0) -> list[str]:
+    """Warnings for cameras whose median residual vector (``median_dx_px``,
+    ``median_dy_px`` of ``reprojection``, as
+    :func:`photogram.mocap.pipeline.reprojection_errors`) is longer than
+    :data:`BIAS_SHARE` of their median reprojection error and than
+    ``min_px``."""
+    biased = []
+    for name, r in reprojection.items():
+        dx, dy, med = r.get("median_dx_px"), r.get("median_dy_px"), r.get("median_px")
+        if dx is None or dy is None or med is None:
+            continue
+        norm = math.hypot(dx, dy)
+        if norm > max(BIAS_SHARE * med, min_px):
+            biased.append(f"{name} ({dx:+.1f}, {dy:+.1f}) px of median error {med:.1f} px")
+    if not biased:
+        return []
+    return [f"static bias of the detections against the reconstruction (median residual "
+            f"vector): {_names(biased)}; not random error: the camera's calibration "
+            f"(principal point, rotation) or image is offset, or its frames are (an athlete "
+            f"moving steadily across the image; offsets = \"report\" in [mocap] measures "
+            f"that)"]

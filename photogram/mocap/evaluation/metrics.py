@@ -18,7 +18,7 @@ from photogram.mocap.body.skeleton import BODY14, SKI24, Skeleton, mapping_to
 
 __all__ = ["ski_joints", "centre_of_mass", "speed", "knee_flexion", "hip_flexion",
            "lean_angle", "fore_aft", "biomechanics", "mpjpe", "pck", "mpjpe_2d",
-           "accuracy_3d", "bone_lengths", "segments"]
+           "accuracy_3d", "bone_lengths", "segments", "median_residual"]
 
 
 def ski_joints(X: np.ndarray, skeleton: Skeleton) -> dict[str, np.ndarray]:
@@ -243,4 +243,33 @@ def bone_lengths(X: np.ndarray, skeleton: Skeleton, limbs=None) -> dict[str, tup
             continue
         m, s = float(np.mean(d)), float(np.std(d, ddof=1))
         out[f"{a}-{b}"] = (m, s, s / m if m > 0 else np.nan)
+    return out
+
+
+def median_residual(projected: np.ndarray, detected: np.ndarray, use: np.ndarray) -> np.ndarray:
+    """Per camera the median reprojection residual vector (C, 2), px.
+
+    Parameters
+    ----------
+    projected, detected : ndarray (F, C, J, 2)
+        Projections of the reconstructed joints and the detections.
+    use : ndarray (F, C, J) of bool
+        The detections counted (the reprojection statistics' selection).
+
+    Returns
+    -------
+    ndarray (C, 2)
+        Medians of ``detected - projected`` in x and y separately, over all
+        frames and joints used (NaN: none). Noise gives about zero (the
+        median of n symmetric residuals is within ~1.25 sigma / sqrt(n));
+        a static bias of the camera (principal point, rotation, a shifted
+        image) shows as a vector of about the error's size.
+    """
+    r = np.asarray(detected, float) - np.asarray(projected, float)
+    ok = np.asarray(use, bool) & np.all(np.isfinite(r), -1)
+    out = np.full((r.shape[1], 2), np.nan)
+    for c in range(r.shape[1]):
+        rc = r[:, c][ok[:, c]]
+        if len(rc):
+            out[c] = np.median(rc, axis=0)
     return out
