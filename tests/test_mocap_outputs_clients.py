@@ -208,3 +208,23 @@ def test_opensim_reads_the_outputs(ptz_results):
         assert np.array_equal(xyz, ours.markers[name]), name         # every digit
         ref = joints[[f"{name}_Y", f"{name}_Z", f"{name}_X"]].to_numpy(float)   # Y up
         assert np.max(np.abs(xyz - ref)) <= 5e-6 + 1e-12, name     # joints3d.csv: 5 decimals
+
+
+def test_export_takes_the_frame_rate_of_the_mocap_run(tmp_path):
+    """joints3d.csv rounds the times to 1e-6 s: at 60 fps the rate from the
+    times is 59.9988; the export takes summary.json's fps (TRC DataRate,
+    C3D POINT:RATE), and falls back to the times when they disagree."""
+    from photogram.io.trajectories import load_trajectories, write_trc_export
+    n = 30
+    t = np.round(np.arange(n) / 60.0, 6)
+    lines = ["# 3D joints (m, world axes, Z up) of photogram mocap", "frame,time,a_X,a_Y,a_Z"]
+    lines += [f"{k},{float(t[k])!r},{k * 0.01!r},1.0,2.0" for k in range(n)]
+    (tmp_path / "joints3d.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "summary.json").write_text(json.dumps({"command": "mocap", "fps": 60}))
+    traj = load_trajectories(tmp_path)
+    assert traj.rate == 60.0
+    assert np.array_equal(traj.times, t)                       # the times stay the table's
+    header = write_trc_export(tmp_path / "a.trc", traj).read_text().splitlines()[2]
+    assert header.split("\t")[0] == "60"
+    (tmp_path / "summary.json").write_text(json.dumps({"command": "mocap", "fps": 50}))
+    assert load_trajectories(tmp_path).rate == pytest.approx(59.9988, abs=1e-4)

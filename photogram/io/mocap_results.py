@@ -14,6 +14,11 @@ depend on the motion-capture pipeline:
   ``speed`` (length unit per second, converted to m/s), the centre of mass
   ``com_x/y/z`` and ``fore_aft_distance`` converted to metres.
 
+The frame rate (TRC ``DataRate``, C3D ``POINT:RATE``) is ``fps`` of
+``summary.json`` when the times step by 1/fps (joints3d.csv rounds them to
+1e-6 s, which would make 60 fps read as 59.9988), else it comes from the
+times.
+
 The length unit is read from ``summary.json`` (``project.length_unit`` or
 ``length_unit``), else from the comment of ``joints3d.csv`` (``# 3D joints
 (m, world axes, Z up) ...``), else from the ``Units`` of ``joints3d.trc``;
@@ -125,6 +130,11 @@ def load_mocap_trajectories(folder, summary: dict, read_csv):
                         name=str(name or folder.parent.name))
     traj.cameras = {j: np.zeros(n, dtype=int) for j in joints}
     traj.mot = _mot_columns(folder / "metrics.csv", times, to_m, read_csv)
+    fps = summary.get("fps")
+    if isinstance(fps, (int, float)) and not isinstance(fps, bool) and np.isfinite(fps) \
+            and fps > 0 and n > 1 and np.allclose(np.diff(times), 1.0 / fps, rtol=0,
+                                                  atol=2e-6):
+        traj.fps = float(fps)          # the project's rate: times are rounded to 1e-6 s
     return traj
 
 
