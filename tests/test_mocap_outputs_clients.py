@@ -180,6 +180,7 @@ def test_mocap_camera_rotations_follow_the_cameras(ptz_results):
 
 def test_opensim_reads_the_outputs(ptz_results):
     opensim = pytest.importorskip("opensim")
+    opensim.Logger.removeFileSink()                   # no opensim.log in the working folder
     _, out, _ = ptz_results
     metrics = pd.read_csv(out / "metrics.csv", comment="#")
     table = opensim.TimeSeriesTable(str(out / "angles.mot"))
