@@ -14,6 +14,11 @@ depend on the motion-capture pipeline:
   ``speed`` (length unit per second, converted to m/s), the centre of mass
   ``com_x/y/z`` and ``fore_aft_distance`` converted to metres.
 
+The frame rate (TRC ``DataRate``, C3D ``POINT:RATE``) is ``fps`` of
+``summary.json`` when the times step by 1/fps (joints3d.csv rounds them to
+1e-6 s, which would make 60 fps read as 59.9988), else it comes from the
+times.
+
 The length unit is read from ``summary.json`` (``project.length_unit`` or
 ``length_unit``), else from the comment of ``joints3d.csv`` (``# 3D joints
 (m, world axes, Z up) ...``), else from the ``Units`` of ``joints3d.trc``;
@@ -30,7 +35,8 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.project.model import LENGTH_UNITS
 
-__all__ = ["is_mocap_results", "load_mocap_trajectories", "MOT_ANGLES"]
+__all__ = ["is_mocap_results", "load_mocap_trajectories", "MOT_ANGLES", "angle_columns",
+           "pan_tilt_roll", "camera_rotation_columns"]
 
 #: metrics.csv columns that are angles in degrees
 MOT_ANGLES = ("knee_flexion_r", "knee_flexion_l", "hip_flexion_r", "hip_flexion_l", "lean",
@@ -124,6 +130,11 @@ def load_mocap_trajectories(folder, summary: dict, read_csv):
                         name=str(name or folder.parent.name))
     traj.cameras = {j: np.zeros(n, dtype=int) for j in joints}
     traj.mot = _mot_columns(folder / "metrics.csv", times, to_m, read_csv)
+    fps = summary.get("fps")
+    if isinstance(fps, (int, float)) and not isinstance(fps, bool) and np.isfinite(fps) \
+            and fps > 0 and n > 1 and np.allclose(np.diff(times), 1.0 / fps, rtol=0,
+                                                  atol=2e-6):
+        traj.fps = float(fps)          # the project's rate: times are rounded to 1e-6 s
     return traj
 
 
@@ -142,4 +153,62 @@ def _mot_columns(path: Path, times, to_m: float, read_csv):
             cols[c] = table[c].to_numpy(float)
         elif c in _LENGTHS or c == "speed":              # length unit (per second)
             cols[c] = table[c].to_numpy(float) * to_m
+    return cols
+
+
+def angle_columns(times, metrics: dict) -> dict:
+    """``{"time": times, <angle>: degrees}`` for ``angles.mot``: every
+    column of ``metrics`` named in :data:`MOT_ANGLES`, in that order
+    (degrees, as metrics.csv has them; NaN gaps stay NaN)."""
+    cols = {"time": np.asarray(times, float)}
+    for name in MOT_ANGLES:
+        if name in metrics:
+            cols[name] = np.asarray(metrics[name], float)
+    return cols
+
+
+def pan_tilt_roll(R) -> np.ndarray:
+    """Pan, tilt and roll (degrees, (..., 3)) of world-to-camera rotations
+    ``R`` (..., 3, 3) in photogram's convention (``Xc = R (X - X0)``; the
+    camera's x right, y up, looking along -z), about the world's up axis Z.
+
+    With the camera's right axis ``r = R[0]``, up axis ``u = R[1]`` and
+    viewing direction ``d = -R[2]`` in world coordinates::
+
+        pan  = atan2(d_y, d_x)                 heading of the view, from +X towards +Y
+        tilt = atan2(d_z, hypot(d_x, d_y))     elevation of the view, positive up
+        roll = atan2(r_z, u_z)                 positive when the image's right side is up
+
+    These are the yaw, pitch (up positive) and roll (right side up
+    positive) of the camera body (forward = ``d``, left = ``-r``, up =
+    ``u``), Tait-Bryan Z-Y'-X'' angles: the body frame is
+    ``Rz(pan) Ry(-tilt) Rx(-roll)``. A camera turned by an angle a about the
+    world's vertical (``R -> R Rz(a)^T``) has its pan increased by a, its
+    tilt and roll unchanged. Pan is undefined when the camera looks
+    straight up or down (``|tilt| = 90``).
+    """
+    R = np.asarray(R, float)
+    r, u, d = R[..., 0, :], R[..., 1, :], -R[..., 2, :]
+    pan = np.arctan2(d[..., 1], d[..., 0])
+    tilt = np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1]))
+    roll = np.arctan2(r[..., 2], u[..., 2])
+    return np.degrees(np.stack([pan, tilt, roll], axis=-1))
+
+
+def camera_rotation_columns(times, names, R) -> dict:
+    """``{"time", <camera>_pan, <camera>_tilt, <camera>_roll, ...}`` of
+    per-frame rotations ``R`` (F, C, 3, 3) (:func:`pan_tilt_roll`, degrees);
+    pan and roll are unwrapped along the frames of each camera (continuous,
+    no jump at +-180 deg; the first frame in (-180, 180])."""
+    a = pan_tilt_roll(R)                                  # (F, C, 3)
+    ok = np.all(np.isfinite(a), axis=-1)
+    for k in (0, 2):
+        for c in range(a.shape[1]):
+            good = ok[:, c]
+            if np.count_nonzero(good) > 1:
+                a[good, c, k] = np.degrees(np.unwrap(np.radians(a[good, c, k])))
+    cols = {"time": np.asarray(times, float)}
+    for c, name in enumerate(names):
+        for k, what in enumerate(("pan", "tilt", "roll")):
+            cols[f"{name}_{what}"] = a[:, c, k]
     return cols

@@ -39,7 +39,7 @@ from photogram.io.trajectory_data import Trajectories
 from photogram.project.model import LENGTH_UNITS
 
 __all__ = ["Trajectories", "load_trajectories", "write_trc_export", "write_c3d", "read_c3d",
-           "write_mot", "read_mot", "write_trajectory_csv", "csv_sidecar"]
+           "write_mot", "read_mot", "mot_text", "write_trajectory_csv", "csv_sidecar"]
 
 log = logging.getLogger("photogram")
 
@@ -251,10 +251,42 @@ def _fmt(x: float) -> str:
     return repr(float(x)) if np.isfinite(x) else ""
 
 
+def mot_text(name: str, columns: dict, *, in_degrees: bool = True) -> str:
+    """The text of an OpenSim storage file (.mot/.sto) of ``columns``
+    (name -> values; the first is ``time``).
+
+    OpenSim's layout (the header of the files its tools write, e.g. the
+    inverse kinematics' ``.mot``; read by ``opensim.Storage`` and
+    ``opensim.TimeSeriesTable``): the file name, ``version=1``,
+    ``nRows=<rows>``, ``nColumns=<columns, time included>``,
+    ``inDegrees=yes|no``, free text, ``endheader``, then the tab-separated
+    column names and one tab-separated line per row, floats with ``repr``
+    (round trip exact) and ``NaN`` for a missing value.
+    """
+    names = list(columns)
+    if not names or names[0] != "time":
+        raise ValueError("the first column of a .mot file is time")
+    data = [np.asarray(columns[c], float) for c in names]
+    rows = len(data[0])
+    if any(len(d) != rows for d in data):
+        raise ValueError("the columns of a .mot file must have the same length")
+    unit = "degrees" if in_degrees else "radians"
+    lines = [name, "version=1", f"nRows={rows}", f"nColumns={len(names)}",
+             f"inDegrees={'yes' if in_degrees else 'no'}", "",
+             "Units are S.I. units (second, meters, Newtons, ...)",
+             f"Angles are in {unit}.", "", "endheader", "\t".join(names)]
+    for i in range(rows):
+        lines.append("\t".join(repr(float(d[i])) if np.isfinite(d[i]) else "NaN"
+                               for d in data))
+    return "\n".join(lines) + "\n"
+
+
 def write_mot(path, traj: Trajectories, *, force: bool = False) -> Path:
-    """OpenSim storage (.mot): time, the stick-model angles in degrees with
-    their sigmas (``sigma_*``), ``Z0`` in m and ``v`` in m/s; NaN where a
-    value is unknown (exposures.csv of photogram intersect)."""
+    """OpenSim storage (.mot, :func:`mot_text`): time, the stick-model angles
+    in degrees with their sigmas (``sigma_*``), ``Z0`` in m and ``v`` in
+    m/s; NaN where a value is unknown (exposures.csv of photogram
+    intersect), or the columns of a mocap results folder
+    (:mod:`photogram.io.mocap_results`)."""
     from photogram.geometry import ANGLE_FACTORS
     from photogram.io.exchange import write_new_text
     from photogram.project.results_schema import ANGLE_PARAMETERS
@@ -276,15 +308,7 @@ def write_mot(path, traj: Trajectories, *, force: bool = False) -> Path:
                 cols[c] = table[c].to_numpy(float) * to_deg
             elif base in ("Z0", "v"):
                 cols[c] = table[c].to_numpy(float) * to_m
-    names = list(cols)
-    rows = len(cols["time"])
-    lines = [Path(path).name, "version=1", f"nRows={rows}", f"nColumns={len(names)}",
-             "inDegrees=yes", "", "Units are S.I. units (second, meters, Newtons, ...)",
-             "Angles are in degrees.", "", "endheader", "\t".join(names)]
-    for i in range(rows):
-        lines.append("\t".join(repr(float(cols[c][i])) if np.isfinite(cols[c][i]) else "NaN"
-                               for c in names))
-    return write_new_text(path, "\n".join(lines) + "\n", force)
+    return write_new_text(path, mot_text(Path(path).name, cols), force)
 
 
 def read_mot(path) -> dict:

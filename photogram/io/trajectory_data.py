@@ -29,9 +29,12 @@ class Trajectories:
     length_unit: str = "m"                             # of the source (all here is metres)
     name: str = "photogram"
     mot: dict | None = None                            # .mot columns (deg, m, m/s) if given
+    fps: float | None = None                           # the source's frame rate, if it says
 
     @property
     def rate(self) -> float:
+        if self.fps is not None and np.isfinite(self.fps) and self.fps > 0:
+            return float(self.fps)
         d = np.diff(self.times)
         # times are printed with 10 digits: round the rate to 7
         return float(f"{1.0 / np.median(d):.7g}") if d.size else 1.0

@@ -39,7 +39,7 @@ from photogram.project.tables import _delimiter, format_table, read_table, sugge
 log = logging.getLogger(__name__)
 
 __all__ = ["cameras_from_project", "read_camera_frames", "read_limb_lengths", "read_joints",
-           "write_joints", "cameras_from_views"]
+           "write_joints", "cameras_from_views", "write_angles_mot", "write_camera_rotations_mot"]
 
 
 def cameras_from_views(views) -> MocapCameras:
@@ -198,6 +198,31 @@ def write_camera_frames(path: Path, frames, cameras: MocapCameras, project,
         cols[p] = np.round(np.stack([cameras._io_rows(c, F)[:, camera_model(
             cameras.models[c]).index(p)] for c in range(C)], 1).ravel(), 3)
     return atomic_write_text(path, format_table(cols, comment=comment))
+
+
+def write_angles_mot(path: Path, times, metrics: dict) -> Path:
+    """``angles.mot``: OpenSim storage (``photogram.io.trajectories.mot_text``,
+    ``inDegrees=yes``) of time (s, as metrics.csv) and every angle of
+    metrics.csv (``photogram.io.mocap_results.MOT_ANGLES``) in degrees,
+    rounded as metrics.csv writes them; gaps NaN. Atomically."""
+    from photogram.io.mocap_results import angle_columns
+    from photogram.io.trajectories import mot_text
+    cols = {k: np.round(v, 6) for k, v in angle_columns(times, metrics).items()}
+    return atomic_write_text(path, mot_text(Path(path).name, cols))
+
+
+def write_camera_rotations_mot(path: Path, times, cameras: MocapCameras) -> Path:
+    """``camera_rotations.mot``: OpenSim storage of time and, per camera,
+    ``<camera>_pan``, ``_tilt``, ``_roll`` in degrees about the world's up
+    axis Z (``photogram.io.mocap_results.pan_tilt_roll``: heading of the
+    view from +X towards +Y, elevation positive up, roll positive with the
+    image's right side up; pan and roll unwrapped over time). Atomically."""
+    from photogram.io.mocap_results import camera_rotation_columns
+    from photogram.io.trajectories import mot_text
+    cols = camera_rotation_columns(times, cameras.names, cameras.rotations(len(times)))
+    cols = {k: np.round(v, 6 if k == "time" else 7) + 0.0     # time as metrics.csv; no -0.0
+            for k, v in cols.items()}
+    return atomic_write_text(path, mot_text(Path(path).name, cols))
 
 
 def read_limb_lengths(path: Path, skeleton: Skeleton) -> dict:

@@ -11,6 +11,9 @@ file                     content
                          ``c3d`` package, skipped without it)
 ``metrics.csv``          per frame: CoM, speed, knee and hip flexion, lean,
                          outside leg, fore/aft angle and distance
+``angles.mot``           the angles of metrics.csv for OpenSim (degrees, NaN gaps)
+``camera_rotations.mot`` pan-tilt cameras: pan, tilt, roll per camera and frame
+                         (degrees about the world's up axis; mocap/files.py)
 ``detections.csv``       the tracked 2D detections used (long format) and the boxes
 ``reprojection.csv``     per camera: median, median residual vector (x, y), mean,
                          90th percentile (px), count
@@ -145,6 +148,11 @@ def write_outputs(result, project, folder: Path, log_text: str = "") -> list[Pat
     cols.update({k: (v if k == "outside" else np.round(v, 6)) for k, v in b.items()})
     written.append(atomic_write_text(folder / "metrics.csv", format_table(
         cols, comment="per-frame quantities of photogram mocap (docs/mocap.md, Metrics)")))
+    from photogram.mocap.files import write_angles_mot, write_camera_rotations_mot
+    written.append(write_angles_mot(folder / "angles.mot", result.times, b))
+    if result.info.get("rotation") == "estimate" or result.cameras.R.shape[0] > 1:
+        written.append(write_camera_rotations_mot(folder / "camera_rotations.mot",
+                                                  result.times, result.cameras))
     written.append(atomic_write_text(folder / "detections.csv", _detections_table(result)))
     rp = result.reprojection
     written.append(atomic_write_text(folder / "reprojection.csv", format_table({
