@@ -23,7 +23,17 @@ athlete (first frame) or to re-acquire it after a loss:
    searched on the full image.
 
 A frame therefore costs one detector call, two in the frame where the crop
-fails. The box of a frame is the box of its joints with a confidence above
+fails.
+
+5. **sides** (``fix_sides``): a detector may exchange left and right (seen
+   from behind, mediapipe labels a body as if it faced the camera). Over each
+   run of found frames, every frame is kept or mirrored (its left/right
+   pairs exchanged, ``Skeleton.swap_permutation``) so that consecutive frames
+   are nearest: a two-state Viterbi path minimising the sum over frames of
+   the median joint distance to the previous frame (in units of the box
+   side), plus ``side_prior`` for every mirrored frame (between the two
+   mirror-image paths of equal continuity, the one that agrees with the
+   detector in more frames). The box of a frame is the box of its joints with a confidence above
 ``min_confidence`` of :class:`~photogram.mocap.tracking.athlete.TrackingSettings`
 (its centre and its larger side). Nothing is smoothed afterwards: the
 reconstruction (a DCT trajectory per window) smooths the joints.
@@ -37,6 +47,7 @@ is assumed to carry over between calls (mediapipe runs with
 from __future__ import annotations
 
 import logging
+import warnings
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -47,7 +58,7 @@ from photogram.mocap.tracking.athlete import (TrackedCamera, TrackingSettings, c
 from photogram.mocap.tracking.detections import boxes_from_joints
 
 __all__ = ["CropTrackingSettings", "CropTrackedCamera", "track_crops", "predict_box",
-           "accept_joints", "TRACKED", "ACQUIRED", "LOST", "STATUS_NAMES"]
+           "accept_joints", "consistent_sides", "TRACKED", "ACQUIRED", "LOST", "STATUS_NAMES"]
 
 log = logging.getLogger(__name__)
 
@@ -63,7 +74,8 @@ class CropTrackingSettings:
     ``history``: good frames the prediction is fitted to; ``max_age``:
     frames a prediction may reach beyond the last good frame (older
     history is dropped); ``min_joint_fraction`` and ``accept_confidence``:
-    the acceptance test; ``min_side``: smallest crop side (px).
+    the acceptance test; ``min_side``: smallest crop side (px);
+    ``fix_sides`` and ``side_prior``: step 5.
     """
 
     history: int = 4
@@ -71,21 +83,26 @@ class CropTrackingSettings:
     min_joint_fraction: float = 0.25
     accept_confidence: float = 0.5
     min_side: float = 16.0
+    fix_sides: bool = True
+    side_prior: float = 1e-3
 
 
 @dataclass
 class CropTrackedCamera(TrackedCamera):
     """A :class:`TrackedCamera` with the per-frame ``status`` (TRACKED,
-    ACQUIRED, LOST) and the detector calls on crops and on full images.
+    ACQUIRED, LOST), ``mirrored`` (frames whose left and right were
+    exchanged by step 5) and the detector calls on crops and on full images.
     (A copy cut to a frame range keeps the defaults: no status.)"""
 
     status: np.ndarray | None = None
     calls: dict = field(default_factory=dict)
+    mirrored: np.ndarray | None = None
 
     def counts(self) -> dict:
         """Frames per status and detector calls."""
         st = np.zeros(0, int) if self.status is None else self.status
         out = {name: int(np.sum(st == code)) for code, name in enumerate(STATUS_NAMES)}
+        out["mirrored"] = 0 if self.mirrored is None else int(np.sum(self.mirrored))
         out.update({f"calls_{k}": int(v) for k, v in self.calls.items()})
         return out
 
@@ -135,6 +152,65 @@ def accept_joints(joints, box, settings: CropTrackingSettings) -> bool:
         return True
     cx, cy = 0.5 * (j[good, :2].min(0) + j[good, :2].max(0))
     return bool(box[0] <= cx <= box[2] and box[1] <= cy <= box[3])
+
+
+def _frame_distances(joints: np.ndarray, perm: np.ndarray, min_confidence: float):
+    """Median joint distance of each frame to the previous one, as detected
+    and with the frame mirrored, in units of the frame's box side:
+    (F-1,), (F-1,) (0 where no joint is seen in both)."""
+    a, b = joints[1:], joints[:-1]
+    seen_b = np.nan_to_num(b[..., 2]) > min_confidence
+    box = boxes_from_joints(a, min_confidence)
+    side = np.fmax(box[:, 2] - box[:, 0], box[:, 3] - box[:, 1])
+    side = np.where(np.isfinite(side) & (side > 0), side, 1.0)
+    out = []
+    for p in (np.arange(joints.shape[1]), perm):
+        ok = seen_b & (np.nan_to_num(a[:, p, 2]) > min_confidence)
+        d = np.where(ok, np.linalg.norm(a[:, p, :2] - b[..., :2], axis=-1), np.nan)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)        # nothing seen in both
+            out.append(np.nan_to_num(np.nanmedian(d, axis=1)) / side)
+    return out[0], out[1]
+
+
+def consistent_sides(joints: np.ndarray, perm: np.ndarray, min_confidence: float = 0.1,
+                     prior: float = 1e-3) -> np.ndarray:
+    """Which frames of a run of detections (F, J, 3) to mirror (step 5 of
+    the module doc): the two-state Viterbi path (kept / mirrored) of least
+    total cost, the cost of a frame being its median joint distance to the
+    previous frame (both as corrected) plus ``prior`` if it is mirrored."""
+    F = len(joints)
+    if F < 2 or np.all(perm == np.arange(len(perm))):
+        return np.zeros(F, bool)
+    same, cross = _frame_distances(joints, perm, min_confidence)
+    cost = np.array([0.0, prior])                 # best path ending kept / mirrored
+    back = np.zeros((F, 2), int)
+    for f in range(1, F):
+        stay, switch = same[f - 1], cross[f - 1]
+        # to kept: from kept (same) or from mirrored (cross); to mirrored likewise
+        k = (cost[0] + stay, cost[1] + switch)
+        m = (cost[0] + switch, cost[1] + stay)
+        back[f] = (int(np.argmin(k)), int(np.argmin(m)))
+        cost = np.array([min(k), min(m) + prior])
+    state = int(np.argmin(cost))
+    out = np.zeros(F, bool)
+    for f in range(F - 1, -1, -1):
+        out[f] = bool(state)
+        state = back[f, state]
+    return out
+
+
+def _mirror_runs(joints, status, perm, st, cs):
+    """Step 5 over each run of found frames; the mirrored mask."""
+    mirrored = np.zeros(len(joints), bool)
+    found = np.flatnonzero(status != LOST)
+    if not len(found):
+        return mirrored
+    runs = np.split(found, np.flatnonzero(np.diff(found) > 1) + 1)
+    for run in runs:
+        mirrored[run] = consistent_sides(joints[run], perm, st.min_confidence, cs.side_prior)
+    joints[mirrored] = joints[mirrored][:, perm]
+    return mirrored
 
 
 def _as_joints(res, J: int):
@@ -202,11 +278,15 @@ def track_crops(images, detector, camera: str = "", settings: TrackingSettings |
     F = len(joints)
     joints = np.array(joints).reshape(F, J, 3)
     status = np.array(status, int)
+    mirrored = np.zeros(F, bool)
+    if cs.fix_sides:                                              # step 5
+        mirrored = _mirror_runs(joints, status, detector.skeleton.swap_permutation(), st, cs)
     result = CropTrackedCamera(camera, joints, boxes_from_joints(joints, st.min_confidence),
                                np.array(boxes).reshape(F, 4),
-                               np.where(status == LOST, -2, -1), status, calls)
+                               np.where(status == LOST, -2, -1), status, calls, mirrored)
     c = result.counts()
     log.info("camera %s: %d frames: %d tracked on the crop, %d acquired on the full image, "
-             "%d lost; detector calls: %d on crops, %d on full images", camera, F,
-             c["tracked"], c["acquired"], c["lost"], calls["crop"], calls["full"])
+             "%d lost; detector calls: %d on crops, %d on full images; %d frames mirrored",
+             camera, F, c["tracked"], c["acquired"], c["lost"], calls["crop"], calls["full"],
+             c["mirrored"])
     return result
