@@ -71,15 +71,13 @@ STATUS_NAMES = ("tracked", "acquired", "lost")
 class CropTrackingSettings:
     """Parameters of the online crop tracking (module doc).
 
-    ``history``: good frames the prediction is fitted to; ``max_age``:
-    frames a prediction may reach beyond the last good frame (older
-    history is dropped); ``min_joint_fraction`` and ``accept_confidence``:
+    ``history``: good frames the prediction is fitted to (the history is
+    dropped at a loss); ``min_joint_fraction`` and ``accept_confidence``:
     the acceptance test; ``min_side``: smallest crop side (px);
     ``fix_sides`` and ``side_prior``: step 5.
     """
 
     history: int = 4
-    max_age: int = 3
     min_joint_fraction: float = 0.25
     accept_confidence: float = 0.5
     min_side: float = 16.0
@@ -244,8 +242,6 @@ def track_crops(images, detector, camera: str = "", settings: TrackingSettings |
     joints, boxes, status = [], [], []
     calls = {"crop": 0, "full": 0}
     for f, image in enumerate(images):
-        while history and f - history[-1][0] > cs.max_age:
-            history.clear()
         found, box, code = None, np.full(4, np.nan), LOST
         if history:
             fr = [h[0] for h in history]
