@@ -306,6 +306,6 @@ def test_mediapipe_on_the_real_demo_videos_is_within_5_cm_of_pose2sim(caplog):
     # few re-acquisitions, no frame lost (the tracker's log line per camera)
     counts = [r.args for r in caplog.records if r.name.endswith("crop_tracking")]
     assert sorted(c[0] for c in counts) == ["cam_01", "cam_02", "cam_03", "cam_04"]
-    for camera, frames, tracked, acquired, lost, calls_crop, calls_full in counts:
+    for camera, frames, tracked, acquired, lost, calls_crop, calls_full, _ in counts:
         assert frames == 100 and lost == 0 and acquired <= 5
         assert calls_crop + calls_full <= frames + 5
