@@ -309,3 +309,17 @@ def test_mediapipe_on_the_real_demo_videos_is_within_5_cm_of_pose2sim(caplog):
     for camera, frames, tracked, acquired, lost, calls_crop, calls_full, _ in counts:
         assert frames == 100 and lost == 0 and acquired <= 5
         assert calls_crop + calls_full <= frames + 5
+
+
+def test_mediapipe_uses_only_its_packaged_model_files(monkeypatch, tmp_path):
+    """The two model files of model_complexity 1 come with the package; a
+    package without them is refused (mediapipe would download them)."""
+    mp = pytest.importorskip("mediapipe")
+    from photogram.errors import InputError
+    from photogram.mocap.sources.mediapipe import MODEL_FILES, MediapipeDetector
+    root = Path(mp.__file__).parent
+    assert all((root / f).is_file() for f in MODEL_FILES)
+    monkeypatch.setattr(mp, "__file__", str(tmp_path / "mediapipe" / "__init__.py"))
+    with pytest.raises(InputError, match="would be downloaded") as exc:
+        MediapipeDetector()
+    assert "\n" not in exc.value.one_line()
