@@ -1,7 +1,9 @@
 """Athlete tracking in each camera (section 4.1 of the paper).
 
-For an image detector (a 2D pose network run by photogram) the athlete is
-followed with square crops:
+For an image detector (a 2D pose network run by photogram) ``track_images``
+follows the athlete online, one detector call per frame on a predicted
+crop (:mod:`.crop_tracking`); ``track_images_smoothed`` is the offline flow
+with square crops along smoothed boxes:
 
 1. **detect** on the full image; the box of the confident joints (or of a
    person detector) is the detection of the frame;
@@ -38,6 +40,7 @@ from photogram.mocap.tracking.detections import CameraDetections, boxes_from_joi
 
 __all__ = ["TrackingSettings", "TrackedCamera", "gaussian_smooth", "select_person",
            "clean_boxes", "smooth_boxes", "track_detections", "track_images",
+           "track_images_smoothed",
            "crop_image", "crop_to_full"]
 
 
@@ -204,8 +207,17 @@ def _run(images, detector, boxes, J, size):
 
 def track_images(images, detector, camera: str = "", settings: TrackingSettings | None = None,
                  wide: bool = False) -> TrackedCamera:
+    """An image detector on an image sequence: one call per frame on a crop
+    predicted from the previous frames (:mod:`.crop_tracking`)."""
+    from photogram.mocap.tracking.crop_tracking import track_crops
+    return track_crops(images, detector, camera, settings, wide)
+
+
+def track_images_smoothed(images, detector, camera: str = "",
+                          settings: TrackingSettings | None = None,
+                          wide: bool = False) -> TrackedCamera:
     """Steps 1-5 of the module doc with an image detector on a re-iterable
-    image sequence."""
+    image sequence (three detector calls per frame)."""
     st = settings or TrackingSettings()
     J = detector.skeleton.n_joints
     full = []
