@@ -9,7 +9,13 @@ move). One deliberate change since: the SHA-256 of intersect jumps'
 exposures.csv, re-recorded on 2026-12-02 when the orientation's covariance
 was propagated into the ski directions as well as the points (issue 19;
 every value the same, the sigmas of delta_phi, phi and heading up to 6 %
-larger, of alpha and beta within 0.6 %). The real-data steps (DBAT's CAMCAL and SXB, the Pose2Sim demo) skip
+larger, of alpha and beta within 0.6 %). And the three mocap steps
+(ski-ptz, ski-ptz-estimate, pose2sim-demo), re-recorded on 2026-12-02 for
+issue 20: the temporal basis chosen by a cut-off in Hz (21 DCT terms at 60
+fps, 25 at 50 fps as before) and the zero-lag Butterworth post-filter on by
+default (ski-ptz MPJPE 8.72 -> 4.83 mm; Pose2Sim's demo median jerk 1866
+-> 199 m/s^3), and the athlete chosen by multi-view consistency (one
+camera-frame each left out). The real-data steps (DBAT's CAMCAL and SXB, the Pose2Sim demo) skip
 when ../shared/data is absent.
 """
 

@@ -84,7 +84,7 @@ def test_load_converts_to_metres_and_keeps_gaps(results):
         0b101, 0b111, 0b011]
 
 
-def test_trc_metres_y_up_gaps_empty(results, tmp_path):
+def test_trc_metres_y_up_gaps_nan(results, tmp_path):
     out = export_results("trc", results, tmp_path / "jump.trc")[0]
     back = read_trc(out, rotate_to_z_up=True)
     t = load_trajectories(results)
@@ -93,7 +93,7 @@ def test_trc_metres_y_up_gaps_empty(results, tmp_path):
     raw = read_trc(out)                                    # Y up: (X, Y, Z)_trc = (Y, Z, X)
     assert np.allclose(raw.markers["P2"][0], [-0.45, -22.4, 43.375])
     last = out.read_text().splitlines()[-1].split("\t")
-    assert last[2:5] == ["", "", ""]                       # the gap of P1 is empty
+    assert last[2:5] == ["NaN", "NaN", "NaN"]              # the gap of P1: NaN, not 0
     assert back.units == "m"
 
 

@@ -9,8 +9,12 @@ Layout (tab separated, ``\\n`` line ends)::
     ""  ""  X1  Y1  Z1  X2  Y2  Z2  ...
     <frame>  <time>  <x y z of every marker>   (one line per frame)
 
-A missing coordinate (NaN) is written as an **empty** field and read back as
-NaN: gaps are never interpolated.
+A missing coordinate is written as ``NaN`` (as OpenSim's own TRC writer
+does) and read back as NaN, as is an empty field: gaps are never
+interpolated. Empty fields were written before: OpenSim 4.6's
+``TimeSeriesTableVec3`` refuses a row whose *last* marker is empty (its
+tokenizer drops trailing empty fields), NaN is read by it, by Pose2Sim and
+by :func:`read_trc` alike.
 
 Axes: OpenSim is Y-up. Our projects are Z-up, so with ``rotate_to_y_up``
 (default) a project point ``(X, Y, Z)`` is written as
@@ -82,7 +86,7 @@ def _header_text(text) -> str:
 
 
 def _fmt(x: float) -> str:
-    return "" if not np.isfinite(x) else repr(float(x))
+    return "NaN" if not np.isfinite(x) else repr(float(x))
 
 
 def write_trc(path: str | Path, times, markers: dict, units: str = "m",
@@ -96,7 +100,7 @@ def write_trc(path: str | Path, times, markers: dict, units: str = "m",
     times : array_like (n,)
         Time of every frame in s (strictly increasing).
     markers : dict name -> array_like (n, 3)
-        Coordinates in ``units`` (NaN: missing, written as empty fields).
+        Coordinates in ``units`` (NaN: missing, written as ``NaN``).
     units : str
         Length unit of the coordinates (m, dm, cm, mm), written to the header.
     rotate_to_y_up : bool
