@@ -26,13 +26,15 @@ __all__ = ["copied_bystander", "projected_bystander", "compose"]
 def copied_bystander(obs: np.ndarray, lag: int, scale: float = 1.5, shift=(0.0, 0.0),
                      confidence: float = 0.95) -> np.ndarray:
     """(F, J, 3) bystander in one camera from the athlete's detections
-    ``obs`` (F, J, 3) of that camera ``lag`` frames later (cyclic), scaled by
+    ``obs`` (F, J, 3) of that camera ``lag`` frames later (played back and
+    forth past the ends, so that it moves without jumps), scaled by
     ``scale`` about its median joint and shifted by ``shift`` ((2,) or
     (F, 2) px); confidence ``confidence`` where the athlete's joint was
     detected."""
     obs = np.asarray(obs, float)
     F = len(obs)
-    src = obs[(np.arange(F) + int(lag)) % F]
+    k = (np.arange(F) + int(lag)) % max(2 * F - 2, 1)
+    src = obs[np.where(k < F, k, 2 * F - 2 - k)]
     with np.errstate(invalid="ignore"):
         import warnings
         with warnings.catch_warnings():
