@@ -28,9 +28,11 @@ Pose2Sim's ``personAssociation`` (single-person mode,
    of its joints; ``g`` frames since the last chosen frame). A frame without
    such a combination is left out entirely (flagged), the prediction goes on.
 4. **ambiguity**: a camera of the chosen combination where another candidate
-   (not a duplicate of the chosen one: median joint distance above half the
-   threshold) is consistent with the same other cameras and in the gate is
-   left out (flagged *ambiguous*): never a guess.
+   (not a duplicate of the chosen one: median joint distance above an
+   eighth of the threshold) fits the same other cameras, in the gate, nearly
+   as well (its camera error within ``ambiguity_ratio`` = 3 times the chosen
+   one's, or below a quarter of the threshold) is left out (flagged
+   *ambiguous*): never a guess.
 
 A bystander seen by one or two cameras is therefore taken only if it is
 consistent with the athlete's 3D skeleton in those cameras, which a
@@ -63,14 +65,18 @@ class AssociationSettings:
     of a consistent combination; ``association_confidence``: joints below
     it are not used for the choice (Pose2Sim's
     ``likelihood_threshold_association``, 0.3); ``gate``: the temporal gate
-    in body sizes per frame; ``min_joints``: joints a camera must see (with
-    another camera of the combination) to be judged; ``max_combinations``:
+    in body sizes per frame; ``ambiguity_ratio``: a rival candidate whose
+    camera error is within this factor of the chosen one's (or below a
+    quarter of ``association_px``) makes the camera ambiguous;
+    ``min_joints``: joints a camera must see (with another camera of the
+    combination) to be judged; ``max_combinations``:
     per frame and level (more: the candidates with the most confident joints
     are kept)."""
 
     association_px: float = 40.0
     association_confidence: float = 0.3
     gate: float = 0.5
+    ambiguity_ratio: float = 3.0
     min_joints: int = 4
     max_combinations: int = 5000
 
@@ -317,7 +323,8 @@ def _duplicate(ja, jb, limit):
 def _choose(frames: _Frames, f, pred, radius):
     """The chosen combination of frame f: (slots (C,), per-camera errors,
     root, ambiguous cameras) or None."""
-    thr = frames.st.association_px
+    st = frames.st
+    thr = st.association_px
     for lv in frames.levels(f):
         combos, total, per_cam, root, X = frames.level(f, lv)
         good = total <= thr
@@ -331,9 +338,10 @@ def _choose(frames: _Frames, f, pred, radius):
         ambiguous = []
         for c in np.flatnonzero(combo >= 0):
             same = np.all((combos[idx] == combo) | (np.arange(len(combo)) == c), axis=1)
-            rivals = combos[idx][same & (combos[idx, c] != combo[c]), c]
+            close = per_cam[idx, c] <= max(st.ambiguity_ratio * per_cam[best, c], 0.25 * thr)
+            rivals = combos[idx][same & close & (combos[idx, c] != combo[c]), c]
             ja = frames.joints[f, c, combo[c]]
-            if any(not _duplicate(ja, frames.joints[f, c, k], 0.5 * thr) for k in rivals):
+            if any(not _duplicate(ja, frames.joints[f, c, k], thr / 8) for k in rivals):
                 ambiguous.append(int(c))
         return combo, per_cam[best], root[best], ambiguous, X[best]
     return None
