@@ -238,3 +238,74 @@ def test_pose2sim_demo_with_a_nearer_bystander(tmp_path):
     assert np.all(np.nan_to_num(r.observations[:, 2:, :, 2]) != 0.95)      # never entered
     clean = run_mocap(read_project(ROOT / "projects" / "pose2sim-demo" / "demo.prj"))
     assert abs(r.reference["mpjpe_to_reference"] - clean.reference["mpjpe_to_reference"]) < 1e-4
+
+
+# --------------------------------------------------------------------------
+# through the command and the project file
+# --------------------------------------------------------------------------
+def _with_bystander(csv: Path, sim, camera: int = 0):
+    """The simulated detections.csv with a ``person`` column (athlete 0)
+    and a 1.5x larger copy of the athlete in one camera (person 1)."""
+    lines = csv.read_text().splitlines()
+    out = []
+    for ln in lines:
+        if ln.startswith("#"):
+            out.append(ln)
+        elif ln.startswith("frame,"):
+            out.append(ln + ",person")
+        else:
+            out.append(ln + ",0")
+    by = copied_bystander(sim.observations[:, camera], 10, 1.5, (300.0, 0.0))
+    name = sim.cameras.names[camera]
+    for f, j in zip(*np.nonzero(by[..., 2] > 0)):
+        out.append(f"{f},{name},{SKI24.joints[j]},{by[f, j, 0]:.2f},{by[f, j, 1]:.2f},0.95,1")
+    csv.write_text("\n".join(out) + "\n")
+    return by
+
+
+@pytest.mark.filterwarnings("ignore:No analog data")
+def test_command_reports_the_choice_and_keeps_the_bystander_out(tmp_path, capsys):
+    from photogram.simulation.ski.simproject import write_simulated_project
+    from photogram_cli.main import main
+    sim = simulate_session(seed=6, frames_per_run=40)
+    write_simulated_project(sim, tmp_path, name="ski")
+    by = _with_bystander(tmp_path / "detections.csv", sim)
+    assert main(["mocap", "-q", str(tmp_path / "ski.prj")]) == 0
+    s = json.loads((tmp_path / "results" / "summary.json").read_text())
+    people = s["people"]["cameras"]
+    assert people["C1"]["other_person"] >= 35 and people["C1"]["used"] >= 38
+    assert all(people[c]["other_person"] == 0 for c in ("C2", "C3", "C4", "C5", "C6"))
+    assert s["accuracy"]["mpjpe"] < 0.03
+    log = (tmp_path / "results" / "log.txt").read_text()
+    assert "camera C1: multi-view choice in" in log
+    import pandas as pd
+    det = pd.read_csv(tmp_path / "results" / "detections.csv", comment="#")
+    c1 = det[det["camera"] == "C1"]
+    assert len(c1) > 30 * 20
+    xs = by[c1["frame"].to_numpy(), [SKI24.joints.index(j) for j in c1["joint"]], 0]
+    assert not np.any(np.isclose(c1["x"].to_numpy(), xs, atol=0.01))   # never an observation
+    # the setting is read from [mocap.tracking]; a bad value is one line
+    prj = tmp_path / "ski.prj"
+    prj.write_text(prj.read_text() + "\n[mocap.tracking]\nassociation_px = -5\n")
+    capsys.readouterr()
+    assert main(["mocap", str(prj), "--force"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "association_px" in err[0]
+
+
+def test_image_detector_frames_of_another_person_are_left_out(normal):
+    """An image detector's one candidate per camera (the tracked athlete):
+    frames where it locked onto somebody else are left out as inconsistent."""
+    from types import SimpleNamespace
+    sim = normal
+    obs = sim.observations.copy()
+    wrong = copied_bystander(obs[:, 3], 40, 1.3, (200.0, -80.0))
+    obs[20:30, 3] = wrong[20:30]
+    cands = [mv.tracked_candidates(SimpleNamespace(camera=n, joints=obs[:, c]), SKI24)
+             for c, n in enumerate(sim.cameras.names)]
+    dets = [d for d, _ in cands]
+    a = mv.associate(dets, sim.cameras, F)
+    assert np.all(a.status[20:30, 3] == mv.INCONSISTENT)
+    assert np.mean(np.delete(a.status, np.s_[20:30], axis=0) == mv.USED) > 0.99
+    rep = a.report(sim.cameras.names, [r for _, r in cands])
+    assert rep["C4"]["per_camera_left_out"] == 10 and rep["C4"]["other_person"] == 0

@@ -46,6 +46,7 @@ package does not import the reconstruction).
 from __future__ import annotations
 
 import itertools
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -250,11 +251,11 @@ def _evaluate(combos, A, t, ok, s, R, X0, min_joints):
     rhs_unit = np.einsum("mcjab,cb->mcja", Ac, X0)
     two = okc.sum(1) >= 2                                  # (M, J)
     X = _solve3(Ac.sum(1), rhs_unit.sum(1))                # pass 1: algebraic
-    for _ in range(1):                                     # pass 2: (1 / depth)^2
-        d = np.einsum("cab,mcjb->mcja", R, X[:, None] - X0[None, :, None])[..., 2]
-        wd = 1.0 / np.maximum(d ** 2, 1e-12)
-        wd = np.where(np.isfinite(wd), wd, 0.0)
-        X = _solve3((Ac * wd[..., None, None]).sum(1), (rhs_unit * wd[..., None]).sum(1))
+    d = np.einsum("cab,mcjb->mcja", R, X[:, None] - X0[None, :, None])[..., 2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        wd = 1.0 / np.maximum(d ** 2, 1e-12)               # pass 2: (1 / depth)^2
+    wd = np.where(np.isfinite(wd), wd, 0.0)
+    X = _solve3((Ac * wd[..., None, None]).sum(1), (rhs_unit * wd[..., None]).sum(1))
     X = np.where(two[..., None], X, np.nan)
     Xc = np.einsum("cab,mcjb->mcja", R, X[:, None] - X0[None, :, None])
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -263,12 +264,10 @@ def _evaluate(combos, A, t, ok, s, R, X0, min_joints):
     use = okc & two[:, None, :] & (Xc[..., 2] < 0) & np.isfinite(err)
     e = np.where(use, err, np.nan)
     n = use.sum(-1)
-    with np.errstate(all="ignore"):
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            per_cam = np.nanmedian(e, axis=-1)             # (M, C)
-            root = np.nanmedian(X, axis=1)                 # (M, 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)    # all-NaN rows
+        per_cam = np.nanmedian(e, axis=-1)                 # (M, C)
+        root = np.nanmedian(X, axis=1)                     # (M, 3)
     per_cam = np.where(on & (n >= min_joints), per_cam, np.where(on, np.inf, np.nan))
     total = np.where(on.sum(1) >= 2, np.nanmax(np.where(on, per_cam, -np.inf), axis=1), np.inf)
     return total, per_cam, root, X
@@ -303,14 +302,16 @@ class _Frames:
         if key not in self.cache:
             combos = _level_combinations(self.options(f), lv, self.st.max_combinations)
             if len(combos):
-                total, per_cam, root, X = _evaluate(combos, self.A[f], self.t[f], self.ok[f],
-                                                    self.s[f], self.R[f], self.X0,
-                                                    self.st.min_joints)
+                total, per_cam, root, _ = self.evaluate(f, combos)
             else:
-                total, per_cam, root, X = (np.zeros(0), np.zeros((0, len(self.X0))),
-                                           np.zeros((0, 3)), None)
-            self.cache[key] = (combos, total, per_cam, root, X)
+                total, per_cam, root = (np.zeros(0), np.zeros((0, len(self.X0))),
+                                        np.zeros((0, 3)))
+            self.cache[key] = (combos, total, per_cam, root)      # without the points
         return self.cache[key]
+
+    def evaluate(self, f, combos):
+        return _evaluate(combos, self.A[f], self.t[f], self.ok[f], self.s[f], self.R[f],
+                         self.X0, self.st.min_joints)
 
 
 def _duplicate(ja, jb, limit):
@@ -321,12 +322,13 @@ def _duplicate(ja, jb, limit):
 
 
 def _choose(frames: _Frames, f, pred, radius):
-    """The chosen combination of frame f: (slots (C,), per-camera errors,
-    root, ambiguous cameras) or None."""
+    """The chosen combination of frame f within ``radius`` of ``pred``
+    (None: no gate): (slots (C,), per-camera errors (C,), root (3,),
+    ambiguous cameras) or None."""
     st = frames.st
     thr = st.association_px
     for lv in frames.levels(f):
-        combos, total, per_cam, root, X = frames.level(f, lv)
+        combos, total, per_cam, root = frames.level(f, lv)
         good = total <= thr
         if pred is not None:
             good &= np.linalg.norm(root - pred, axis=-1) <= radius
@@ -343,7 +345,7 @@ def _choose(frames: _Frames, f, pred, radius):
             ja = frames.joints[f, c, combo[c]]
             if any(not _duplicate(ja, frames.joints[f, c, k], thr / 8) for k in rivals):
                 ambiguous.append(int(c))
-        return combo, per_cam[best], root[best], ambiguous, X[best]
+        return combo, per_cam[best], root[best], ambiguous
     return None
 
 
@@ -411,7 +413,7 @@ def _track_segment(frames, lo, hi, has, rows, rows_out, status, error, roots):
     if seed < 0:
         status[lo:hi][has[lo:hi]] = UNDECIDED
         return -1, np.nan
-    size = _size(_choose(frames, seed, None, np.inf)[4])
+    size = _size(frames.evaluate(seed, _choose(frames, seed, None, np.inf)[0][None])[3][0])
     if not np.isfinite(size) or size <= 0:
         size = 1.0
     for order in (range(seed, hi), range(seed - 1, lo - 1, -1)):
@@ -431,7 +433,7 @@ def _track_segment(frames, lo, hi, has, rows, rows_out, status, error, roots):
             if ch is None:
                 status[f, has[f]] = UNDECIDED
                 continue
-            combo, per_cam, root, ambiguous, _ = ch
+            combo, per_cam, root, ambiguous = ch
             roots[f] = root
             track.append((f, root))
             for c in range(C):
