@@ -309,3 +309,30 @@ def test_image_detector_frames_of_another_person_are_left_out(normal):
     assert np.mean(np.delete(a.status, np.s_[20:30], axis=0) == mv.USED) > 0.99
     rep = a.report(sim.cameras.names, [r for _, r in cands])
     assert rep["C4"]["per_camera_left_out"] == 10 and rep["C4"]["other_person"] == 0
+
+
+def test_crowded_frames_combine_only_candidates_near_the_prediction(normal):
+    """Two copies in every camera (3^6 = 729 combinations of all cameras: a
+    crowded frame): after the seed only candidates near the predicted
+    skeleton are combined; no bystander is taken, nothing is lost."""
+    sim = normal
+    obs = sim.observations
+    bys = [(c, copied_bystander(obs[:, c], 30 + 7 * c, 1.5, (300.0, 0.0))) for c in range(6)]
+    bys += [(c, copied_bystander(obs[:, c], 60 + 7 * c, 1.2, (-300.0, 40.0))) for c in range(6)]
+    dets = compose(obs, SKI24, sim.cameras.names, bys)
+    assert mv.CROWDED < 3 ** 6
+    a = mv.associate(dets, sim.cameras, F)
+    assert _bystander_rows(a, dets) == 0
+    assert np.mean(a.status == mv.USED) > 0.99
+
+
+def test_nanmedian_matches_numpy():
+    import warnings
+    rng = np.random.default_rng(1)
+    a = rng.normal(size=(40, 6, 9))
+    a[rng.uniform(size=a.shape) < 0.3] = np.nan
+    a[0, 0] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ref = np.nanmedian(a, axis=-1)
+    assert np.allclose(mv._nanmedian(a), ref, equal_nan=True)

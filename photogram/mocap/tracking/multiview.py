@@ -56,6 +56,11 @@ from photogram.mocap.tracking.detections import CameraDetections
 __all__ = ["AssociationSettings", "Association", "associate", "USED", "INCONSISTENT",
            "AMBIGUOUS", "NO_CANDIDATE", "UNDECIDED"]
 
+#: combinations of all cameras above which a frame is crowded: only the
+#: candidates near the predicted skeleton are combined
+CROWDED = 64
+#: frames of a run searched for the seed (evenly spaced)
+SEED_FRAMES = 12
 #: per frame and camera: what the association did with the camera
 USED, INCONSISTENT, AMBIGUOUS, NO_CANDIDATE, UNDECIDED = 0, 1, 2, 3, 4
 
@@ -227,6 +232,17 @@ def _level_combinations(options, level, cap):
     return np.array(out, int).reshape(-1, C)
 
 
+def _nanmedian(a):
+    """Median over the last axis ignoring NaN (NaN if none): np.nanmedian
+    without its masked-array path, which is slow on many short rows."""
+    srt = np.sort(a, axis=-1)                              # NaN last
+    n = np.sum(~np.isnan(a), axis=-1)
+    lo = np.maximum((n - 1) // 2, 0)[..., None]
+    hi = np.maximum(n // 2, 0)[..., None]
+    med = 0.5 * (np.take_along_axis(srt, lo, -1) + np.take_along_axis(srt, hi, -1))[..., 0]
+    return np.where(n > 0, med, np.nan)
+
+
 def _solve3(N, r):
     """Batched 3x3 solves (..., 3, 3) x = (..., 3); NaN where singular."""
     det = np.linalg.det(N)
@@ -264,10 +280,8 @@ def _evaluate(combos, A, t, ok, s, R, X0, min_joints):
     use = okc & two[:, None, :] & (Xc[..., 2] < 0) & np.isfinite(err)
     e = np.where(use, err, np.nan)
     n = use.sum(-1)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)    # all-NaN rows
-        per_cam = np.nanmedian(e, axis=-1)                 # (M, C)
-        root = np.nanmedian(X, axis=1)                     # (M, 3)
+    per_cam = _nanmedian(e)                                # (M, C)
+    root = _nanmedian(np.moveaxis(X, 1, -1))               # (M, 3)
     per_cam = np.where(on & (n >= min_joints), per_cam, np.where(on, np.inf, np.nan))
     total = np.where(on.sum(1) >= 2, np.nanmax(np.where(on, per_cam, -np.inf), axis=1), np.inf)
     return total, per_cam, root, X
@@ -284,23 +298,56 @@ class _Frames:
         self.R = cameras.rotations(F)
         self.X0 = np.asarray(cameras.X0, float)
         self.nseen = seen.sum(-1)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)     # padding: all NaN
+            self.t_median = np.nanmedian(self.t, axis=3)         # (F, C, K, 2) ideal
         self.cache = {}
 
-    def options(self, f):
+    def options(self, f, pred=None, reach=np.inf):
+        """Per camera the candidate slots (most joints first); with a
+        predicted root ``pred``, only those whose median joint lies within
+        ``reach`` (3D) of it as seen from the camera (a necessary condition
+        of the gate that saves the combinations of far candidates)."""
         out = []
+        if pred is not None:
+            Xc = np.einsum("cab,cb->ca", self.R[f], pred[None] - self.X0)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                tp = np.stack([-Xc[:, 0] / Xc[:, 2], Xc[:, 1] / Xc[:, 2]], -1)
+                allowed = np.where(Xc[:, 2] < 0, reach / np.abs(Xc[:, 2]), -1.0)
         for c in range(self.rows.shape[1]):
             k = np.flatnonzero(self.rows[f, c] >= 0)
-            out.append(list(k[np.argsort(-self.nseen[f, c, k], kind="stable")]))
-        return out
+            if pred is not None and len(k):
+                d = np.linalg.norm(self.t_median[f, c, k] - tp[c], axis=-1)
+                k = k[d <= allowed[c]]
+            out.append(tuple(k[np.argsort(-self.nseen[f, c, k], kind="stable")]))
+        return tuple(out)
 
-    def levels(self, f):
-        n = sum(1 for o in self.options(f) if o)
+    def near(self, f, options, X, reach_px):
+        """``options`` kept within ``reach_px`` of the projections of X (J, 3)
+        (median over the joints both have)."""
+        Xc = np.einsum("cab,cjb->cja", self.R[f], X[None] - self.X0[:, None])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            tp = np.stack([-Xc[..., 0] / Xc[..., 2], Xc[..., 1] / Xc[..., 2]], -1)  # (C, J, 2)
+        out = []
+        for c, ks in enumerate(options):
+            keep = []
+            for k in ks:
+                d = np.linalg.norm(self.t[f, c, k] - tp[c], axis=-1) * self.s[f, c]
+                d = d[np.isfinite(d)]
+                if len(d) and np.median(d) <= reach_px:
+                    keep.append(k)
+            out.append(tuple(keep))
+        return tuple(out)
+
+    @staticmethod
+    def levels(options):
+        n = sum(1 for o in options if o)
         return range(0, max(n - 1, 0))
 
-    def level(self, f, lv):
-        key = (f, lv)
+    def level(self, f, lv, options):
+        key = (f, lv, options)
         if key not in self.cache:
-            combos = _level_combinations(self.options(f), lv, self.st.max_combinations)
+            combos = _level_combinations(options, lv, self.st.max_combinations)
             if len(combos):
                 total, per_cam, root, _ = self.evaluate(f, combos)
             else:
@@ -309,9 +356,12 @@ class _Frames:
             self.cache[key] = (combos, total, per_cam, root)      # without the points
         return self.cache[key]
 
-    def evaluate(self, f, combos):
-        return _evaluate(combos, self.A[f], self.t[f], self.ok[f], self.s[f], self.R[f],
-                         self.X0, self.st.min_joints)
+    def evaluate(self, f, combos, chunk: int = 2000):
+        """:func:`_evaluate` in chunks of ``chunk`` combinations (memory)."""
+        parts = [_evaluate(combos[i:i + chunk], self.A[f], self.t[f], self.ok[f], self.s[f],
+                           self.R[f], self.X0, self.st.min_joints)
+                 for i in range(0, len(combos), chunk)]
+        return tuple(np.concatenate(p) for p in zip(*parts))
 
 
 def _duplicate(ja, jb, limit):
@@ -321,14 +371,20 @@ def _duplicate(ja, jb, limit):
     return float(np.median(np.linalg.norm(ja[ok, :2] - jb[ok, :2], axis=-1))) <= limit
 
 
-def _choose(frames: _Frames, f, pred, radius):
+def _choose(frames: _Frames, f, pred, radius, size=0.0, skeleton=None, reach_px=np.inf):
     """The chosen combination of frame f within ``radius`` of ``pred``
     (None: no gate): (slots (C,), per-camera errors (C,), root (3,),
-    ambiguous cameras) or None."""
+    ambiguous cameras) or None. In a crowded frame (more than
+    :data:`CROWDED` combinations of all cameras) only the candidates within
+    ``reach_px`` (median over the joints) of the predicted ``skeleton()``
+    (J, 3) are combined."""
     st = frames.st
     thr = st.association_px
-    for lv in frames.levels(f):
-        combos, total, per_cam, root = frames.level(f, lv)
+    options = frames.options(f, pred, radius + size)
+    if skeleton is not None and np.prod([max(len(o), 1) for o in options]) > CROWDED:
+        options = frames.near(f, options, skeleton(), reach_px)
+    for lv in frames.levels(options):
+        combos, total, per_cam, root = frames.level(f, lv, options)
         good = total <= thr
         if pred is not None:
             good &= np.linalg.norm(root - pred, axis=-1) <= radius
@@ -404,7 +460,7 @@ def _track_segment(frames, lo, hi, has, rows, rows_out, status, error, roots):
     C = rows.shape[1]
     # seed: most cameras, then smallest error, without a gate
     best_key, seed = None, -1
-    for f in range(lo, hi):
+    for f in range(lo, hi, max(1, (hi - lo) // SEED_FRAMES)):
         ch = _choose(frames, f, None, np.inf)
         if ch is not None:
             key = (-int(np.sum(ch[0] >= 0)), float(np.nanmax(ch[1][ch[0] >= 0])))
@@ -413,29 +469,34 @@ def _track_segment(frames, lo, hi, has, rows, rows_out, status, error, roots):
     if seed < 0:
         status[lo:hi][has[lo:hi]] = UNDECIDED
         return -1, np.nan
-    size = _size(frames.evaluate(seed, _choose(frames, seed, None, np.inf)[0][None])[3][0])
+    seed_combo = _choose(frames, seed, None, np.inf)[0]
+    size = _size(frames.evaluate(seed, seed_combo[None])[3][0])
     if not np.isfinite(size) or size <= 0:
         size = 1.0
     for order in (range(seed, hi), range(seed - 1, lo - 1, -1)):
-        track = []                                         # (frame, root) accepted
+        track = []                                     # (frame, root, combo) accepted
         if order.start != seed:
-            track = [(seed, roots[seed])]
+            track = [(seed, roots[seed], seed_combo)]
         for f in order:
-            pred, radius = None, np.inf
+            pred, radius, skeleton, reach = None, np.inf, None, np.inf
             if track:
-                lf, lr = track[-1]
+                lf, lr, lc = track[-1]
                 g = abs(f - lf)
                 v = np.zeros(3)
                 if len(track) > 1 and abs(lf - track[-2][0]) <= 5:
                     v = (lr - track[-2][1]) / abs(lf - track[-2][0])
                 pred, radius = lr + v * g, st.gate * size * g
-            ch = _choose(frames, f, pred, radius)
+
+                def skeleton(lf=lf, lc=lc, shift=v * g):   # the last skeleton, moved
+                    return frames.evaluate(lf, lc[None])[3][0] + shift
+                reach = 3.0 * st.association_px * g
+            ch = _choose(frames, f, pred, radius, size, skeleton, reach)
             if ch is None:
                 status[f, has[f]] = UNDECIDED
                 continue
             combo, per_cam, root, ambiguous = ch
             roots[f] = root
-            track.append((f, root))
+            track.append((f, root, combo))
             for c in range(C):
                 if combo[c] >= 0 and c not in ambiguous:
                     rows_out[f, c] = rows[f, c, combo[c]]
