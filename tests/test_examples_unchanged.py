@@ -9,7 +9,13 @@ move). One deliberate change since: the SHA-256 of intersect jumps'
 exposures.csv, re-recorded on 2026-12-02 when the orientation's covariance
 was propagated into the ski directions as well as the points (issue 19;
 every value the same, the sigmas of delta_phi, phi and heading up to 6 %
-larger, of alpha and beta within 0.6 %). The real-data steps (DBAT's CAMCAL and SXB, the Pose2Sim demo) skip
+larger, of alpha and beta within 0.6 %). Another on 2026-12-02: the
+figures of "mocap ski-ptz" and "mocap pose2sim-demo", re-recorded when the
+athlete's joints began to be chosen by multi-view consistency (issue 20,
+item 4; one camera-frame of each left out: a whole-body swap in C2 of
+ski-ptz (frame 260), OpenPose's split of the athlete in cam_01 frame 37 of
+the demo; the largest changes: C2's mean reprojection error of ski-ptz 3 %
+lower, the demo's mean right hip flexion 2 % higher). The real-data steps (DBAT's CAMCAL and SXB, the Pose2Sim demo) skip
 when ../shared/data is absent.
 """
 
