@@ -19,14 +19,18 @@ Pose2Sim's ``personAssociation`` (single-person mode,
    (Pose2Sim's loop with ``nb_cams_off``); at the first level with a gated,
    consistent combination the one with the smallest error is taken. The
    cameras left out are flagged *inconsistent* for that frame.
-3. **temporal continuity** (as the per-camera tracking, in 3D): the frame
-   whose best consistent combination has the most cameras (then the
-   smallest error) seeds the track, which is followed forwards and backwards;
+3. **temporal continuity** (as the per-camera tracking, in 3D): per run,
+   the frame whose best consistent combination has the most cameras (then
+   the smallest error; :data:`SEED_FRAMES` evenly spaced frames searched)
+   seeds the track, which is followed forwards and backwards;
    in every frame only combinations whose **root** (median of the
    triangulated joints) lies within ``gate * H * g`` of the constant-velocity
    prediction count (``H`` the seed's size: the largest distance between two
    of its joints; ``g`` frames since the last chosen frame). A frame without
    such a combination is left out entirely (flagged), the prediction goes on.
+   In a crowded frame (more than :data:`CROWDED` combinations) only the
+   candidates near the last skeleton, moved by the root's velocity, are
+   combined.
 4. **ambiguity**: a camera of the chosen combination where another candidate
    (not a duplicate of the chosen one: median joint distance above an
    eighth of the threshold) fits the same other cameras, in the gate, nearly
@@ -36,7 +40,10 @@ Pose2Sim's ``personAssociation`` (single-person mode,
 
 A bystander seen by one or two cameras is therefore taken only if it is
 consistent with the athlete's 3D skeleton in those cameras, which a
-different person is not.
+different person is not. A run where fewer than half of the camera-frames
+with a candidate are used (:attr:`Association.undecided_runs`) says more
+about the cameras than about the people: the caller keeps the per-camera
+choice there.
 
 The cameras are duck-typed (``to_rays``, ``rotations``, ``pixel_scale``,
 ``X0``: a :class:`photogram.mocap.reconstruction.cameras.MocapCameras`; this
@@ -53,8 +60,9 @@ import numpy as np
 
 from photogram.mocap.tracking.detections import CameraDetections
 
-__all__ = ["AssociationSettings", "Association", "associate", "USED", "INCONSISTENT",
-           "AMBIGUOUS", "NO_CANDIDATE", "UNDECIDED"]
+__all__ = ["AssociationSettings", "Association", "associate", "settings_from_tracking",
+           "tracked_candidates", "describe", "USED", "INCONSISTENT", "AMBIGUOUS",
+           "NO_CANDIDATE", "UNDECIDED", "CROWDED", "SEED_FRAMES"]
 
 #: combinations of all cameras above which a frame is crowded: only the
 #: candidates near the predicted skeleton are combined
