@@ -152,11 +152,11 @@ def _choose_people(source, cameras: MocapCameras, tracked, obs, tracking: Tracki
         log.info("frames %d..%d: the cameras are mostly inconsistent with each other (%g px); "
                  "the per-camera choice of the athlete is kept", first + lo, first + hi - 1,
                  tracking.association_px)
-    return chosen, {"cameras": report, "undecided_runs": [[first + lo, first + hi - 1] for
-                                                          lo, hi in assoc.undecided_runs],
-                                      "seed_frames": [first + f for f in assoc.seeds],
-                                      "sizes": assoc.sizes,
-                                      "settings": vars(assoc.settings).copy()}
+    people = {"cameras": report,
+              "undecided_runs": [[first + lo, first + hi - 1] for lo, hi in assoc.undecided_runs],
+              "seed_frames": [first + f for f in assoc.seeds], "sizes": assoc.sizes,
+              "settings": vars(assoc.settings).copy()}
+    return chosen, people
 
 
 def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:

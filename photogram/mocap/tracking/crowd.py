@@ -16,6 +16,8 @@ Two kinds of bystander:
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from photogram.mocap.tracking.detections import CameraDetections
@@ -35,11 +37,9 @@ def copied_bystander(obs: np.ndarray, lag: int, scale: float = 1.5, shift=(0.0, 
     F = len(obs)
     k = (np.arange(F) + int(lag)) % max(2 * F - 2, 1)
     src = obs[np.where(k < F, k, 2 * F - 2 - k)]
-    with np.errstate(invalid="ignore"):
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            centre = np.nanmedian(src[..., :2], axis=1, keepdims=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)        # frames without joints
+        centre = np.nanmedian(src[..., :2], axis=1, keepdims=True)
     out = np.full(src.shape, np.nan)
     out[..., :2] = centre + scale * (src[..., :2] - centre) + np.broadcast_to(
         np.asarray(shift, float), (F, 2))[:, None, :]
