@@ -13,8 +13,9 @@ pan-tilt-zoom cameras) plus composed bystanders
   C3 seen by C3 and C4, C1 losing the athlete for 20 frames and only C5 and
   C6 seeing it for 10 frames.
 
-For each: camera-frames where a bystander was taken (per camera / multi
-view), camera-frames left out (inconsistent, ambiguous, undecided) and the
+The harsh scene is also run on ten more simulations (seeds 20-29,
+association only). For each: camera-frames where a bystander was taken
+(per camera / multi view), camera-frames left out (inconsistent, ambiguous, undecided) and the
 MPJPE against the truth of the reconstruction from the athlete's own
 detections, from the per-camera choice and from the multi-view choice.
 
@@ -49,6 +50,24 @@ from photogram.simulation.ski.simulate import simulate_session
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT.parent / "shared" / "data" / "pose2sim-demo"
 F = 150
+
+
+def sweep(seeds):
+    """The harsh scene on other simulations: bystander camera-frames taken
+    and athlete camera-frames left out, per seed (association only)."""
+    taken, left = [], []
+    for seed in seeds:
+        sim = simulate_session(seed=seed, frames_per_run=F)
+        athlete, bys = _scene(sim, True)
+        dets = compose(athlete, SKI24, sim.cameras.names, bys)
+        a = mv.associate(dets, sim.cameras, F)
+        taken.append(sum(int(np.sum((a.rows[:, c] >= 0) & (d.person[np.maximum(a.rows[:, c], 0)]
+                                                           > 0))) for c, d in enumerate(dets)))
+        present = athlete[..., 2].max(-1) > 0
+        left.append(int(np.sum(present & (a.status != mv.USED))))
+    print(f"harsh scene on seeds {seeds[0]}-{seeds[-1]}: bystander camera-frames taken "
+          f"{taken}, athlete camera-frames left out {left} (of ~{int(present.sum())})")
+    return sum(taken), max(left)
 
 
 def _mpjpe(obs, sim):
@@ -213,6 +232,7 @@ def main() -> int:
     t0 = time.perf_counter()
     n = simulated(8, False)
     h = simulated(11, True)
+    sweep_taken, sweep_left = sweep(list(range(20, 30)))
     r = real()
     line = (f"RESULT normal_bystander_taken={n['bystander_multiview']} "
             f"normal_per_camera_taken={n['bystander_per_camera']} "
@@ -223,7 +243,8 @@ def main() -> int:
             f"harsh_per_camera_taken={h['bystander_per_camera']} "
             f"harsh_left_out={h['left_out']} harsh_mpjpe_mm={h['mpjpe_multiview_mm']:.1f} "
             f"harsh_alone_mm={h['mpjpe_alone_mm']:.1f} "
-            f"harsh_per_camera_mm={h['mpjpe_per_camera_mm']:.1f}")
+            f"harsh_per_camera_mm={h['mpjpe_per_camera_mm']:.1f} "
+            f"sweep_bystander_taken={sweep_taken} sweep_max_left_out={sweep_left}")
     if r:
         line += (f" demo_mean_px={r['demo_mean_px_before']:.2f}->{r['demo_mean_px_after']:.2f}"
                  f" demo_trc_mm={r['demo_trc_mm_before']:.2f}->{r['demo_trc_mm_after']:.2f}"
