@@ -15,7 +15,9 @@ issue 20: the temporal basis chosen by a cut-off in Hz (21 DCT terms at 60
 fps, 25 at 50 fps as before) and the zero-lag Butterworth post-filter on by
 default (ski-ptz MPJPE 8.72 -> 4.83 mm; Pose2Sim's demo median jerk 1866
 -> 199 m/s^3), and the athlete chosen by multi-view consistency (one
-camera-frame each left out). The real-data steps (DBAT's CAMCAL and SXB, the Pose2Sim demo) skip
+camera-frame of ski-ptz and of the demo left out: a whole-body swap in C2
+of ski-ptz (frame 260), OpenPose's split of the athlete in cam_01 frame 37
+of the demo). The real-data steps (DBAT's CAMCAL and SXB, the Pose2Sim demo) skip
 when ../shared/data is absent.
 """
 

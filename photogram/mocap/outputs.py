@@ -86,6 +86,8 @@ def summary(result, project) -> dict:
         "timings": result.info.get("timings", {}),
         "warnings": list(project.warnings),
     }
+    if "people" in result.info:                 # the multi-view choice (section 5)
+        out["people"] = result.info["people"]
     if result.info.get("rotation") == "estimate":
         out["rotation"] = _rotation_summary(result)
     if "sync" in result.info:

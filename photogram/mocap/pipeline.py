@@ -125,6 +125,48 @@ def _observations(project, cameras: MocapCameras, allow_plugin: bool = False):
     return source, tracked, obs
 
 
+def _choose_people(source, cameras: MocapCameras, tracked, obs, tracking: TrackingSettings,
+                   first: int = 0, runs=()):
+    """The athlete's joints chosen by multi-view consistency (docs/mocap.md
+    section 5; :mod:`photogram.mocap.tracking.multiview`): the observations
+    and the per-camera report (None: not run)."""
+    if not tracking.multiview or sum(t is not None for t in tracked) < 2:
+        return obs, None
+    from photogram.mocap.tracking.athlete import select_person
+    from photogram.mocap.tracking.multiview import (associate, describe,
+                                                    settings_from_tracking,
+                                                    tracked_candidates)
+    candidates, per_camera = [], []
+    for name, t in zip(cameras.names, tracked):
+        if t is None:
+            candidates.append(None)
+            per_camera.append(None)
+            continue
+        try:
+            det = source.detections(name)
+            rows = select_person(det, tracking.min_confidence)
+        except NotImplementedError:                 # image detectors: the tracked person
+            det, rows = tracked_candidates(t, source.skeleton)
+        candidates.append(det)
+        per_camera.append(rows[:obs.shape[0]])
+    assoc = associate(candidates, cameras, obs.shape[0], settings_from_tracking(tracking),
+                      breaks=[r - first for r in runs])
+    report = assoc.report(cameras.names, per_camera)
+    for line in describe(report):
+        log.info("%s", line)
+    chosen = assoc.joints(candidates)
+    for lo, hi in assoc.undecided_runs:     # mostly inconsistent: the cameras are wrong,
+        chosen[lo:hi] = obs[lo:hi]          # the per-camera choice is kept
+        log.info("frames %d..%d: the cameras are mostly inconsistent with each other (%g px); "
+                 "the per-camera choice of the athlete is kept", first + lo, first + hi - 1,
+                 tracking.association_px)
+    people = {"cameras": report,
+              "undecided_runs": [[first + lo, first + hi - 1] for lo, hi in assoc.undecided_runs],
+              "seed_frames": [first + f for f in assoc.seeds], "sizes": assoc.sizes,
+              "settings": vars(assoc.settings).copy()}
+    return chosen, people
+
+
 def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     """Run the whole pipeline on a project read by
     :func:`photogram.project.read_project` (with a ``[mocap]`` section);
@@ -142,6 +184,8 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     if ms.camera_frames is not None:
         cameras = read_camera_frames(ms.camera_frames, cameras, project, first, F,
                                      rotations=not estimate)
+    obs, people = (obs, None) if estimate else _choose_people(
+        source, cameras, tracked, obs, TrackingSettings(**ms.tracking), first, ms.runs)
     skeleton = source.skeleton
     if ms.skeleton is not None:
         try:
@@ -211,7 +255,8 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
         bones=bone_lengths(rec.joints, skeleton), breaks=breaks,
         info={"source": source.describe(), "timings": timings, "rotation": ms.rotation,
               "filter": filter_report, **rotation_info,
-              **({"sync": sync_info} if sync_info else {})})
+              **({"sync": sync_info} if sync_info else {}),
+              **({"people": people} if people else {})})
     from photogram.mocap.evaluation.checks import check_fit
     from photogram.mocap.evaluation.checks import check_bias
     for note in (check_fit(result.reprojection, cameras.image_size[:, 0])

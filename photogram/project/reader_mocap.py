@@ -34,7 +34,8 @@ HOMOGRAPHY_KEYS = ("n_features", "ransac_px", "min_inliers", "box_margin", "medi
 SOURCE_KINDS = ("openpose", "csv", "mediapipe", "plugin")
 SOURCE_KEYS = ("kind", "path", "cameras", "skeleton", "network", "wide")
 TRACKING_KEYS = ("scale", "wide_scale", "sigma_centre", "sigma_side", "sigma_refine",
-                 "crop_size", "min_confidence")
+                 "crop_size", "min_confidence", "multiview", "association_px",
+                 "association_confidence", "gate")
 RECONSTRUCTION_KEYS = ("solver", "n_dct", "window", "overlap", "sigma2", "lambda_rep",
                        "lambda_limbs", "gnc_start", "max_iterations", "tolerance",
                        "symmetric_limbs", "min_confidence", "support_frames", "limb_unit",
@@ -225,7 +226,7 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
                     values[key] = sub.string(key, choices=("gauss-newton", "lbfgs"))
                 elif key in ("pose_basis", "rotation_basis"):
                     values[key] = sub.string(key, choices=("dct", "free"))
-                elif key in ("symmetric_limbs", "rotation_prior"):
+                elif key in ("symmetric_limbs", "rotation_prior", "multiview"):
                     values[key] = sub.boolean(key)
                 elif key in ("n_dct", "window", "overlap", "max_iterations", "crop_size",
                              "support_frames", "n_rotation_dct", "bootstrap_iterations",
@@ -234,7 +235,8 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
                                                                         "support_frames") else 1)
                 else:
                     zero_ok = key in ("lambda_limbs", "min_confidence", "lambda_rot",
-                                      "box_margin", "max_failed", "sigma")
+                                      "box_margin", "max_failed", "sigma",
+                                      "association_confidence")
                     values[key] = sub.number(key, nonnegative=zero_ok, positive=not zero_ok)
         subs[name] = values
     images = None

@@ -53,6 +53,11 @@ class TrackingSettings:
     sigma_refine: float = 5.0
     crop_size: int = 500
     min_confidence: float = 0.1
+    # the multi-view choice (photogram.mocap.tracking.multiview)
+    multiview: bool = True
+    association_px: float = 40.0
+    association_confidence: float = 0.3
+    gate: float = 0.5
 
 
 @dataclass
