@@ -209,9 +209,13 @@ def report(label, cameras, est, detections, wall, floor=None):
                  if "centre_floor" in r else "")
         print(f"  {c.name}: centre {r['centre']:7.1f} mm  rotation {r['rot']:6.3f} deg  "
               f"focal {r['focal']:+6.2f} %{extra}")
-    return dict(centre_mm=np.mean([r["centre"] for r in rows]),
-                deg=np.mean([r["rot"] for r in rows]),
-                focal_pct=np.mean([abs(r["focal"]) for r in rows]), px=rep, s=wall)
+    out = dict(centre_mm=np.mean([r["centre"] for r in rows]),
+               deg=np.mean([r["rot"] for r in rows]),
+               focal_pct=np.mean([abs(r["focal"]) for r in rows]), px=rep, s=wall)
+    if floor is not None:
+        out["floor_mm"] = np.mean([r["centre_floor"] for r in rows])
+        out["floor_deg"] = np.mean([r["rot_floor"] for r in rows])
+    return out
 
 
 def main():
@@ -241,8 +245,9 @@ def main():
                 p = report("photogram", cameras, est, detections, wall, br.floor_frame(poses))
         except Exception as exc:
             print(f"photogram rig: failed ({type(exc).__name__}: {exc})")
-        for tag, figures in (("anipose", a), ("photogram", p)):
-            for key in ("centre_mm", "deg", "focal_pct", "px", "s"):
+        for tag, figures, keys in (("anipose", a, ()),
+                                   ("photogram", p, ("floor_mm", "floor_deg"))):
+            for key in ("centre_mm", "deg", "focal_pct", "px", "s") + keys:
                 result[f"{name}_{tag}_{key}"] = figures.get(key, math.nan)
     print("RESULT " + " ".join(f"{k}={v:.4g}" for k, v in result.items()))
 
