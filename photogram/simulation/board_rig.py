@@ -11,26 +11,32 @@ What is simulated
   wide image (scaled with the width), fy = fx within 0.5 %, principal point
   within 3 % of the image centre, k1 -0.2..0.1, k2 -0.05..0.1, p1 p2 within
   1e-3, k3 within 0.02, drawn again until the radial distortion is
-  invertible out to 1.5 times the image corner's radius. Extrinsics in OpenCV's convention: ``x_cam = R X + t``.
+  invertible out to 1.5 times the image corner's radius. Extrinsics in
+  OpenCV's convention: ``x_cam = R X + t``.
 * **Board poses** (:func:`board_poses`): ``X_world = R_bw X_board + t_bw``.
-  **Pose 0 lies flat on the floor**, printed face up, centred on the world
-  origin: ``R_bw = diag(1, -1, -1)`` (the board's z axis points into the
-  printed face, OpenCV's convention, so it points down), board x along world
-  X. The lead's "floor frame" (the board frame of pose 0) is therefore the
-  world frame turned 180 deg about X and shifted by ``t_bw[0]``; every other
-  pose is waved through the volume (centres uniform in x, y in [-1.4, 1.4] m,
-  z in [0.4, 1.9] m), its printed face turned towards the midpoint of two
-  cameras adjacent in azimuth, in turn, then tilted by up to 30 deg about a
-  random axis and rolled by up to 45 deg in its plane (with the cameras'
-  elevations the board leans up to ~60 deg from the vertical). Each pose has
-  a linear (0.2-1 m/s) and angular (0-1.5 rad/s) velocity for the motion
-  blur; the pose is the one at mid-exposure.
+  **Pose 0 lies flat on the floor**, printed face up: ``R_bw = Rz diag(1,
+  -1, -1)`` with Rz a turn of 0 or 90 deg about Z (the board's z axis
+  points into the printed face, OpenCV's convention, so it points down),
+  centred on the point of a 0.25 m grid over the floor that the most
+  cameras see well (:func:`_floor_pose`). The lead's "floor frame" (the
+  board frame of pose 0, :func:`floor_frame`) is therefore the world frame
+  turned 180 deg about X (and about Z) and shifted by ``t_bw[0]``. Every
+  other pose k is shown to the cameras k and k + 1 (ordered by azimuth):
+  centre uniform in the half of the volume nearer them (x, y in [-1.4, 1.4]
+  m, z in [0.25, 1.75] m), printed face towards their midpoint, tilted by
+  up to 30 deg about a random axis and rolled by up to 45 deg in its plane
+  (with the cameras' elevations the board leans from the vertical by a
+  median 30-40 deg, at most 60-80 deg, seeds 0 and 1), drawn again (``tries``) until two cameras see it whole with
+  squares of 16 px or more. Each pose has a linear (0.2-1 m/s) and
+  angular (0-1.5 rad/s) velocity for the motion blur; the pose is the one
+  at mid-exposure.
 * **Images** (:func:`render_view`): every output pixel is split into
   ``supersample`` x ``supersample`` samples at OpenCV pixel positions (pixel
   centres at integers, the convention of :func:`photogram.io.targets.detect`
-  and ``cv2.projectPoints``); each sample's ray is the exact inverse of the
-  distortion (``cv2.undistortPoints`` iterated to 1e-9 px), intersected with the
-  board plane; the board texture (``board.generateImage`` with 224 px per
+  and ``cv2.projectPoints``); each sample's ray is the inverse of the
+  distortion (``cv2.undistortPoints`` iterated to 1e-9 px at the pixel
+  centres, interpolated within the pixel: < 1e-3 px), intersected with the
+  board plane (only within the board's box, found on a 4 px grid); the board texture (``board.generateImage`` with 224 px per
   square and a white paper margin, area-downsampled by powers of 2 to about
   the sample spacing, a mip level per view) is sampled bilinearly
   (``cv2.remap``); the samples are averaged per pixel (area anti-aliasing)
@@ -59,7 +65,8 @@ import numpy as np
 
 __all__ = ["RigCamera", "BoardPoses", "RigRenderSettings", "normal_settings",
            "harsh_settings", "rig_cameras", "board_poses", "render_view", "render_rig",
-           "true_corners", "write_rig_set", "floor_frame", "cameras_toml", "VOLUME_CENTRE", "TARGET_SPEC",
+           "true_corners", "write_rig_set", "floor_frame", "cameras_toml", "VOLUME_CENTRE",
+           "TARGET_SPEC",
            "USABLE_DISTANCE"]
 
 VOLUME_CENTRE = np.array([0.0, 0.0, 1.0])
