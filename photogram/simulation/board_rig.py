@@ -79,6 +79,7 @@ TARGET_SPEC = "charuco:7x5:0.08:0.06:DICT_5X5_100"
 USABLE_DISTANCE = (2.0, 4.0)
 TEXELS_PER_SQUARE = 224          # 32 x 7: 5 exact mip levels, integer marker bits
 MAX_LEVEL = 5
+STRIP = 64                       # output rows rendered at a time
 
 
 @dataclass(frozen=True, eq=False)
@@ -556,25 +557,28 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
     jj, ii = np.nonzero(found)
     x0, x1 = max(ii.min() * 4 - 8, 0), min(ii.max() * 4 + 12, w)
     y0, y1 = max(jj.min() * 4 - 8, 0), min(jj.max() * 4 + 12, h)
-    rays = _sample_rays(camera, s, x0, y0, x1, y1)
     val = np.zeros((y1 - y0, x1 - x0))
     cov = np.zeros_like(val)
-    for R_cb, t_cb in poses:
-        bx, by, inside = _hit(rays, R_cb, t_cb, margin, W, H)
-        # mip level: about one texel per sample at the board's centre
-        depth = (R_cb @ _board_centre(target) + t_cb)[2]
-        per_sample = depth / camera.K[0, 0] / s / texel0
-        L = int(np.clip(np.floor(np.log2(max(per_sample, 1.0))), 0, MAX_LEVEL))
-        texel = texel0 * 2 ** L
-        mu = np.where(inside, bx / texel - 0.5, -1).astype(np.float32)
-        mv = np.where(inside, by / texel - 0.5, -1).astype(np.float32)
-        tex = cv2.remap(levels[L], mu, mv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        front = R_cb[:, 2] @ t_cb > 0
-        grey = settings.black + (settings.white - settings.black) * tex if front else \
-            np.full(tex.shape, settings.back)
-        hh, ww = val.shape
-        val += np.where(inside, grey, 0.0).reshape(hh, s, ww, s).mean((1, 3))
-        cov += inside.reshape(hh, s, ww, s).mean((1, 3))
+    for r0 in range(y0, y1, STRIP):          # strips of rows: bounded memory
+        r1 = min(r0 + STRIP, y1)
+        rays = _sample_rays(camera, s, x0, r0, x1, r1)
+        for R_cb, t_cb in poses:
+            bx, by, inside = _hit(rays, R_cb, t_cb, margin, W, H)
+            # mip level: about one texel per sample at the board's centre
+            depth = (R_cb @ _board_centre(target) + t_cb)[2]
+            per_sample = depth / camera.K[0, 0] / s / texel0
+            L = int(np.clip(np.floor(np.log2(max(per_sample, 1.0))), 0, MAX_LEVEL))
+            texel = texel0 * 2 ** L
+            mu = np.where(inside, bx / texel - 0.5, -1).astype(np.float32)
+            mv = np.where(inside, by / texel - 0.5, -1).astype(np.float32)
+            tex = cv2.remap(levels[L], mu, mv, cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_REPLICATE)
+            front = R_cb[:, 2] @ t_cb > 0
+            grey = settings.black + (settings.white - settings.black) * tex if front else \
+                np.full(tex.shape, settings.back)
+            hh, ww = r1 - r0, x1 - x0
+            val[r0 - y0:r1 - y0] += np.where(inside, grey, 0.0).reshape(hh, s, ww, s).mean((1, 3))
+            cov[r0 - y0:r1 - y0] += inside.reshape(hh, s, ww, s).mean((1, 3))
     return (x0, y0, x1, y1), val / len(poses), cov / len(poses)
 
 
