@@ -150,8 +150,14 @@ def run_photogram(cameras, detections, target):
         print("photogram rig: not available")
         return None, math.nan
     sizes = {c.name: c.image_size for c in cameras}
+    floor = 0 if any(0 in d for d in detections.values()) else None
     t0 = time.perf_counter()
-    result = calibrate_rig(detections, sizes, target)
+    # the rendered lenses have k3 (fix_k3=False); the floor pose is pose 0
+    result = calibrate_rig(detections, sizes, target, floor_frame=floor, fix_k3=False)
+    print(f"photogram: sigma0 {result.sigma0:.3f}, views left out "
+          f"{len(result.summary['rejected_views'])}, corners left out "
+          f"{result.summary['rejected_corners']}, floor frame "
+          f"{result.floor_frame if floor is not None else 'not detected: none'}")
     wall = time.perf_counter() - t0
     est = {c.name: (np.asarray(result.cameras[c.name].K, float),
                     np.asarray(result.cameras[c.name].dist, float).ravel(),
@@ -242,7 +248,9 @@ def main():
         try:
             est, wall = run_photogram(cameras, detections, target)
             if est is not None:
-                p = report("photogram", cameras, est, detections, wall, br.floor_frame(poses))
+                p = report("photogram", cameras, est, detections, wall,
+                           br.floor_frame(poses) if any(0 in d for d in detections.values())
+                           else None)
         except Exception as exc:
             print(f"photogram rig: failed ({type(exc).__name__}: {exc})")
         for tag, figures, keys in (("anipose", a, ()),

@@ -92,8 +92,8 @@ class TrackedSource:
 def track_cameras(project, cameras, flow, step, scale, limit, leave_out):
     """Per camera: the tracked athlete, its process time, its counts."""
     from photogram.mocap.sources import open_source
-    from photogram.mocap.tracking.athlete import (TrackingSettings, track_images,
-                                                  track_images_smoothed)
+    from photogram.mocap.tracking.athlete import TrackingSettings, track_images_smoothed
+    from photogram.mocap.tracking.crop_tracking import track_images
     ms = project.mocap
     source = open_source(ms, cameras.names, project.folder)
     tracking = TrackingSettings(**ms.tracking)

@@ -124,10 +124,14 @@ def test_motion_blur_smears_the_board(cameras):
 
 def test_floor_pose_on_the_floor_face_up(cameras):
     poses = br.board_poses(4, seed=0, cameras=cameras, target=TARGET)
-    R, t = br.floor_frame(poses)
+    R, t = poses.R[0], poses.t[0]
     X = TARGET.object_points() @ R.T + t
     assert np.abs(X[:, 2]).max() < 1e-12
     assert np.allclose(R[:, 2], [0, 0, -1])          # board z into the print: down
+    # photogram.rig's floor frame: the board's axes made Z-up (x, -y, -z)
+    Rf, tf = br.floor_frame(poses)
+    assert np.allclose(Rf[:, 2], [0, 0, 1]) and np.allclose(Rf[:, 0], R[:, 0])
+    assert np.allclose(tf, t)
     seen = [br.true_corners(c, poses[0], TARGET)[1].all() for c in cameras]
     assert sum(seen) >= 2
 

@@ -25,9 +25,8 @@ import numpy as np
 import pytest
 
 from photogram.mocap.body.skeleton import COCO17
-from photogram.mocap.tracking.athlete import (TrackingSettings, track_images,
-                                              track_images_smoothed)
-from photogram.mocap.tracking.crop_tracking import (ACQUIRED, LOST, TRACKED,
+from photogram.mocap.tracking.athlete import TrackingSettings, track_images_smoothed
+from photogram.mocap.tracking.crop_tracking import (ACQUIRED, LOST, TRACKED, track_images,
                                                     CropTrackingSettings, accept_joints,
                                                     predict_box, track_crops)
 

@@ -267,7 +267,9 @@ def _delay_camera(folder: Path, camera: str, frames: int, last: int):
 def test_offsets_applied_and_estimated_in_a_run(project):
     """SIMULATED end to end: camera C3 recorded 2 frames early (detections
     and per-frame rotations/zoom re-numbered). Unapplied, C3 does not fit;
-    offsets = { C3 = 2 } restores it; "estimate" finds +2 and applies it."""
+    offsets = { C3 = 2 } restores it; "estimate" finds +2 and applies it.
+    (The estimate runs on the detections before the athlete's multi-view
+    choice, which would otherwise leave the unsynchronised camera out.)"""
     _delay_camera(project.parent, "C3", 2, 39)
     text = project.read_text()
 
@@ -280,7 +282,9 @@ def test_offsets_applied_and_estimated_in_a_run(project):
     med = {k: s["reprojection"]["C3"]["median_px"] for k, s in
            (("raw", raw), ("given", given), ("est", est))}
     others = max(v["median_px"] for k, v in given["reprojection"].items() if k != "C3")
-    assert med["raw"] > 5 * others and med["given"] < 1.5 * others, med
+    # unapplied, C3 does not fit: far off, or (the multi-view choice of the
+    # athlete, issue 20 item 4) left out of the observations as inconsistent
+    assert (med["raw"] is None or med["raw"] > 5 * others) and med["given"] < 1.5 * others, med
     assert given["synchronisation"]["applied"] == {"C3": 2.0}
     cams = est["synchronisation"]["estimate"]["cameras"]
     assert abs(cams["C3"]["offset"] - 2.0) < max(3 * cams["C3"]["sigma"], 0.1), cams["C3"]
@@ -289,3 +293,24 @@ def test_offsets_applied_and_estimated_in_a_run(project):
     assert est["reprojection"]["C3"]["median_px"] < 1.5 * others
     print({k: s["accuracy"]["mpjpe"] for k, s in (("raw", raw), ("given", given), ("est", est))})
     assert est["accuracy"]["mpjpe"] <= 1.1 * given["accuracy"]["mpjpe"]
+
+
+def test_candidates_renumbered_by_whole_frames():
+    """The multi-view choice sees a synchronised camera's candidates
+    renumbered like its detections: frame f + k becomes frame f."""
+    from photogram.mocap.body.skeleton import get_skeleton
+    from photogram.mocap.pipeline import _shift_candidates
+    from photogram.mocap.tracking.detections import CameraDetections
+    sk = get_skeleton("coco17")
+    frames = np.array([0, 1, 1, 2, 4])
+    joints = np.zeros((5, sk.n_joints, 3))
+    joints[..., 0] = np.arange(5)[:, None]             # x tells the row
+    det = CameraDetections.from_joints("C1", sk, frames, joints, n_frames=5)
+    rows = np.array([0, 2, 3, -1, 4])                  # chosen row per frame
+    d2, r2 = _shift_candidates(det, rows, 1)
+    assert list(d2.frames) == [0, 0, 1, 3]             # frame 0 dropped, the rest one earlier
+    # new frame f = old frame f + 1: rows 2 (x=2), 3 (x=3), none, 4 (x=4), none
+    assert [d2.joints[r, 0, 0] if r >= 0 else None for r in r2] == [2, 3, None, 4, None]
+    d3, r3 = _shift_candidates(det, rows, -2)
+    assert list(d3.frames) == [2, 3, 3, 4]             # frame 4 falls off the end
+    assert [d3.joints[r, 0, 0] if r >= 0 else None for r in r3] == [None, None, 0, 2, 3]

@@ -13,7 +13,8 @@ from photogram.mocap.sources.openpose import read_openpose_folder
 from photogram.mocap.sources.plugin import PluginDetector, load_function
 from photogram.mocap.tracking.athlete import (TrackingSettings, clean_boxes, crop_image,
                                               crop_to_full, gaussian_smooth, select_person,
-                                              track_detections, track_images)
+                                              track_detections)
+from photogram.mocap.tracking.crop_tracking import track_images
 from photogram.mocap.tracking.detections import CameraDetections
 
 

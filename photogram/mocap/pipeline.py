@@ -125,11 +125,33 @@ def _observations(project, cameras: MocapCameras, allow_plugin: bool = False):
     return source, tracked, obs
 
 
+def _shift_candidates(det, rows, k: int):
+    """A camera's candidates and its per-frame choice ``rows`` renumbered
+    as if the camera had started ``k`` frames later (its frame f + k is
+    frame f; the synchronisation offset's whole frames)."""
+    from dataclasses import replace as _replace
+    frames = det.frames - k
+    keep = (frames >= 0) & (frames < det.n_frames)
+    new_index = np.cumsum(keep) - 1
+    det = _replace(det, frames=frames[keep], joints=det.joints[keep], boxes=det.boxes[keep],
+                   person=det.person[keep])
+    out = np.full(len(rows), -1)
+    src = np.arange(len(rows)) + k
+    ok = (src >= 0) & (src < len(rows))
+    old = np.where(ok, rows[np.clip(src, 0, len(rows) - 1)], -1)
+    take = ok & (old >= 0)
+    take[take] &= keep[old[take]]
+    out[take] = new_index[old[take]]
+    return det, out
+
+
 def _choose_people(source, cameras: MocapCameras, tracked, obs, tracking: TrackingSettings,
-                   first: int = 0, runs=()):
+                   first: int = 0, runs=(), offsets=None):
     """The athlete's joints chosen by multi-view consistency (docs/mocap.md
     section 5; :mod:`photogram.mocap.tracking.multiview`): the observations
-    and the per-camera report (None: not run)."""
+    and the per-camera report (None: not run). ``offsets`` (camera ->
+    frames, applied to ``obs`` already): the candidates are renumbered by
+    the whole frames, the chosen joints shifted by the rest."""
     if not tracking.multiview or sum(t is not None for t in tracked) < 2:
         return obs, None
     from photogram.mocap.tracking.athlete import select_person
@@ -147,6 +169,9 @@ def _choose_people(source, cameras: MocapCameras, tracked, obs, tracking: Tracki
             rows = select_person(det, tracking.min_confidence)
         except NotImplementedError:                 # image detectors: the tracked person
             det, rows = tracked_candidates(t, source.skeleton)
+        k = int(np.floor((offsets or {}).get(name, 0.0)))
+        if k:
+            det, rows = _shift_candidates(det, np.asarray(rows), k)
         candidates.append(det)
         per_camera.append(rows[:obs.shape[0]])
     assoc = associate(candidates, cameras, obs.shape[0], settings_from_tracking(tracking),
@@ -155,6 +180,11 @@ def _choose_people(source, cameras: MocapCameras, tracked, obs, tracking: Tracki
     for line in describe(report):
         log.info("%s", line)
     chosen = assoc.joints(candidates)
+    for name, o in (offsets or {}).items():           # the fraction of a frame
+        if o - np.floor(o) > 1e-9:
+            from photogram.mocap.evaluation.sync_shift import shift_observations
+            c = cameras.index(name)
+            chosen[:, c] = shift_observations(chosen[:, c], o - np.floor(o))
     for lo, hi in assoc.undecided_runs:     # mostly inconsistent: the cameras are wrong,
         chosen[lo:hi] = obs[lo:hi]          # the per-camera choice is kept
         log.info("frames %d..%d: the cameras are mostly inconsistent with each other (%g px); "
@@ -184,8 +214,14 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     if ms.camera_frames is not None:
         cameras = read_camera_frames(ms.camera_frames, cameras, project, first, F,
                                      rotations=not estimate)
+    # synchronisation first: the multi-view choice of the athlete compares
+    # the cameras frame by frame
+    sync_info = None
+    if ms.offsets is not None:
+        obs, cameras, sync_info = _synchronise(obs, cameras, ms)
     obs, people = (obs, None) if estimate else _choose_people(
-        source, cameras, tracked, obs, TrackingSettings(**ms.tracking), first, ms.runs)
+        source, cameras, tracked, obs, TrackingSettings(**ms.tracking), first, ms.runs,
+        (sync_info or {}).get("applied"))
     skeleton = source.skeleton
     if ms.skeleton is not None:
         try:
@@ -198,9 +234,6 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
             except InputError as exc:
                 raise ms.error(("skeleton",), exc.what, hint=exc.hint) from None
             skeleton = target
-    sync_info = None
-    if ms.offsets is not None:
-        obs, cameras, sync_info = _synchronise(obs, cameras, ms)
     frames = first + np.arange(F)
     lo, hi = 0, F
     if ms.frames is not None:

@@ -218,7 +218,8 @@ class _Rig:
         return {k: float(np.sqrt(ss[i] / cnt[i])) for i, k in enumerate(self._view_keys)}
 
 
-def _solve(build, dets, max_iterations, reject_px, max_rounds=3):
+def _solve(build, dets, max_iterations, reject_px, corner_sigma=5.0, min_corner_px=0.3,
+           max_rounds=4):
     """Build the rig from the detections and solve; views (a camera's
     detection in a frame) whose RMS exceeds ``reject_px`` and 5 times the
     median view RMS are left out and the rig built and solved again (a
@@ -226,7 +227,7 @@ def _solve(build, dets, max_iterations, reject_px, max_rounds=3):
     any more goes with them), at most ``max_rounds`` times. Returns the
     rig, the solver summary and the views left out with their RMS."""
     from photogram.adjust.solver import SolverOptions, solve
-    rejected = {}
+    rejected, rejected_corners = {}, 0
 
     def without(d, bad):
         return {c: {f: v for f, v in fr.items() if (c, f) not in bad} for c, fr in d.items()}
@@ -250,16 +251,51 @@ def _solve(build, dets, max_iterations, reject_px, max_rounds=3):
         med = float(np.median(list(rms.values())))
         bad = {k: v for k, v in rms.items() if v > max(reject_px, 5 * med)}
         if not bad and s.status == "converged":
-            break
+            dets, n_out = _without_corners(rig, dets, corner_sigma, min_corner_px)
+            if not n_out:
+                break
+            rejected_corners += n_out
+            continue
         rejected.update(bad)
         dets = without(dets, bad)
-    return rig, s, rejected
+    return rig, s, rejected, rejected_corners
+
+
+def _without_corners(rig, dets, k_sigma, min_px):
+    """The detections without the corners whose residual norm exceeds
+    ``k_sigma`` times the camera's robust scale (the median norm over
+    1.1774: a 2D Gaussian's norm is Rayleigh distributed) and ``min_px``:
+    single corners that a detector placed off (OpenCV's ChArUco refinement
+    puts some corners of oblique views 1-3 px off). Returns the detections
+    and the number of corners left out."""
+    if k_sigma <= 0:
+        return dets, 0
+    e, _ = rig.board_block.evaluate(rig.problem.state, jacobians=False)
+    norm = np.linalg.norm(e, axis=1)
+    cams = np.array([lab[0] for lab in rig.labels])
+    drop = set()
+    for c in rig.names:
+        m = cams == c
+        scale = float(np.median(norm[m])) / 1.1774
+        out = np.flatnonzero(m & (norm > max(k_sigma * scale, min_px)))
+        drop |= {rig.labels[i] for i in out}
+    if not drop:
+        return dets, 0
+    new = {}
+    for c, fr in dets.items():
+        new[c] = {}
+        for f, (ids, xy) in fr.items():
+            keep = np.array([(c, f, int(i)) not in drop for i in ids])
+            if keep.sum() >= 4:
+                new[c][f] = (ids[keep], xy[keep])
+    return new, len(drop)
 
 
 def calibrate_rig(detections: dict, image_sizes: dict, target, *, model: str = "opencv",
                   fix_k3: bool = True, floor_frame=None, scene: SceneControl | None = None,
                   sigma_image: float = 0.5, max_iterations: int = 50, min_corners: int = 6,
-                  reject_px: float = 3.0) -> RigResult:
+                  reject_px: float = 3.0, corner_sigma: float = 5.0,
+                  min_corner_px: float = 0.3) -> RigResult:
     """Calibrate every camera of a rig from board detections (module doc).
 
     Parameters
@@ -282,6 +318,9 @@ def calibrate_rig(detections: dict, image_sizes: dict, target, *, model: str = "
     min_corners : detections with fewer corners are left out
     reject_px : a view whose RMS exceeds this and 5 times the median view
         RMS is left out (0: never)
+    corner_sigma, min_corner_px : then a single corner whose residual
+        exceeds ``corner_sigma`` times its camera's robust scale and
+        ``min_corner_px`` is left out (``corner_sigma`` 0: never)
 
     Returns
     -------
@@ -314,8 +353,11 @@ def calibrate_rig(detections: dict, image_sizes: dict, target, *, model: str = "
 
     def build(d):
         return _Rig(d, board, image_sizes, init, W, model, fix_k3, sigma_image, f0, scene)
-    rig, s, rejected = _solve(build, dets, max_iterations, reject_px)
-    return _result(rig, s, rejected, image_sizes, init, f0, cofactors(rig.problem))
+    rig, s, rejected, n_corners = _solve(build, dets, max_iterations, reject_px,
+                                         corner_sigma, min_corner_px)
+    result = _result(rig, s, rejected, image_sizes, init, f0, cofactors(rig.problem))
+    result.summary["rejected_corners"] = n_corners
+    return result
 
 
 def _result(rig, s, rejected, image_sizes, init, f0, cof) -> RigResult:

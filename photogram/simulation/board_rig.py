@@ -254,9 +254,11 @@ def _facing(centre, front, roll, tilt_axis, tilt, target) -> tuple:
 
 
 def floor_frame(poses: BoardPoses) -> tuple[np.ndarray, np.ndarray]:
-    """(R, t) of the floor pose: ``X_world = R X_floor + t``, the frame
-    ``photogram.rig`` reports its cameras in."""
-    return poses.R[0], poses.t[0]
+    """(R, t) of the frame ``photogram.rig`` reports its cameras in when
+    pose 0 is its floor pose: ``X_world = R X_floor + t`` with the floor
+    frame the board's axes made Z-up (x, -y, -z: :mod:`photogram.rig.datum`),
+    at the board's origin."""
+    return poses.R[0] @ np.diag([1.0, -1.0, -1.0]), poses.t[0]
 
 
 def _image_ray(camera: RigCamera, uv) -> np.ndarray:

@@ -40,7 +40,7 @@ class ImageSource(ObservationSource):
         self.cameras = list(images)
 
     def track(self, camera, settings=None, wide=False):
-        from photogram.mocap.tracking.athlete import track_images
+        from photogram.mocap.tracking.crop_tracking import track_images
         return track_images(self.images[camera], self.detector, camera, settings, wide)
 
 

@@ -39,7 +39,7 @@ from scipy.ndimage import gaussian_filter1d
 from photogram.mocap.tracking.detections import CameraDetections, boxes_from_joints
 
 __all__ = ["TrackingSettings", "TrackedCamera", "gaussian_smooth", "select_person",
-           "clean_boxes", "smooth_boxes", "track_detections", "track_images",
+           "clean_boxes", "smooth_boxes", "track_detections",
            "track_images_smoothed",
            "crop_image", "crop_to_full"]
 
@@ -208,14 +208,6 @@ def _run(images, detector, boxes, J, size):
         if res is not None:
             out[f] = crop_to_full(res, boxes[f], size)
     return out
-
-
-def track_images(images, detector, camera: str = "", settings: TrackingSettings | None = None,
-                 wide: bool = False) -> TrackedCamera:
-    """An image detector on an image sequence: one call per frame on a crop
-    predicted from the previous frames (:mod:`.crop_tracking`)."""
-    from photogram.mocap.tracking.crop_tracking import track_crops
-    return track_crops(images, detector, camera, settings, wide)
 
 
 def track_images_smoothed(images, detector, camera: str = "",

@@ -57,7 +57,8 @@ from photogram.mocap.tracking.athlete import (TrackedCamera, TrackingSettings, c
                                               crop_to_full)
 from photogram.mocap.tracking.detections import boxes_from_joints
 
-__all__ = ["CropTrackingSettings", "CropTrackedCamera", "track_crops", "predict_box",
+__all__ = ["CropTrackingSettings", "CropTrackedCamera", "track_crops", "track_images",
+           "predict_box",
            "accept_joints", "consistent_sides", "TRACKED", "ACQUIRED", "LOST", "STATUS_NAMES"]
 
 log = logging.getLogger(__name__)
@@ -286,3 +287,11 @@ def track_crops(images, detector, camera: str = "", settings: TrackingSettings |
              camera, F, c["tracked"], c["acquired"], c["lost"], calls["crop"], calls["full"],
              c["mirrored"])
     return result
+
+
+def track_images(images, detector, camera: str = "", settings: TrackingSettings | None = None,
+                 wide: bool = False) -> TrackedCamera:
+    """An image detector on an image sequence: one call per frame on a crop
+    predicted from the previous frames (:func:`track_crops`); the paper's
+    three-call flow is :func:`photogram.mocap.tracking.athlete.track_images_smoothed`."""
+    return track_crops(images, detector, camera, settings, wide)
