@@ -143,6 +143,9 @@ def run_anipose(cameras, detections, target, seed=0):
     return est, wall, float(error)
 
 
+SIGMAS = {}           # camera -> photogram's (centre sigma mm, rotation sigma deg)
+
+
 def run_photogram(cameras, detections, target):
     try:
         from photogram.rig import calibrate_rig
@@ -159,6 +162,10 @@ def run_photogram(cameras, detections, target):
           f"{result.summary['rejected_corners']}, floor frame "
           f"{result.floor_frame if floor is not None else 'not detected: none'}")
     wall = time.perf_counter() - t0
+    for c in cameras:                      # photogram's own sigmas, for the floor frame
+        rc = result.cameras[c.name]
+        SIGMAS[c.name] = (1000 * rc.centre_sigma,
+                          math.sqrt(sum(rc.sigmas[k] ** 2 for k in ("rx", "ry", "rz"))))
     est = {c.name: (np.asarray(result.cameras[c.name].K, float),
                     np.asarray(result.cameras[c.name].dist, float).ravel(),
                     np.asarray(result.cameras[c.name].R, float),
@@ -213,6 +220,8 @@ def report(label, cameras, est, detections, wall, floor=None):
     for c, r in zip(cameras, rows):
         extra = (f"  | floor frame: {r['centre_floor']:7.1f} mm {r['rot_floor']:6.3f} deg"
                  if "centre_floor" in r else "")
+        if "centre_floor" in r and c.name in SIGMAS and label == "photogram":
+            extra += (f"  (sigmas {SIGMAS[c.name][0]:.1f} mm {SIGMAS[c.name][1]:.3f} deg)")
         print(f"  {c.name}: centre {r['centre']:7.1f} mm  rotation {r['rot']:6.3f} deg  "
               f"focal {r['focal']:+6.2f} %{extra}")
     out = dict(centre_mm=np.mean([r["centre"] for r in rows]),
