@@ -37,7 +37,7 @@ import time
 import photogram  # noqa: F401  (single-threaded BLAS before numpy)
 import numpy as np
 
-from photogram.io.targets import detect, parse_target
+from photogram.io.targets import parse_target
 from photogram.simulation import board_rig as br
 
 
@@ -186,15 +186,11 @@ def render_and_detect(name, args, target):
         br.write_rig_set(f"{args.write}/{name}", cameras, poses, target, settings,
                          images=images)
     t0 = time.perf_counter()
-    detections, err = {}, []
+    detections, err = br.detect_rig(cameras, images, target), []
     for c in cameras:
-        detections[c.name] = {}
-        for k, img in enumerate(images[c.name]):
-            hit = detect(img, target)
-            if hit is not None:
-                detections[c.name][k] = hit
-                xy, _ = br.true_corners(c, poses[k], target)
-                err.append(np.linalg.norm(hit[1] - xy[hit[0]], axis=1))
+        for k, (ids, xy_det) in detections[c.name].items():
+            xy, _ = br.true_corners(c, poses[k], target)
+            err.append(np.linalg.norm(xy_det - xy[ids], axis=1))
     t_detect = time.perf_counter() - t0
     seen = np.zeros(len(poses), int)
     for frames in detections.values():

@@ -11,7 +11,7 @@ error within the calibration's own sigmas. A harsher set (noise 4, JPEG
 import numpy as np
 import pytest
 
-from photogram.io.targets import detect, parse_target
+from photogram.io.targets import parse_target
 from photogram.rig import calibrate_rig
 from photogram.simulation import board_rig as br
 
@@ -23,14 +23,7 @@ def _set(settings, n_cameras, n_poses, seed):
     poses = br.board_poses(n_poses, seed=seed, cameras=cameras, target=TARGET,
                            partly_outside=settings.partly_outside)
     images = br.render_rig(cameras, poses, TARGET, settings)
-    dets = {}
-    for c in cameras:
-        dets[c.name] = {}
-        for k, img in enumerate(images[c.name]):
-            hit = detect(img, TARGET)
-            if hit is not None:
-                dets[c.name][k] = hit
-    return cameras, poses, dets
+    return cameras, poses, br.detect_rig(cameras, images, TARGET)
 
 
 def _errors(cameras, poses, res):

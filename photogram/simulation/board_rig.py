@@ -66,7 +66,7 @@ import numpy as np
 __all__ = ["RigCamera", "BoardPoses", "RigRenderSettings", "normal_settings",
            "harsh_settings", "rig_cameras", "board_poses", "render_view", "render_rig",
            "true_corners", "write_rig_set", "floor_frame", "cameras_toml", "VOLUME_CENTRE",
-           "TARGET_SPEC",
+           "TARGET_SPEC", "detect_rig",
            "USABLE_DISTANCE"]
 
 VOLUME_CENTRE = np.array([0.0, 0.0, 1.0])
@@ -762,3 +762,18 @@ def write_rig_set(folder, cameras, poses: BoardPoses, target, settings: RigRende
             "floor_pose": 0}
     (folder / "truth" / "settings.json").write_text(json.dumps(meta, indent=1) + "\n")
     return folder
+
+
+def detect_rig(cameras, images: dict, target) -> dict:
+    """The board detected in every rendered view (``photogram.io.targets.detect``):
+    ``{camera: {pose index: (ids, xy)}}``, the input of
+    :func:`photogram.rig.calibrate_rig`."""
+    from photogram.io.targets import detect
+    out = {}
+    for c in cameras:
+        out[c.name] = {}
+        for k, img in enumerate(images[c.name]):
+            hit = detect(img, target)
+            if hit is not None:
+                out[c.name][k] = hit
+    return out
