@@ -24,6 +24,7 @@ cv2 = pytest.importorskip("cv2")
 
 from photogram.io.targets import detect, parse_target          # noqa: E402
 from photogram.simulation import board_rig as br                # noqa: E402
+from photogram.simulation.board_rig import geometry, render      # noqa: E402
 
 TARGET = parse_target(br.TARGET_SPEC)
 DIST = br.USABLE_DISTANCE
@@ -37,7 +38,7 @@ def cameras():
 def near_pose(cam, tilt_deg, moving=False):
     """The board 2 m in front of ``cam``, tilted about the camera's y axis."""
     centre = cam.centre + 2.0 * cam.R[2] + 0.3 * cam.R[0]
-    R, t = br._facing(centre, -cam.R[2], 0.3, cam.R[1], np.radians(tilt_deg), TARGET)
+    R, t = geometry._facing(centre, -cam.R[2], 0.3, cam.R[1], np.radians(tilt_deg), TARGET)
     v, w = (np.array([0.5, 0.3, 0.0]), np.array([0.0, 0.5, 0.8])) if moving else \
         (np.zeros(3), np.zeros(3))
     return R, t, v, w
@@ -49,7 +50,7 @@ def rms(det, xy):
 
 
 def test_texture_mapping_matches_object_points():
-    levels, texel, margin = br._texture(TARGET, 0.02)
+    levels, texel, margin = render._texture(TARGET, 0.02)
     obj = TARGET.object_points()[:, :2]
     for L in (2, 3):
         img = np.clip(np.rint(levels[L] * 255), 0, 255).astype(np.uint8)
@@ -62,11 +63,11 @@ def test_texture_mapping_matches_object_points():
 def test_interpolated_rays_equal_the_exact_inverse(cameras):
     cam = cameras[0]                     # k1 = -0.17: the strongest distortion of the rig
     s, (x0, y0, x1, y1) = 3, (0, 0, 40, 30)   # the image corner: most curvature
-    rays = br._sample_rays(cam, s, x0, y0, x1, y1)
+    rays = render._sample_rays(cam, s, x0, y0, x1, y1)
     u = (np.arange(x0 * s, x1 * s) + 0.5) / s - 0.5
     v = (np.arange(y0 * s, y1 * s) + 0.5) / s - 0.5
     uu, vv = np.meshgrid(u, v)
-    exact = br._undistort(cam, np.column_stack([uu.ravel(), vv.ravel()]))
+    exact = geometry._undistort(cam, np.column_stack([uu.ravel(), vv.ravel()]))
     err_px = np.abs(rays.reshape(-1, 2) - exact) * cam.K[0, 0]
     assert err_px.max() < 1e-3
     # and the exact inverse reprojects onto the sample positions
@@ -149,7 +150,7 @@ def test_cameras_and_poses_as_specified():
         assert x[2] > 0 and 0 < u[0] < 1280 and 0 < u[1] < 720
     poses = br.board_poses(30, seed=3, cameras=cams, target=TARGET)
     assert np.allclose(np.einsum("kij,kil->kjl", poses.R, poses.R), np.eye(3))
-    centres = poses.t + np.einsum("kij,j->ki", poses.R, br._board_centre(TARGET))
+    centres = poses.t + np.einsum("kij,j->ki", poses.R, geometry._board_centre(TARGET))
     assert np.all(np.abs(centres[1:, :2]) <= 1.5) and np.all(centres[1:, 2] > 0.2)
     # spread through the volume, both halves of x and y
     assert np.ptp(centres[1:, 0]) > 1.5 and np.ptp(centres[1:, 1]) > 1.5

@@ -1,0 +1,234 @@
+"""Rendering the views of a rendered multi-camera set (module doc of
+:mod:`photogram.simulation.board_rig`: images)."""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from photogram.simulation.board_rig.geometry import (MAX_LEVEL, STRIP, TEXELS_PER_SQUARE,
+                                                     BoardPoses, RigCamera, RigRenderSettings,
+                                                     _bar, _bar_coverage, _board_centre,
+                                                     _camera_board, _rotvec, _undistort)
+
+
+@functools.lru_cache(maxsize=2)
+def _texture(target, margin: float) -> tuple[tuple, float, float]:
+    """Mip levels of the board texture (float32, 0 ink .. 1 paper), the
+    level-0 texel (m) and the margin used (m, a multiple of 32 texels)."""
+    import cv2
+    P = TEXELS_PER_SQUARE
+    texel = target.size / P
+    m = 32 * int(round(margin / texel / 32))
+    img = target.board().generateImage((target.cols * P, target.rows * P), marginSize=0,
+                                       borderBits=1)
+    img = cv2.copyMakeBorder(img, m, m, m, m, cv2.BORDER_CONSTANT, value=255)
+    levels = [img.astype(np.float32) / 255]
+    for _ in range(MAX_LEVEL):
+        levels.append(cv2.resize(levels[-1], None, fx=0.5, fy=0.5,
+                                 interpolation=cv2.INTER_AREA))
+    return tuple(levels), texel, m * texel
+
+
+def _camera_key(camera: RigCamera, s: int) -> tuple:
+    return (camera.name, camera.K.tobytes(), camera.dist.tobytes(), camera.image_size, s)
+
+
+def _sample_rays(camera: RigCamera, s: int, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+    """Normalised coordinates (rows, cols, 2) of the samples of the output
+    pixels [y0, y1) x [x0, x1): sample (a, b) of pixel (i, j) at
+    ``(i + (a + 0.5) / s - 0.5, j + (b + 0.5) / s - 0.5)`` (OpenCV pixel
+    centres at integers).
+
+    The exact inverse (:func:`_undistort`) at the pixel centres, bilinearly
+    interpolated between them: the distortion's curvature over one pixel
+    makes that < 1e-3 px (tested against the exact inverse).
+    """
+    u = np.arange(x0 - 1, x1 + 1, dtype=float)
+    v = np.arange(y0 - 1, y1 + 1, dtype=float)
+    uu, vv = np.meshgrid(u, v)
+    grid = _undistort(camera, np.column_stack([uu.ravel(), vv.ravel()]))
+    grid = grid.reshape(len(v), len(u), 2)
+    hh, ww = y1 - y0, x1 - x0
+    out = np.empty((hh, s, ww, s, 2))
+    offsets = (np.arange(s) + 0.5) / s - 0.5
+    for b, dy in enumerate(offsets):
+        r0, fy = (1, dy) if dy >= 0 else (0, 1 + dy)
+        rows = (1 - fy) * grid[r0:r0 + hh] + fy * grid[r0 + 1:r0 + 1 + hh]
+        for a, dx in enumerate(offsets):
+            c0, fx = (1, dx) if dx >= 0 else (0, 1 + dx)
+            out[:, b, :, a] = (1 - fx) * rows[:, c0:c0 + ww] + fx * rows[:, c0 + 1:c0 + 1 + ww]
+    return out.reshape(hh * s, ww * s, 2)
+
+
+@functools.lru_cache(maxsize=2)
+def _coarse_rays(key) -> np.ndarray:
+    """Rays of every 4th pixel's centre sample, for finding the board."""
+    name, K, dist, (w, h), s = key
+    cam = RigCamera(name, np.frombuffer(K).reshape(3, 3), np.frombuffer(dist), np.eye(3),
+                    np.zeros(3), (w, h))
+    uu, vv = np.meshgrid(np.arange(0, w, 4.0), np.arange(0, h, 4.0))
+    return _undistort(cam, np.column_stack([uu.ravel(), vv.ravel()])).reshape(*uu.shape, 2)
+
+
+@functools.lru_cache(maxsize=8)
+def _background(name: str, image_size: tuple, seed: int) -> np.ndarray:
+    """Static textured grey background of a camera (blotches and grain)."""
+    import cv2
+    w, h = image_size
+    rng = np.random.default_rng([seed, 3, sum(map(ord, name))])
+    coarse = cv2.GaussianBlur(rng.normal(0, 1, (h, w)), (0, 0), 25)
+    coarse *= 25 / max(coarse.std(), 1e-9)
+    fine = cv2.GaussianBlur(rng.normal(0, 1, (h, w)), (0, 0), 1.5)
+    fine *= 6 / max(fine.std(), 1e-9)
+    return (110 + coarse + fine).astype(np.float64)
+
+
+@functools.lru_cache(maxsize=8)
+def _blurred_background(name: str, image_size: tuple, seed: int, blur: float) -> np.ndarray:
+    """The background after the lens blur."""
+    import cv2
+    bg = _background(name, image_size, seed)
+    return cv2.GaussianBlur(bg, (0, 0), blur) if blur > 0 else bg
+
+
+def _sub_poses(pose, settings: RigRenderSettings) -> list:
+    """Poses spread over the shutter, centred on ``pose`` (rotation about
+    the board's centre at angular velocity w, translation at velocity v)."""
+    R, t, v, w = (np.asarray(p, float) for p in pose)
+    n = settings.subframes
+    if n <= 1 or settings.shutter <= 0:
+        return [(R, t)]
+    out = []
+    for tau in (np.arange(n) + 0.5) / n - 0.5:
+        dt = tau * settings.shutter
+        out.append((_rotvec(w * dt) @ R, t + v * dt))
+    return out
+
+
+def _hit(xn, R_cb, t_cb, margin, W, H):
+    """Board coordinates (from the paper's corner) of the rays ``xn``
+    (normalised, (..., 2)) and whether they hit the paper in front of the
+    camera: the plane z_board = 0 is ``r3 . (lam d - t_cb) = 0``."""
+    d = np.concatenate([xn, np.ones(xn.shape[:-1] + (1,))], -1)
+    a = d @ R_cb[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = (R_cb[:, 2] @ t_cb) / a
+        bx = lam * (d @ R_cb[:, 0]) - R_cb[:, 0] @ t_cb + margin
+        by = lam * (d @ R_cb[:, 1]) - R_cb[:, 1] @ t_cb + margin
+    inside = (lam > 0) & (bx >= 0) & (bx <= W) & (by >= 0) & (by <= H)
+    return bx, by, inside
+
+
+def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
+    """(box, value x coverage, coverage) of the board averaged over the
+    sub-poses ``subs`` [(R_bw, t_bw), ...]; box (x0, y0, x1, y1) holds
+    every output pixel the board touches (found on a 4 px grid, grown by
+    8 px), None if the board is not in the image."""
+    import cv2
+    s = settings.supersample
+    levels, texel0, margin = _texture(target, settings.margin)
+    W = target.cols * target.size + 2 * margin
+    H = target.rows * target.size + 2 * margin
+    coarse = _coarse_rays(_camera_key(camera, s))
+    poses = [_camera_board(camera, R_bw, t_bw) for R_bw, t_bw in subs]
+    found = np.zeros(coarse.shape[:2], bool)
+    for R_cb, t_cb in poses:
+        found |= _hit(coarse, R_cb, t_cb, margin, W, H)[2]
+    if not found.any():
+        return None
+    w, h = camera.image_size
+    jj, ii = np.nonzero(found)
+    x0, x1 = max(ii.min() * 4 - 8, 0), min(ii.max() * 4 + 12, w)
+    y0, y1 = max(jj.min() * 4 - 8, 0), min(jj.max() * 4 + 12, h)
+    val = np.zeros((y1 - y0, x1 - x0))
+    cov = np.zeros_like(val)
+    for r0 in range(y0, y1, STRIP):          # strips of rows: bounded memory
+        r1 = min(r0 + STRIP, y1)
+        rays = _sample_rays(camera, s, x0, r0, x1, r1)
+        for R_cb, t_cb in poses:
+            bx, by, inside = _hit(rays, R_cb, t_cb, margin, W, H)
+            # mip level: about one texel per sample at the board's centre
+            depth = (R_cb @ _board_centre(target) + t_cb)[2]
+            per_sample = depth / camera.K[0, 0] / s / texel0
+            L = int(np.clip(np.floor(np.log2(max(per_sample, 1.0))), 0, MAX_LEVEL))
+            texel = texel0 * 2 ** L
+            mu = np.where(inside, bx / texel - 0.5, -1).astype(np.float32)
+            mv = np.where(inside, by / texel - 0.5, -1).astype(np.float32)
+            tex = cv2.remap(levels[L], mu, mv, cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_REPLICATE)
+            front = R_cb[:, 2] @ t_cb > 0
+            grey = settings.black + (settings.white - settings.black) * tex if front else \
+                np.full(tex.shape, settings.back)
+            hh, ww = r1 - r0, x1 - x0
+            val[r0 - y0:r1 - y0] += np.where(inside, grey, 0.0).reshape(hh, s, ww, s).mean((1, 3))
+            cov[r0 - y0:r1 - y0] += inside.reshape(hh, s, ww, s).mean((1, 3))
+    return (x0, y0, x1, y1), val / len(poses), cov / len(poses)
+
+
+def render_view(camera: RigCamera, pose, target, settings: RigRenderSettings,
+                key=(0, 0)) -> np.ndarray:
+    """The uint8 image of the board at ``pose`` = (R_bw, t_bw[, v, w]) seen
+    by ``camera`` (module doc); ``key`` = (camera index, frame) seeds the
+    noise and the occluder."""
+    if len(pose) == 2:
+        pose = (pose[0], pose[1], np.zeros(3), np.zeros(3))
+    bg = _background(camera.name, tuple(camera.image_size), settings.seed)
+    import cv2
+    layer = _board_layer(camera, _sub_poses(pose, settings), target, settings)
+    bar = _bar(camera, pose, target, settings, key)
+    if bar is not None or layer is None:
+        img = bg.copy()
+        if layer is not None:
+            (x0, y0, x1, y1), val, cov = layer
+            img[y0:y1, x0:x1] = val + (1 - cov) * img[y0:y1, x0:x1]
+        if bar is not None:
+            h, w = img.shape
+            jj, ii = np.mgrid[0:h, 0:w]
+            cov = _bar_coverage(np.stack([ii, jj], -1), bar)
+            img = cov * 40.0 + (1 - cov) * img
+        return _degrade(img, settings, key)
+    # blur is linear and the background static: blur(bg + diff) = blur(bg),
+    # cached, + blur(diff) over the board's box grown by the kernel radius
+    # (zero beyond the box, image borders reflected as in a full blur)
+    img = _blurred_background(camera.name, tuple(camera.image_size), settings.seed,
+                              settings.blur).copy()
+    (x0, y0, x1, y1), val, cov = layer
+    h, w = img.shape
+    pad = int(math.ceil(4 * settings.blur)) + 2
+    X0, Y0, X1, Y1 = max(x0 - pad, 0), max(y0 - pad, 0), min(x1 + pad, w), min(y1 + pad, h)
+    diff = np.zeros((Y1 - Y0, X1 - X0))
+    diff[y0 - Y0:y1 - Y0, x0 - X0:x1 - X0] = val - cov * bg[y0:y1, x0:x1]
+    if settings.blur > 0:
+        diff = cv2.GaussianBlur(diff, (0, 0), settings.blur)
+    img[Y0:Y1, X0:X1] += diff
+    return _degrade(img, replace(settings, blur=0.0), key)
+
+
+def _degrade(img, settings: RigRenderSettings, key) -> np.ndarray:
+    """Lens blur (Gaussian), sensor noise (Gaussian, seeded by the view),
+    8-bit rounding and JPEG: :func:`photogram.measure.render.degrade` in
+    float32."""
+    import cv2
+    img = img.astype(np.float32)
+    if settings.blur > 0:
+        img = cv2.GaussianBlur(img, (0, 0), settings.blur)
+    if settings.noise > 0:
+        rng = np.random.default_rng([settings.seed, 4, *key])
+        img += settings.noise * rng.standard_normal(img.shape, dtype=np.float32)
+    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    if settings.jpeg_quality:
+        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(settings.jpeg_quality)])
+        out = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+    return out
+
+
+def render_rig(cameras, poses: BoardPoses, target, settings: RigRenderSettings) -> dict:
+    """{camera name: [uint8 image per pose]}; view (i, k) is
+    :func:`render_view` of camera i and pose k with ``key=(i, k)``."""
+    return {cam.name: [render_view(cam, poses[k], target, settings, key=(i, k))
+                       for k in range(len(poses))]
+            for i, cam in enumerate(cameras)}
