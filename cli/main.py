@@ -48,7 +48,8 @@ COMMANDS: dict[str, Command] = {
     "check": Command("photogram_cli.check:run", "the project checker",
                      "read and validate a project and print a summary"),
     "calibrate": Command("photogram.commands.calibrate:run", "the adjustment engine",
-                         "bundle adjustment with self-calibration (interior orientation)"),
+                         "bundle adjustment with self-calibration (interior orientation); "
+                         "on a board project ([board]) every camera of a rig from a board"),
     "orient": Command("photogram.commands.orient:run", "the adjustment engine",
                       "exterior orientation of the stations with known cameras"),
     "intersect": Command("photogram.commands.intersect:run", "the adjustment engine",
