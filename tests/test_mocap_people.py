@@ -13,6 +13,7 @@ import pytest
 from photogram.mocap.body.skeleton import SKI24
 from photogram.mocap.reconstruction.reconstruct import ReconstructionSettings, reconstruct
 from photogram.mocap.tracking import multiview as mv
+from photogram.mocap.tracking import multiview_frames as mvf
 from photogram.mocap.tracking.athlete import select_person
 from photogram.mocap.tracking.crowd import compose, copied_bystander, projected_bystander
 from photogram.simulation.ski.simulate import simulate_session
@@ -335,4 +336,4 @@ def test_nanmedian_matches_numpy():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         ref = np.nanmedian(a, axis=-1)
-    assert np.allclose(mv._nanmedian(a), ref, equal_nan=True)
+    assert np.allclose(mvf._nanmedian(a), ref, equal_nan=True)
