@@ -120,7 +120,7 @@ def test_views_of_results_and_metres_axes():
 BAD = [
     ("matrix = [ [ 1681.244873046875, 0.0, 532.97369384375], [ 0.0, 1681.075439453125, "
      "948.137390140625], [ 0.0, 0.0, 1.0]]", "matrix = [ [ 1, 2], [3, 4]]", "matrix", 4),
-    ("fisheye = false", "fisheye = true", "fisheye", 8),
+    ("fisheye = false", 'fisheye = "no"', "fisheye", 8),
     ("rotation = [ 1.6882754799999993, 1.0483220499999997, -0.41955852000000016]",
      'rotation = [ 1.0, "x", 2.0]', "rotation", 6),
 ]

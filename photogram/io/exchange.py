@@ -34,8 +34,8 @@ from photogram.project.atomic import atomic_write_bytes, atomic_write_text
 from photogram.project.model import (Camera, ImagePoints, Parameter, Points, Project,
                                      Stations, Units)
 
-__all__ = ["View", "LineText", "opencv_camera", "cv_to_station", "station_to_cv",
-           "build_project", "save_project", "save_calibration",
+__all__ = ["View", "LineText", "opencv_camera", "fisheye_camera", "cv_to_station",
+           "station_to_cv", "build_project", "save_project", "save_calibration",
            "opencv_intrinsics", "write_new_text", "write_new_bytes", "check_new_file"]
 
 log = logging.getLogger("photogram")
@@ -156,6 +156,24 @@ def opencv_camera(name: str, K, dist, image_size=None, *, source: str | None = N
     size = None if image_size is None else (int(round(image_size[0])), int(round(image_size[1])))
     params = {n: Parameter(value=float(v), free=free) for n, v in zip(OPENCV_NAMES, values)}
     return Camera(name=name, model="opencv", parameters=params, image_size=size, source=source)
+
+
+def fisheye_camera(name: str, K, dist, image_size=None, *, source: str | None = None,
+                   file=None, line=None, free: bool = False) -> Camera:
+    """A camera of model ``opencv_fisheye`` from a camera matrix and
+    OpenCV's fisheye distortion vector ``[k1, k2, k3, k4]`` (``K`` checked
+    as :func:`opencv_camera` does)."""
+    dist = np.asarray(dist if dist is not None else np.zeros(4), dtype=float).ravel()
+    if dist.size != 4 or not np.all(np.isfinite(dist)):
+        raise InputError(f"camera {name}: a fisheye camera has 4 distortion coefficients "
+                         f"[k1, k2, k3, k4], got {dist.size}", file=file, line=line)
+    base = opencv_camera(name, K, None, image_size, source=source, file=file, line=line)
+    values = [base.parameters[n].value for n in OPENCV_NAMES[:4]] + list(dist)
+    from photogram.geometry import camera_model
+    names = camera_model("opencv_fisheye").parameter_names
+    params = {n: Parameter(value=float(v), free=free) for n, v in zip(names, values)}
+    return Camera(name=name, model="opencv_fisheye", parameters=params,
+                  image_size=base.image_size, source=source)
 
 
 def cv_to_station(R_cv, t_cv) -> tuple[np.ndarray, np.ndarray]:

@@ -19,7 +19,10 @@ This is OpenCV's camera (docs/camera-models.md, section 5): each table
 becomes a camera of model ``opencv`` and a station of the same name, with
 ``R = diag(1,-1,-1) rodrigues(rotation)`` and ``X0 = -R_cv^T translation``
 (world axes and unit as in the file; Pose2Sim's calibration world is Z up,
-metres). Fisheye cameras are refused (no fisheye model in photogram).
+metres). A table with ``fisheye = true`` (OpenCV's fisheye model, as
+``photogram calibrate`` writes for ``model = "opencv_fisheye"`` and anipose
+for its fisheye cameras) has ``distortions = [k1, k2, k3, k4]`` and becomes
+a camera of model ``opencv_fisheye`` (docs/camera-models.md, section 5.0).
 anipose writes the same layout (``name``, ``size``, ``matrix``,
 ``distortions``, ``rotation``, ``translation``).
 """
@@ -31,7 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.io.exchange import View, build_project, cv_to_station, opencv_camera
+from photogram.io.exchange import (View, build_project, cv_to_station, fisheye_camera,
+                                   opencv_camera)
 
 __all__ = ["read_pose2sim", "pose2sim_project", "format_pose2sim", "write_pose2sim"]
 
@@ -79,13 +83,15 @@ def read_pose2sim(path) -> list[View]:
         sec = root.table(key)
         sec.check_keys(_CAMERA_KEYS + ("extra",), required=("matrix", "rotation", "translation"))
         name = str(sec.data.get("name", key))
-        if sec.data.get("fisheye", False) is True:
-            raise sec.error("fisheye", f"camera {name} is a fisheye camera",
-                            hint="photogram mocap does not take fisheye cameras yet; calibrate "
-                                 "with the standard (pinhole + Brown-Conrady) model")
+        fisheye = sec.data.get("fisheye", False)
+        if not isinstance(fisheye, bool):
+            raise sec.error("fisheye", f"fisheye in {sec.label} must be true or false")
         K = _array(sec, "matrix", (3, 3), "a 3 x 3 matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]")
         dist = _array(sec, "distortions", None, "a list of numbers [k1, k2, p1, p2]") \
             if "distortions" in sec else np.zeros(4)
+        if fisheye and (dist.ndim != 1 or dist.size != 4):
+            raise sec.error("distortions", f"distortions in {sec.label} must be [k1, k2, k3, k4]"
+                                           f" (fisheye = true: OpenCV's fisheye model)")
         if dist.ndim != 1 or dist.size not in (4, 5):
             raise sec.error("distortions", f"distortions in {sec.label} must be [k1, k2, p1, p2]"
                                            f" or [k1, k2, p1, p2, k3]")
@@ -98,13 +104,14 @@ def read_pose2sim(path) -> list[View]:
                 raise sec.error("size", f"size in {sec.label} must be positive")
             size = (int(round(s[0])), int(round(s[1])))
         try:
-            opencv_camera(name, K, dist, size)
+            (fisheye_camera if fisheye else opencv_camera)(name, K, dist, size)
         except InputError as exc:
             raise sec.error("matrix", exc.what, hint=exc.hint) from None
         from photogram.geometry import rodrigues_to_matrix
         views.append(View(name=name, camera=name, K=K, dist=dist, R_cv=rodrigues_to_matrix(rvec),
                           t_cv=tvec, image_size=size,
-                          extra={"section": key, "rotation": rvec, "line": src.line_of((key,))}))
+                          extra={"section": key, "rotation": rvec, "fisheye": fisheye,
+                                 "line": src.line_of((key,))}))
     if not views:
         raise InputError("no camera table in the file", file=path, line=1,
                          hint="a Pose2Sim calibration has [cam_01], [cam_02], ... tables")
@@ -118,10 +125,12 @@ def read_pose2sim(path) -> list[View]:
 
 def views_project(views: list[View], name: str, *, length_unit: str = "m",
                   source: str | None = None):
-    """A project with one ``opencv`` camera and one station per view."""
+    """A project with one ``opencv`` (``opencv_fisheye`` for a view whose
+    ``extra["fisheye"]`` is true) camera and one station per view."""
     cameras, angles, X0 = {}, [], []
     for v in views:
-        cameras[v.camera] = opencv_camera(v.camera, v.K, v.dist, v.image_size, source=source)
+        make = fisheye_camera if v.extra.get("fisheye", False) else opencv_camera
+        cameras[v.camera] = make(v.camera, v.K, v.dist, v.image_size, source=source)
         a, x = cv_to_station(v.R_cv, v.t_cv)
         angles.append(a)
         X0.append(x)

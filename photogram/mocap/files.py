@@ -46,21 +46,24 @@ def cameras_from_views(views) -> MocapCameras:
     """Fixed cameras from OpenCV views (objects with ``name``, ``K``,
     ``dist``, ``R_cv``, ``t_cv``, ``image_size``; e.g. the Pose2Sim reader of
     :mod:`photogram.io.pose2sim`): ``R = diag(1,-1,-1) R_cv``, ``X0 =
-    -R_cv^T t_cv`` (docs/camera-models.md)."""
-    names, io, X0, R, size = [], [], [], [], []
+    -R_cv^T t_cv`` (docs/camera-models.md). A view whose ``extra`` says
+    ``fisheye`` is an ``opencv_fisheye`` camera (``dist`` = k1 k2 k3 k4),
+    the others ``opencv`` (k1 k2 p1 p2 [k3])."""
+    names, models, io, X0, R, size = [], [], [], [], [], []
     for v in views:
         K = np.asarray(v.K, float)
-        d = np.zeros(5)
+        fisheye = bool(getattr(v, "extra", {}).get("fisheye", False))
+        d = np.zeros(4 if fisheye else 5)
         dist = np.asarray(v.dist, float).ravel()
         d[:len(dist)] = dist
-        io.append([K[0, 0], K[1, 1], K[0, 2], K[1, 2], d[0], d[1], d[2], d[3], d[4]])
+        io.append([K[0, 0], K[1, 1], K[0, 2], K[1, 2], *d])
+        models.append("opencv_fisheye" if fisheye else "opencv")
         R_cv = np.asarray(v.R_cv, float)
         R.append(np.diag([1.0, -1.0, -1.0]) @ R_cv)
         X0.append(-R_cv.T @ np.asarray(v.t_cv, float).ravel())
         names.append(str(v.name))
         size.append(v.image_size if v.image_size is not None else (np.nan, np.nan))
-    return MocapCameras(names, ["opencv"] * len(names), io, np.array(X0), np.array(R),
-                        np.array(size, float))
+    return MocapCameras(names, models, io, np.array(X0), np.array(R), np.array(size, float))
 
 
 def cameras_from_project(project) -> MocapCameras:
