@@ -14,7 +14,7 @@ from photogram.geometry import (aicon_to_brown, aicon_to_opencv, brown_to_aicon,
 from photogram.geometry.aicon_conversions import aicon_invariants
 
 SIZE = (640, 480)
-# c = 1420 px on 640 x 480, r0 = 250 px: about 4 px of distortion at the corners
+# c = 1420 px on 640 x 480, r0 = 250 px: 1-7 px of distortion at the corners
 AICON = np.array([1420.0, 321.5, 238.2, -1.5e-7, 3.0e-13, -5.0e-19,
                   5.0e-6, -4.0e-6, 3.0e-4, -2.0e-4, 250.0])
 M = camera_model("aicon")
@@ -296,3 +296,41 @@ def test_bundle_self_calibration_with_aicon(tmp_path):
         assert abs(est[p].value - truth[i]) < 3.5 * sig[p], (p, est[p].value, truth[i], sig[p])
     assert est["A3"].value == truth[5] and est["r0"].value == truth[10]   # fixed
     assert abs(est["C2"].value - prior_C2) < 3e-7 and sig["C2"] <= 1e-7   # weighted
+
+
+def test_report_distortion_field_of_an_aicon_camera():
+    """The report's displacement (measured minus distortion-free position)
+    is the model's distortion of the ideal point; A1 > 0 with r0 = 0 pushes
+    points outwards."""
+    from photogram.project.model import Camera, Parameter
+    from photogram.report.pages_cameras import _principal_point, displacement
+    p = np.r_[1000.0, 320.0, 240.0, 1e-7, np.zeros(7)]
+    cam = Camera("K", "aicon", {k: Parameter(v) for k, v in zip(M.parameter_names, p)},
+                 (640, 480))
+    xy = np.array([[320.0, 240.0], [620.0, 240.0], [320.0, 40.0]])
+    d = displacement(cam, xy)
+    assert np.allclose(d[0], 0) and d[1, 0] > 0 and d[2, 1] < 0
+    ideal = xy - d - p[1:3]
+    np.testing.assert_allclose(d, M.distortion(ideal[:, 0], ideal[:, 1], p)[0], atol=1e-12)
+    assert np.array_equal(_principal_point(cam), [320.0, 240.0])
+
+
+def test_r0_cannot_be_freed_in_a_camera_taken_from_a_file(tmp_path):
+    from project_cases import make_project, replace
+    from photogram.project import read_project
+    prj = make_project(tmp_path)
+    (prj.parent / "aicon_cameras.toml").write_text(
+        '[project]\nimage_unit = "px"\n\n[cameras.K2]\nmodel = "aicon"\n'
+        'image_size = [1920, 1080]\nc = 1400.0\nA1 = { value = 1e-9, free = true, '
+        'sigma_estimated = 1e-10 }\nr0 = 400.0\n')
+    text = prj.read_text()
+    start = text.index("[cameras.K2]")
+    end = text.index("[stations]")
+    prj.write_text(text[:start] + '[cameras.K2]\nfrom = "aicon_cameras.toml"\n'
+                   'free = ["c", "A1"]\n\n' + text[end:])
+    cam = read_project(prj).cameras["K2"]
+    assert cam.model == "aicon" and cam.parameters["r0"].value == 400.0
+    assert [p for p, par in cam.parameters.items() if par.free] == ["c", "A1"]
+    replace(prj, 'free = ["c", "A1"]', 'free = ["c", "r0"]')
+    with pytest.raises(InputError, match="r0 of .* is a constant"):
+        read_project(prj)

@@ -24,7 +24,7 @@ PARAMS = {
     # BAL (Snavely): f, k1, k2 of normalised radii; origin at the image centre
     "bal": np.array([1420.0, -0.25, 0.3]),
     # AICON / Australis forward form: balanced radial (r0 = 250 px),
-    # decentring, affinity and shear; about 15 px at the corners
+    # decentring, affinity and shear; 1-7 px at the corners
     "aicon": np.array([1420.0, 321.5, 238.2, -1.5e-7, 3.0e-13, -5.0e-19,
                        5.0e-6, -4.0e-6, 3.0e-4, -2.0e-4, 250.0]),
 }
