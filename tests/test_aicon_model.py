@@ -334,3 +334,12 @@ def test_r0_cannot_be_freed_in_a_camera_taken_from_a_file(tmp_path):
     replace(prj, 'free = ["c", "A1"]', 'free = ["c", "r0"]')
     with pytest.raises(InputError, match="r0 of .* is a constant"):
         read_project(prj)
+
+
+def test_schema_fallback_tables_match_the_model():
+    from photogram.project.camera_schema import (CONSTANT_PARAMETERS, FALLBACK_DIMS,
+                                                 FALLBACK_PARAMETERS, PRINCIPAL_POINT)
+    assert FALLBACK_PARAMETERS["aicon"] == M.parameter_names
+    assert FALLBACK_DIMS["aicon"] == M.parameter_dims
+    assert CONSTANT_PARAMETERS["aicon"] == M.constant_parameters == ("r0",)
+    assert PRINCIPAL_POINT["aicon"] == ("xh", "yh")

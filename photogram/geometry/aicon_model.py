@@ -41,10 +41,7 @@ import numpy as np
 from photogram.geometry.camera import newton_invert, register_model
 from photogram.geometry.forward_model import ForwardModel
 
-__all__ = ["AiconModel", "CONSTANT_PARAMETERS"]
-
-#: Parameters that are constants of the camera, never estimated.
-CONSTANT_PARAMETERS = ("r0",)
+__all__ = ["AiconModel"]
 
 
 @register_model
@@ -59,6 +56,9 @@ class AiconModel(ForwardModel):
     name = "aicon"
     parameter_names = ("c", "xh", "yh", "A1", "A2", "A3", "B1", "B2", "C1", "C2", "r0")
     parameter_dims = (1, 1, 1, -2, -4, -6, -1, -1, 0, 0, 1)
+    #: constants of the camera, never estimated (the project reader refuses
+    #: them free)
+    constant_parameters = ("r0",)
 
     def default_parameters(self, principal_distance, image_size):
         """c = principal_distance, principal point at the format centre,

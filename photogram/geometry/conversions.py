@@ -10,7 +10,8 @@ The distortion does not: a polynomial *correction* of measured coordinates
 and a polynomial *distortion* of ideal ones are not inverses of each other
 for any finite set of coefficients, and brown's shear B2 has no OpenCV
 counterpart. :func:`fit_distortion` gives the least-squares best fit over the
-image format and reports the misfit.
+image format and reports the misfit (also for the ``aicon`` model, whose
+exact conversions are in :mod:`photogram.geometry.aicon_conversions`).
 """
 
 from __future__ import annotations

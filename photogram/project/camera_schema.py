@@ -21,7 +21,8 @@ from photogram.project.text_input import DOCS, suggest
 from photogram.project.toml_source import Section, TomlSource
 from photogram.project.toml_writer import Inline
 
-__all__ = ["FALLBACK_PARAMETERS", "FALLBACK_DIMS", "REQUIRED_PARAMETERS", "camera_models",
+__all__ = ["FALLBACK_PARAMETERS", "FALLBACK_DIMS", "REQUIRED_PARAMETERS", "CONSTANT_PARAMETERS",
+           "constant_parameters", "camera_models",
            "parameter_names", "parameter_dims", "opk_to_matrix", "matrix_to_opk", "invert_opk",
            "read_camera", "free_parameters", "load_cameras_file", "camera_to_toml"]
 
@@ -51,7 +52,8 @@ PRINCIPAL_POINT: dict[str, tuple[str, str]] = {"brown": ("x0", "y0"), "opencv": 
                                                "opencv_fisheye": ("cx", "cy"),
                                                "aicon": ("xh", "yh")}
 #: Parameters that are constants of the camera (never free), which must be
-#: non-negative: the aicon model's balancing radius.
+#: non-negative: the aicon model's balancing radius (the models'
+#: ``constant_parameters`` when the registry exists).
 CONSTANT_PARAMETERS: dict[str, tuple[str, ...]] = {"aicon": ("r0",)}
 CAMERA_KEYS = ("model", "image_size", "pixel_size")
 FROM_KEYS = ("from", "name", "free", "weighted")
@@ -91,6 +93,16 @@ def parameter_dims(model: str) -> tuple[int, ...] | None:
     """Power of the image length unit in each parameter of ``model``."""
     entry = _registry().get(model)
     return None if entry is None or entry[1] is None else tuple(entry[1])
+
+
+def constant_parameters(model: str) -> tuple[str, ...]:
+    """Parameters of ``model`` that are constants of the camera (never
+    free; e.g. the aicon model's balancing radius r0)."""
+    try:
+        from photogram import geometry
+        return tuple(getattr(geometry.CAMERA_MODELS[model], "constant_parameters", ()))
+    except (ImportError, AttributeError, KeyError):
+        return CONSTANT_PARAMETERS.get(model, ())
 
 
 # --------------------------------------------------------------------------
@@ -208,7 +220,7 @@ def _inline_camera(sec: Section, name: str, image_unit: str) -> Camera:
 def _check_constants(sec: Section, model: str, params: dict, free=()) -> None:
     """Constants of the camera (:data:`CONSTANT_PARAMETERS`) are fixed and
     non-negative."""
-    for key in CONSTANT_PARAMETERS.get(model, ()):
+    for key in constant_parameters(model):
         par = params[key]
         if par.free or key in free:
             raise sec.error("free" if key in free else key,
