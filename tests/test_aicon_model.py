@@ -343,3 +343,20 @@ def test_schema_fallback_tables_match_the_model():
     assert FALLBACK_DIMS["aicon"] == M.parameter_dims
     assert CONSTANT_PARAMETERS["aicon"] == M.constant_parameters == ("r0",)
     assert PRINCIPAL_POINT["aicon"] == ("xh", "yh")
+
+
+def test_export_to_opencv_is_exact_where_the_conversion_is():
+    from photogram.io.exchange import opencv_intrinsics
+    from photogram.project.model import Camera, Parameter
+
+    def camera(p):
+        return Camera("K", "aicon", {k: Parameter(v) for k, v in zip(M.parameter_names, p)},
+                      SIZE)
+    exact = np.r_[AICON[:8], 0.0, 0.0, AICON[10]]
+    K, dist, misfit = opencv_intrinsics(camera(exact))
+    o = aicon_to_opencv(exact)
+    assert misfit == 0.0 and np.array_equal(K[[0, 1, 0, 1], [0, 1, 2, 2]], o[:4])
+    assert np.array_equal(dist, o[4:9])
+    # with shear: a fit over the format, its misfit reported
+    K, dist, misfit = opencv_intrinsics(camera(AICON))
+    assert 0.01 < misfit < 0.05
