@@ -360,3 +360,18 @@ def test_export_to_opencv_is_exact_where_the_conversion_is():
     # with shear: a fit over the format, its misfit reported
     K, dist, misfit = opencv_intrinsics(camera(AICON))
     assert 0.01 < misfit < 0.05
+
+
+def test_first_order_relation_to_the_correction_form():
+    """A mild aicon camera refitted in brown: K1 ~ -A1 (r0 = 0), P1 ~ -B1,
+    P2 ~ -B2, brown's B1 ~ -C1, B2 ~ -C2 (docs/camera-models.md 5.3)."""
+    a = np.zeros(11)
+    a[:3] = 1420.0, 320.0, 240.0
+    a[[3, 6, 7, 8, 9]] = 2e-8, 1e-7, -2e-7, 1e-5, -2e-5
+    b, rms = fit_distortion("aicon", a, "brown", SIZE, free=(
+        "c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2"))
+    for brown_name, aicon_name in (("K1", "A1"), ("P1", "B1"), ("P2", "B2"), ("B1", "C1"),
+                                   ("B2", "C2")):
+        ratio = b[camera_model("brown").index(brown_name)] / -a[M.index(aicon_name)]
+        assert ratio == pytest.approx(1.0, abs=0.02), (brown_name, ratio)
+    assert rms < 1e-3
