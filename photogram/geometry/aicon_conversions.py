@@ -45,7 +45,6 @@ from photogram.geometry.camera import camera_model
 __all__ = ["aicon_invariants", "change_r0", "aicon_to_opencv", "opencv_to_aicon",
            "aicon_to_brown", "brown_to_aicon"]
 
-NAMES = ("c", "xh", "yh", "A1", "A2", "A3", "B1", "B2", "C1", "C2", "r0")
 _C, _XH, _YH, _A, _B, _CC, _R0 = 0, 1, 2, slice(3, 6), slice(6, 8), slice(8, 10), 10
 OPENCV_KNOWN = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
 
