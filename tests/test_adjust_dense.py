@@ -20,7 +20,7 @@ from photogram.geometry import camera_model
 from photogram.project.model import Parameter
 from photogram.simulation.network import frame_network, to_project
 
-MODELS = ("brown", "opencv", "bal")
+MODELS = ("brown", "opencv", "bal", "aicon")
 
 
 def _project(model="brown", seed=2, perturb=0.0):
@@ -34,7 +34,8 @@ def _project(model="brown", seed=2, perturb=0.0):
         for cam in prj.cameras.values():
             v = cam.values()
             values = {"opencv": (v[0], v[0], v[1], v[2], 0, 0, 0, 0, 0),
-                      "bal": (v[0], 0.0, 0.0)}[model]
+                      "bal": (v[0], 0.0, 0.0),
+                      "aicon": (v[0], v[1], v[2], 5e-8, 0, 0, 0, 0, 0, 0, 100.0)}[model]
             cam.model = model
             cam.parameters = {n: Parameter(float(x)) for n, x in zip(names, values)}
     return prj

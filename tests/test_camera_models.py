@@ -23,6 +23,10 @@ PARAMS = {
     "opencv_fisheye": np.array([1420.0, 1425.0, 322.0, 238.0, 0.05, -0.3, 0.8, -1.2]),
     # BAL (Snavely): f, k1, k2 of normalised radii; origin at the image centre
     "bal": np.array([1420.0, -0.25, 0.3]),
+    # AICON / Australis forward form: balanced radial (r0 = 250 px),
+    # decentring, affinity and shear; 1-7 px at the corners
+    "aicon": np.array([1420.0, 321.5, 238.2, -1.5e-7, 3.0e-13, -5.0e-19,
+                       5.0e-6, -4.0e-6, 3.0e-4, -2.0e-4, 250.0]),
 }
 # Characteristic magnitudes: a change of 1e-4 of these moves points by a
 # few hundredths of a pixel (r ~ 400 px at the corners).
@@ -32,6 +36,8 @@ TYPICAL = {
     "opencv": np.array([1420, 1420, 1420, 1420, 1, 1, 1, 1, 1]),
     "opencv_fisheye": np.array([1420, 1420, 1420, 1420, 1, 1, 1, 1]),
     "bal": np.array([1420, 1, 1]),
+    "aicon": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
+                       1 / 400, 1 / 400, 1, 1, 400]),
 }
 STEP = {"angles": 1e-4, "rotation": 1e-4, "X0": 1e-3, "X": 1e-3}
 
@@ -127,7 +133,7 @@ def test_jacobian_shapes(model):
 
 # ---------------------------------------------------------------- registry
 def test_registry():
-    assert set(CAMERA_MODELS) == {"bal", "brown", "opencv", "opencv_fisheye"}
+    assert set(CAMERA_MODELS) == {"aicon", "bal", "brown", "opencv", "opencv_fisheye"}
     assert camera_model("brown").parameter_names == (
         "c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2")
     assert camera_model("opencv").parameter_names == (
@@ -135,7 +141,9 @@ def test_registry():
     assert camera_model("bal").parameter_names == ("f", "k1", "k2")
     assert camera_model("opencv_fisheye").parameter_names == (
         "fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4")
-    with pytest.raises(InputError, match="bal.*brown.*opencv"):
+    assert camera_model("aicon").parameter_names == (
+        "c", "xh", "yh", "A1", "A2", "A3", "B1", "B2", "C1", "C2", "r0")
+    with pytest.raises(InputError, match="aicon.*bal.*brown.*opencv"):
         camera_model("fisheye")
 
 

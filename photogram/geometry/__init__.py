@@ -14,8 +14,11 @@ from photogram.geometry.brown import BrownModel
 from photogram.geometry.opencv_model import OpenCVModel
 from photogram.geometry.fisheye_model import OpenCVFisheyeModel
 from photogram.geometry.bal_model import BALModel
+from photogram.geometry.aicon_model import AiconModel
 from photogram.geometry.conversions import (
     brown_to_opencv, fit_distortion, format_grid, opencv_to_brown)
+from photogram.geometry.aicon_conversions import (
+    aicon_to_brown, aicon_to_opencv, brown_to_aicon, change_r0, opencv_to_aicon)
 
 __all__ = [
     "ANGLE_FACTORS", "angle_increment_map", "from_radians", "matrix_to_opk", "matrix_to_quaternion",
@@ -25,5 +28,6 @@ __all__ = [
     "CAMERA_MODELS", "CameraModel", "camera_frame", "camera_model",
     "ideal_projection", "opencv_pose", "photogrammetric_pose", "pose_jacobians",
     "rescale_parameters", "BrownModel", "OpenCVModel", "OpenCVFisheyeModel", "BALModel",
-    "brown_to_opencv", "fit_distortion", "format_grid", "opencv_to_brown",
+    "AiconModel", "brown_to_opencv", "fit_distortion", "format_grid", "opencv_to_brown",
+    "aicon_to_brown", "aicon_to_opencv", "brown_to_aicon", "change_r0", "opencv_to_aicon",
 ]

@@ -10,7 +10,8 @@ The distortion does not: a polynomial *correction* of measured coordinates
 and a polynomial *distortion* of ideal ones are not inverses of each other
 for any finite set of coefficients, and brown's shear B2 has no OpenCV
 counterpart. :func:`fit_distortion` gives the least-squares best fit over the
-image format and reports the misfit.
+image format and reports the misfit (also for the ``aicon`` model, whose
+exact conversions are in :mod:`photogram.geometry.aicon_conversions`).
 """
 
 from __future__ import annotations
@@ -19,12 +20,15 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from photogram.errors import InputError
+from photogram.geometry import aicon_conversions
 from photogram.geometry.camera import camera_model
 
 DISTORTION_PARAMETERS = {"brown": ("K1", "K2", "K3", "P1", "P2", "B2"),
-                         "opencv": ("k1", "k2", "p1", "p2", "k3")}
+                         "opencv": ("k1", "k2", "p1", "p2", "k3"),
+                         "aicon": ("A1", "A2", "A3", "B1", "B2", "C2")}
 DEFAULT_FIT = {"brown": ("K1", "K2", "K3", "P1", "P2"),
-               "opencv": ("k1", "k2", "p1", "p2", "k3")}
+               "opencv": ("k1", "k2", "p1", "p2", "k3"),
+               "aicon": ("A1", "A2", "A3", "B1", "B2")}
 
 
 def _lost(model, params, strict, target):
@@ -75,11 +79,19 @@ def opencv_to_brown(params, strict=True) -> np.ndarray:
 
 
 def _pinhole_part(source, params, target):
+    """The exact part of the conversion (the rest dropped): the start of
+    :func:`fit_distortion`."""
     if source == target:
         return np.array(params, dtype=float)
-    if source == "brown":
-        return brown_to_opencv(params, strict=False)
-    return opencv_to_brown(params, strict=False)
+    convert = {("brown", "opencv"): brown_to_opencv, ("opencv", "brown"): opencv_to_brown,
+               ("aicon", "opencv"): aicon_conversions.aicon_to_opencv,
+               ("opencv", "aicon"): aicon_conversions.opencv_to_aicon,
+               ("aicon", "brown"): aicon_conversions.aicon_to_brown,
+               ("brown", "aicon"): aicon_conversions.brown_to_aicon}
+    if (source, target) not in convert:
+        raise InputError(f"no conversion from the {source} to the {target} model",
+                         hint="pass target_params (start values) to fit_distortion")
+    return convert[source, target](params, strict=False)
 
 
 def format_grid(image_size, shape=(25, 19)):
@@ -104,7 +116,7 @@ def fit_distortion(source, source_params, target, image_size, target_params=None
     Parameters
     ----------
     source, target : str
-        Model names ("brown", "opencv").
+        Model names ("brown", "opencv", "aicon").
     source_params : array_like
     image_size : (w, h)
     target_params : array_like, optional

@@ -197,6 +197,7 @@ def opencv_intrinsics(camera: Camera, image_unit: str = "px",
     ``opencv`` cameras convert exactly (misfit 0). ``brown`` cameras are
     converted by the exact pinhole part plus a least-squares fit of k1, k2,
     p1, p2, k3 over the format (:func:`photogram.geometry.fit_distortion`);
+    ``aicon`` cameras exactly where possible, else by a fit of all nine;
     the RMS misfit in px is returned and logged when above ``tolerance``.
     Cameras in mm are converted to px with their pixel size.
     """
@@ -225,6 +226,11 @@ def opencv_intrinsics(camera: Camera, image_unit: str = "px",
         if misfit > tolerance:
             log.warning("camera %s: brown -> opencv distortion fit leaves %.3g px RMS",
                         camera.name, misfit)
+    elif camera.model == "aicon":
+        p, misfit = _aicon_to_opencv(camera, values)
+        if misfit > tolerance:
+            log.warning("camera %s: aicon -> opencv fit leaves %.3g px RMS", camera.name,
+                        misfit)
     elif camera.model == "bal":
         # xy = f (1 + k1 r2 + k2 r2^2) t about the image centre: OpenCV with cx = cy = 0
         p = np.array([values[0], values[0], 0.0, 0.0, values[1], values[2], 0.0, 0.0, 0.0])
@@ -233,6 +239,24 @@ def opencv_intrinsics(camera: Camera, image_unit: str = "px",
         raise InputError(f"camera {camera.name}: model {camera.model} cannot be exported")
     K = np.array([[p[0], 0.0, p[2]], [0.0, p[1], p[3]], [0.0, 0.0, 1.0]])
     return K, np.array(p[4:9], float), float(misfit)
+
+
+def _aicon_to_opencv(camera: Camera, values) -> tuple[np.ndarray, float]:
+    """OpenCV parameters (px) of an aicon camera and the RMS misfit: exact
+    where the conversion is (docs/camera-models.md, section 5.3), else a
+    least-squares fit of all nine OpenCV parameters over the format."""
+    from photogram.geometry import aicon_to_opencv, fit_distortion
+    try:
+        return aicon_to_opencv(values), 0.0
+    except InputError:
+        pass
+    if camera.image_size is None:
+        raise InputError(f"camera {camera.name} (aicon) needs image_size to fit OpenCV's "
+                         f"distortion over the format")
+    p, misfit = fit_distortion("aicon", values, "opencv", camera.image_size,
+                               target_params=aicon_to_opencv(values, strict=False),
+                               free=("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"))
+    return np.asarray(p, float), misfit
 
 
 # --------------------------------------------------------------------------

@@ -21,7 +21,8 @@ from photogram.project.text_input import DOCS, suggest
 from photogram.project.toml_source import Section, TomlSource
 from photogram.project.toml_writer import Inline
 
-__all__ = ["FALLBACK_PARAMETERS", "FALLBACK_DIMS", "REQUIRED_PARAMETERS", "camera_models",
+__all__ = ["FALLBACK_PARAMETERS", "FALLBACK_DIMS", "REQUIRED_PARAMETERS", "CONSTANT_PARAMETERS",
+           "constant_parameters", "camera_models",
            "parameter_names", "parameter_dims", "opk_to_matrix", "matrix_to_opk", "invert_opk",
            "read_camera", "free_parameters", "load_cameras_file", "camera_to_toml"]
 
@@ -29,12 +30,14 @@ FALLBACK_PARAMETERS: dict[str, tuple[str, ...]] = {
     "brown": ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2"),
     "opencv": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"),
     "opencv_fisheye": ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4"),
+    "aicon": ("c", "xh", "yh", "A1", "A2", "A3", "B1", "B2", "C1", "C2", "r0"),
 }
 #: Power of the image length unit in each parameter (for px <-> mm).
 FALLBACK_DIMS: dict[str, tuple[int, ...]] = {
     "brown": (1, 1, 1, -2, -4, -6, -1, -1, 0, 0),
     "opencv": (1, 1, 1, 1, 0, 0, 0, 0, 0),
     "opencv_fisheye": (1, 1, 1, 1, 0, 0, 0, 0),
+    "aicon": (1, 1, 1, -2, -4, -6, -1, -1, 0, 0, 1),
 }
 #: Parameters a camera section must give. The principal point defaults to
 #: the format centre (as ``default_parameters`` of photogram.geometry), all
@@ -43,9 +46,15 @@ REQUIRED_PARAMETERS: dict[str, tuple[str, ...]] = {
     "brown": ("c",),
     "opencv": ("fx", "fy"),
     "opencv_fisheye": ("fx", "fy"),
+    "aicon": ("c",),
 }
 PRINCIPAL_POINT: dict[str, tuple[str, str]] = {"brown": ("x0", "y0"), "opencv": ("cx", "cy"),
-                                               "opencv_fisheye": ("cx", "cy")}
+                                               "opencv_fisheye": ("cx", "cy"),
+                                               "aicon": ("xh", "yh")}
+#: Parameters that are constants of the camera (never free), which must be
+#: non-negative: the aicon model's balancing radius (the models'
+#: ``constant_parameters`` when the registry exists).
+CONSTANT_PARAMETERS: dict[str, tuple[str, ...]] = {"aicon": ("r0",)}
 CAMERA_KEYS = ("model", "image_size", "pixel_size")
 FROM_KEYS = ("from", "name", "free", "weighted")
 PARAMETER_KEYS = ("value", "free", "sigma", "sigma_estimated")
@@ -84,6 +93,16 @@ def parameter_dims(model: str) -> tuple[int, ...] | None:
     """Power of the image length unit in each parameter of ``model``."""
     entry = _registry().get(model)
     return None if entry is None or entry[1] is None else tuple(entry[1])
+
+
+def constant_parameters(model: str) -> tuple[str, ...]:
+    """Parameters of ``model`` that are constants of the camera (never
+    free; e.g. the aicon model's balancing radius r0)."""
+    try:
+        from photogram import geometry
+        return tuple(getattr(geometry.CAMERA_MODELS[model], "constant_parameters", ()))
+    except (ImportError, AttributeError, KeyError):
+        return CONSTANT_PARAMETERS.get(model, ())
 
 
 # --------------------------------------------------------------------------
@@ -193,8 +212,25 @@ def _inline_camera(sec: Section, name: str, image_unit: str) -> Camera:
     defaults = _centre(sec, name, model, image_unit, size, pixel)
     params = {p: _parameter(sec, p) if p in sec.data else defaults.get(p, Parameter(0.0))
               for p in names}
+    _check_constants(sec, model, params)
     return Camera(name=name, model=model, parameters=params, image_size=size,
                   pixel_size=pixel)
+
+
+def _check_constants(sec: Section, model: str, params: dict, free=()) -> None:
+    """Constants of the camera (:data:`CONSTANT_PARAMETERS`) are fixed and
+    non-negative."""
+    for key in constant_parameters(model):
+        par = params[key]
+        if par.free or key in free:
+            raise sec.error("free" if key in free else key,
+                            f"{key} of {sec.label} is a constant of the {model} model and "
+                            "cannot be free",
+                            hint=f"give {key} as a plain value (0 = unbalanced); to change "
+                                 "it, convert the camera with photogram.geometry.change_r0")
+        if not par.value >= 0:
+            raise sec.error(key, f"{key} of {sec.label} must be >= 0, got {par.value:g}",
+                            hint="the balancing radius is a distance from the principal point")
 
 
 def read_camera(sec: Section, name: str, *, image_unit: str, folder: Path,
@@ -282,6 +318,7 @@ def free_parameters(sec: Section, camera: Camera) -> list[str]:
 
 def _override_free(sec: Section, camera: Camera, name: str, ref: str) -> Camera:
     free = free_parameters(sec, camera)
+    _check_constants(sec, camera.model, camera.parameters, free)
     weighted = sec.boolean("weighted", False)
     params = {}
     for p, par in camera.parameters.items():

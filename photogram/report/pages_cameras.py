@@ -67,6 +67,8 @@ def displacement(cam, xy):
         ideal = io[1:3] + model.correct(xy, io)
     elif cam.model == "opencv":
         ideal = io[2:4] + io[0:2] * model.image_to_ray(xy, io)
+    elif cam.model == "aicon":
+        ideal = io[1:3] + io[0] * model.image_to_ray(xy, io)
     else:
         return None
     return xy - ideal
@@ -85,7 +87,8 @@ def distortion_field(cam, fmt, nx=41, ny=31):
 
 def _principal_point(cam):
     io = cam.values()
-    return io[1:3] if cam.model == "brown" else io[2:4] if cam.model == "opencv" else None
+    return (io[1:3] if cam.model in ("brown", "aicon") else io[2:4] if cam.model == "opencv"
+            else None)
 
 
 def _plot_distortion(doc, data, cam, fmt, field):
