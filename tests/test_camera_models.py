@@ -23,6 +23,13 @@ PARAMS = {
     "opencv_fisheye": np.array([1420.0, 1425.0, 322.0, 238.0, 0.05, -0.3, 0.8, -1.2]),
     # BAL (Snavely): f, k1, k2 of normalised radii; origin at the image centre
     "bal": np.array([1420.0, -0.25, 0.3]),
+    # DBAT's lens models 4, 5 and -1 (photogram.geometry.dbat_models)
+    "brown_affine_after": np.array([1420.0, 321.5, 238.2, 2.3e-7, -3.0e-13, 6.0e-19,
+                                    6.0e-6, -4.0e-6, 4.0e-4, -3.0e-4]),
+    "brown_aspect_first": np.array([1420.0, 321.5, 238.2, 2.3e-7, -3.0e-13, 6.0e-19,
+                                    6.0e-6, -4.0e-6, 4.0e-4, -3.0e-4]),
+    "brown_forward": np.array([1420.0, 321.5, 238.2, 2.3e-7, -3.0e-13, 6.0e-19,
+                               6.0e-6, -4.0e-6]),
 }
 # Characteristic magnitudes: a change of 1e-4 of these moves points by a
 # few hundredths of a pixel (r ~ 400 px at the corners).
@@ -32,6 +39,12 @@ TYPICAL = {
     "opencv": np.array([1420, 1420, 1420, 1420, 1, 1, 1, 1, 1]),
     "opencv_fisheye": np.array([1420, 1420, 1420, 1420, 1, 1, 1, 1]),
     "bal": np.array([1420, 1, 1]),
+    "brown_affine_after": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
+                                    1 / 400, 1 / 400, 1, 1]),
+    "brown_aspect_first": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
+                                    1 / 400, 1 / 400, 1, 1]),
+    "brown_forward": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
+                               1 / 400, 1 / 400]),
 }
 STEP = {"angles": 1e-4, "rotation": 1e-4, "X0": 1e-3, "X": 1e-3}
 
@@ -127,7 +140,8 @@ def test_jacobian_shapes(model):
 
 # ---------------------------------------------------------------- registry
 def test_registry():
-    assert set(CAMERA_MODELS) == {"bal", "brown", "opencv", "opencv_fisheye"}
+    assert set(CAMERA_MODELS) == {"bal", "brown", "opencv", "opencv_fisheye",
+                                  "brown_affine_after", "brown_aspect_first", "brown_forward"}
     assert camera_model("brown").parameter_names == (
         "c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2")
     assert camera_model("opencv").parameter_names == (

@@ -14,6 +14,8 @@ from photogram.geometry.brown import BrownModel
 from photogram.geometry.opencv_model import OpenCVModel
 from photogram.geometry.fisheye_model import OpenCVFisheyeModel
 from photogram.geometry.bal_model import BALModel
+from photogram.geometry.dbat_models import (
+    BrownAffineAfterModel, BrownAspectFirstModel, BrownForwardModel)
 from photogram.geometry.conversions import (
     brown_to_opencv, fit_distortion, format_grid, opencv_to_brown)
 
@@ -25,5 +27,6 @@ __all__ = [
     "CAMERA_MODELS", "CameraModel", "camera_frame", "camera_model",
     "ideal_projection", "opencv_pose", "photogrammetric_pose", "pose_jacobians",
     "rescale_parameters", "BrownModel", "OpenCVModel", "OpenCVFisheyeModel", "BALModel",
+    "BrownAffineAfterModel", "BrownAspectFirstModel", "BrownForwardModel",
     "brown_to_opencv", "fit_distortion", "format_grid", "opencv_to_brown",
 ]
