@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 
 from photogram.errors import InputError
-from photogram.geometry import camera_model, rescale_parameters
+from photogram.geometry import (aspect_first_to_brown, brown_to_aspect_first, camera_model,
+                                rescale_parameters)
 from photogram.project import read_project
 
 # CAMCAL's model-3 result (dbat-report.txt), skew made non-zero to exercise it:
@@ -125,6 +126,35 @@ def test_aspect_first_without_skew_is_brown_with_scaled_x0():
     c5 = camera_model("brown_aspect_first").correct(xy, px("brown", io5))
     c3 = camera_model("brown").correct(xy, px("brown", io3))
     np.testing.assert_allclose(c5, c3, rtol=0, atol=1e-9)
+
+
+def test_aspect_first_converts_to_brown_exactly():
+    """aspect_first_to_brown / brown_to_aspect_first: the same projections
+    to 1e-9 px, a round trip to rounding, the covariance through the exact
+    Jacobian of the map; a shear cannot be converted."""
+    io5 = px("brown", IO)
+    io5[9] = 0.0
+    io3 = aspect_first_to_brown(io5)
+    rng = np.random.default_rng(2)
+    X = np.stack([rng.uniform(-0.4, 0.4, 50), rng.uniform(-0.3, 0.3, 50),
+                  -np.ones(50)], -1)
+    a = camera_model("brown_aspect_first").project(X, np.zeros(3), np.zeros(3), io5)
+    b = camera_model("brown").project(X, np.zeros(3), np.zeros(3), io3)
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(brown_to_aspect_first(io3), io5, rtol=1e-15, atol=0)
+    cov = np.diag(np.abs(io5) * 1e-3 + 1e-12) ** 2
+    _, cov3 = aspect_first_to_brown(io5, cov)
+    J = np.zeros((10, 10))
+    J[9, 9] = 1.0                            # B2 passes unchanged (and must be 0)
+    for k in range(9):
+        h = 1e-6 * max(abs(io5[k]), 1e-3)
+        step = np.zeros(10)
+        step[k] = h
+        J[:, k] = (aspect_first_to_brown(io5 + step) - aspect_first_to_brown(io5 - step)) / (2 * h)
+    np.testing.assert_allclose(cov3, J @ cov @ J.T, rtol=1e-6, atol=0)
+    io5[9] = 1e-4
+    with pytest.raises(InputError, match="shear B2"):
+        aspect_first_to_brown(io5)
 
 
 def test_affine_after_without_affinity_is_brown():

@@ -15,7 +15,8 @@ from photogram.geometry.opencv_model import OpenCVModel
 from photogram.geometry.fisheye_model import OpenCVFisheyeModel
 from photogram.geometry.bal_model import BALModel
 from photogram.geometry.dbat_models import (
-    BrownAffineAfterModel, BrownAspectFirstModel, BrownForwardModel)
+    BrownAffineAfterModel, BrownAspectFirstModel, BrownForwardModel, aspect_first_to_brown,
+    brown_to_aspect_first)
 from photogram.geometry.conversions import (
     brown_to_opencv, fit_distortion, format_grid, opencv_to_brown)
 
@@ -28,5 +29,6 @@ __all__ = [
     "ideal_projection", "opencv_pose", "photogrammetric_pose", "pose_jacobians",
     "rescale_parameters", "BrownModel", "OpenCVModel", "OpenCVFisheyeModel", "BALModel",
     "BrownAffineAfterModel", "BrownAspectFirstModel", "BrownForwardModel",
+    "aspect_first_to_brown", "brown_to_aspect_first",
     "brown_to_opencv", "fit_distortion", "format_grid", "opencv_to_brown",
 ]

@@ -28,13 +28,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.errors import GeometryError
+from photogram.errors import GeometryError, InputError
 from photogram.geometry.brown import BrownModel
 from photogram.geometry.camera import newton_invert, register_model
 from photogram.geometry.forward_model import ForwardModel
 
 __all__ = ["brown_polynomial", "BrownAffineAfterModel", "BrownAspectFirstModel",
-           "BrownForwardModel"]
+           "BrownForwardModel", "aspect_first_to_brown", "brown_to_aspect_first"]
 
 
 def brown_polynomial(u, v, K1, K2, K3, P1, P2):
@@ -269,3 +269,57 @@ class BrownForwardModel(ForwardModel):
             return value, dt
 
         return newton_invert(fun, xy, start, np.maximum(1.0, np.abs(start).max(axis=1)))
+
+
+# --------------------------------------------------------------------------
+# exact conversion model 5 <-> model 3 (no shear)
+# --------------------------------------------------------------------------
+def _rescale_x0(params, cov, source, factor_of):
+    p = np.array(params, dtype=float)
+    if p.shape != (10,):
+        raise InputError(f"{source} parameters must be the 10 values c, x0, y0, K1, K2, K3, "
+                         f"P1, P2, B1, B2, got shape {p.shape}")
+    if p[9] != 0:
+        raise InputError(f"{source} shear B2 = {p[9]:g} cannot be converted exactly",
+                         hint="brown shears before the correction, brown_aspect_first "
+                              "after it; refit the camera in the other model")
+    f, df = factor_of(p[8])
+    J = np.eye(10)
+    J[1, 1], J[1, 8] = f, p[1] * df
+    p[1] *= f
+    if cov is None:
+        return p
+    return p, J @ np.asarray(cov, dtype=float) @ J.T
+
+
+def aspect_first_to_brown(params, cov=None):
+    """``brown_aspect_first`` (DBAT model 5) -> ``brown`` (model 3), exact
+    for B2 = 0: ``x0_brown = x0 / (1 + B1)``, all else equal
+    (``(1 + B1) x - x0 = (1 + B1)(x - x0_brown)``; docs/camera-models.md,
+    section 4.5).
+
+    Parameters
+    ----------
+    params : (10,) the model-5 parameters (any image unit).
+    cov : (10, 10), optional
+        Their covariance; propagated as ``J cov J^T``.
+
+    Returns
+    -------
+    params : (10,), and the covariance if ``cov`` was given.
+
+    Raises
+    ------
+    InputError
+        If B2 is not zero (the shears act on different sides of the
+        correction).
+    """
+    return _rescale_x0(params, cov, "brown_aspect_first",
+                       lambda b1: (1.0 / (1.0 + b1), -1.0 / (1.0 + b1) ** 2))
+
+
+def brown_to_aspect_first(params, cov=None):
+    """``brown`` -> ``brown_aspect_first``, exact for B2 = 0:
+    ``x0 = (1 + B1) x0_brown`` (the inverse of
+    :func:`aspect_first_to_brown`)."""
+    return _rescale_x0(params, cov, "brown", lambda b1: (1.0 + b1, 1.0))
