@@ -130,3 +130,16 @@ def test_model5_is_model3_with_x0_rescaled(runs):
     np.testing.assert_allclose(np.sqrt(np.diag(cov3)),
                                np.sqrt(np.diag(r3.covariances["cameras"][0])),
                                rtol=1e-5, atol=0)
+
+
+def test_forward_model_through_the_command_line(tmp_path, runs):
+    """calibrate writes the brown_forward camera and reads it back."""
+    from photogram.project import read_results
+    from photogram_cli.main import main
+    out = tmp_path / "out"
+    assert main(["calibrate", str(lens_project(tmp_path, -1)), "--output", str(out),
+                 "-q"]) == 0
+    cam = read_results(out).cameras["C4040Z"]
+    assert cam.model == "brown_forward"
+    np.testing.assert_allclose(cam.values(), runs(-1).project.cameras["C4040Z"].values(),
+                               rtol=1e-9)
