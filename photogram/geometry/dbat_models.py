@@ -132,6 +132,7 @@ class BrownAffineAfterModel(BrownModel):
 
     @staticmethod
     def _check_monotonic(zbar, io, samples=33):
+        """The inversion's root check on the distortion input w."""
         _radial_monotonic(zbar[:, 0], -zbar[:, 1], io, samples)
 
 
@@ -155,6 +156,8 @@ class BrownAspectFirstModel(BrownModel):
     name = "brown_aspect_first"
 
     def _core(self, xbar, ybar, io, partials=True):
+        """Corrected (U, -V) of (xbar, ybar) = (x - x0, y - y0), its
+        partials by (xbar, ybar) and by io at fixed (xbar, ybar)."""
         x0, B1, B2 = io[:, 1], io[:, 8], io[:, 9]
         s = 1.0 + B1
         u, v = s * xbar + B1 * x0, -ybar
@@ -177,14 +180,17 @@ class BrownAspectFirstModel(BrownModel):
         return C, dxy, _io_partials(len(u), self.n_params, cols)
 
     def _correct_full(self, xy, io):
+        """Corrected coordinates of measured xy with the partials by xy and
+        by io at fixed xy (x0 enters through xbar and directly)."""
         xy = np.asarray(xy, dtype=float)
         C, dxy, dio = self._core(xy[:, 0] - io[:, 1], xy[:, 1] - io[:, 2], io)
-        dio[:, :, 1] -= dxy[:, :, 0]      # x0 enters through xbar and directly
+        dio[:, :, 1] -= dxy[:, :, 0]      # B1 dC/du - (1 + B1) dC/du = -dC/du
         dio[:, :, 2] = -dxy[:, :, 1]
         return C, dxy, dio
 
     @staticmethod
     def _check_monotonic(zbar, io, samples=33):
+        """The inversion's root check on the distortion input w5."""
         u = (1.0 + io[:, 8]) * zbar[:, 0] + io[:, 8] * io[:, 1]
         _radial_monotonic(u, -zbar[:, 1], io, samples)
 
