@@ -27,6 +27,13 @@ PARAMS = {
     # decentring, affinity and shear; 1-7 px at the corners
     "aicon": np.array([1420.0, 321.5, 238.2, -1.5e-7, 3.0e-13, -5.0e-19,
                        5.0e-6, -4.0e-6, 3.0e-4, -2.0e-4, 250.0]),
+    # DBAT's lens models 4, 5 and -1 (photogram.geometry.dbat_models)
+    "brown_affine_after": np.array([1420.0, 321.5, 238.2, 2.3e-7, -3.0e-13, 6.0e-19,
+                                    6.0e-6, -4.0e-6, 4.0e-4, -3.0e-4]),
+    "brown_aspect_first": np.array([1420.0, 321.5, 238.2, 2.3e-7, -3.0e-13, 6.0e-19,
+                                    6.0e-6, -4.0e-6, 4.0e-4, -3.0e-4]),
+    "brown_forward": np.array([1420.0, 321.5, 238.2, 2.3e-7, -3.0e-13, 6.0e-19,
+                               6.0e-6, -4.0e-6]),
 }
 # Characteristic magnitudes: a change of 1e-4 of these moves points by a
 # few hundredths of a pixel (r ~ 400 px at the corners).
@@ -38,6 +45,12 @@ TYPICAL = {
     "bal": np.array([1420, 1, 1]),
     "aicon": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
                        1 / 400, 1 / 400, 1, 1, 400]),
+    "brown_affine_after": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
+                                    1 / 400, 1 / 400, 1, 1]),
+    "brown_aspect_first": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
+                                    1 / 400, 1 / 400, 1, 1]),
+    "brown_forward": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
+                               1 / 400, 1 / 400]),
 }
 STEP = {"angles": 1e-4, "rotation": 1e-4, "X0": 1e-3, "X": 1e-3}
 
@@ -133,7 +146,8 @@ def test_jacobian_shapes(model):
 
 # ---------------------------------------------------------------- registry
 def test_registry():
-    assert set(CAMERA_MODELS) == {"aicon", "bal", "brown", "opencv", "opencv_fisheye"}
+    assert set(CAMERA_MODELS) == {"aicon", "bal", "brown", "opencv", "opencv_fisheye",
+                                  "brown_affine_after", "brown_aspect_first", "brown_forward"}
     assert camera_model("brown").parameter_names == (
         "c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2")
     assert camera_model("opencv").parameter_names == (

@@ -15,6 +15,9 @@ from photogram.geometry.opencv_model import OpenCVModel
 from photogram.geometry.fisheye_model import OpenCVFisheyeModel
 from photogram.geometry.bal_model import BALModel
 from photogram.geometry.aicon_model import AiconModel
+from photogram.geometry.dbat_models import (
+    BrownAffineAfterModel, BrownAspectFirstModel, BrownForwardModel, aspect_first_to_brown,
+    brown_to_aspect_first)
 from photogram.geometry.conversions import (
     brown_to_opencv, fit_distortion, format_grid, opencv_to_brown)
 from photogram.geometry.aicon_conversions import (
@@ -28,6 +31,9 @@ __all__ = [
     "CAMERA_MODELS", "CameraModel", "camera_frame", "camera_model",
     "ideal_projection", "opencv_pose", "photogrammetric_pose", "pose_jacobians",
     "rescale_parameters", "BrownModel", "OpenCVModel", "OpenCVFisheyeModel", "BALModel",
-    "AiconModel", "brown_to_opencv", "fit_distortion", "format_grid", "opencv_to_brown",
-    "aicon_to_brown", "aicon_to_opencv", "brown_to_aicon", "change_r0", "opencv_to_aicon",
+    "AiconModel", "aicon_to_brown", "aicon_to_opencv", "brown_to_aicon", "change_r0",
+    "opencv_to_aicon",
+    "BrownAffineAfterModel", "BrownAspectFirstModel", "BrownForwardModel",
+    "aspect_first_to_brown", "brown_to_aspect_first",
+    "brown_to_opencv", "fit_distortion", "format_grid", "opencv_to_brown",
 ]

@@ -31,6 +31,10 @@ FALLBACK_PARAMETERS: dict[str, tuple[str, ...]] = {
     "opencv": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"),
     "opencv_fisheye": ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4"),
     "aicon": ("c", "xh", "yh", "A1", "A2", "A3", "B1", "B2", "C1", "C2", "r0"),
+    # DBAT's lens models 4, 5 and -1 (photogram.geometry.dbat_models)
+    "brown_affine_after": ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2"),
+    "brown_aspect_first": ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2"),
+    "brown_forward": ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2"),
 }
 #: Power of the image length unit in each parameter (for px <-> mm).
 FALLBACK_DIMS: dict[str, tuple[int, ...]] = {
@@ -38,6 +42,9 @@ FALLBACK_DIMS: dict[str, tuple[int, ...]] = {
     "opencv": (1, 1, 1, 1, 0, 0, 0, 0, 0),
     "opencv_fisheye": (1, 1, 1, 1, 0, 0, 0, 0),
     "aicon": (1, 1, 1, -2, -4, -6, -1, -1, 0, 0, 1),
+    "brown_affine_after": (1, 1, 1, -2, -4, -6, -1, -1, 0, 0),
+    "brown_aspect_first": (1, 1, 1, -2, -4, -6, -1, -1, 0, 0),
+    "brown_forward": (1, 1, 1, -2, -4, -6, -1, -1),
 }
 #: Parameters a camera section must give. The principal point defaults to
 #: the format centre (as ``default_parameters`` of photogram.geometry), all
@@ -47,10 +54,15 @@ REQUIRED_PARAMETERS: dict[str, tuple[str, ...]] = {
     "opencv": ("fx", "fy"),
     "opencv_fisheye": ("fx", "fy"),
     "aicon": ("c",),
+    "brown_affine_after": ("c",),
+    "brown_aspect_first": ("c",),
+    "brown_forward": ("c",),
 }
 PRINCIPAL_POINT: dict[str, tuple[str, str]] = {"brown": ("x0", "y0"), "opencv": ("cx", "cy"),
                                                "opencv_fisheye": ("cx", "cy"),
                                                "aicon": ("xh", "yh")}
+PRINCIPAL_POINT.update(dict.fromkeys(("brown_affine_after", "brown_aspect_first",
+                                      "brown_forward"), ("x0", "y0")))
 #: Parameters that are constants of the camera (never free), which must be
 #: non-negative: the aicon model's balancing radius (the models'
 #: ``constant_parameters`` when the registry exists).

@@ -36,7 +36,8 @@ from photogram.project.model import Camera, Parameter
 from photogram.project.text_input import decode_utf8
 
 __all__ = ["DbatImagePoints", "DbatControlPoints", "DbatCamera", "read_image_points",
-           "read_control_points", "read_camera_xml"]
+           "read_control_points", "read_camera_xml", "DBAT_LENS_MODELS", "DBAT_NO_AFFINITY",
+           "dbat_lens_camera"]
 
 # ---------------------------------------------------------------------------
 # tables
@@ -308,6 +309,15 @@ def _slug(name: str) -> str:
     return s or "camera"
 
 
+#: DBAT's lens distortion model numbers -> photogram's camera models
+#: (docs/camera-models.md, section 4.5). Models 1 and 2 are ``brown`` with
+#: B1 = B2 = 0 held fixed (:data:`DBAT_NO_AFFINITY`).
+DBAT_LENS_MODELS = {-1: "brown_forward", 1: "brown", 2: "brown", 3: "brown",
+                    4: "brown_affine_after", 5: "brown_aspect_first"}
+#: DBAT lens models without aspect and skew.
+DBAT_NO_AFFINITY = (-1, 1, 2)
+
+
 def _brown_camera(cam: DbatCamera, name: str, source: str) -> Camera:
     """The DBAT camera as a "brown" :class:`Camera` in pixel units.
 
@@ -316,8 +326,19 @@ def _brown_camera(cam: DbatCamera, name: str, source: str) -> Camera:
     to pixels with :func:`photogram.geometry.rescale_parameters` and the
     pixel width (``c = cc / pixel width``, ``K_i * p^(2i)``, ``P_i * p``).
     """
+    return dbat_lens_camera(cam, name, source, "brown")
+
+
+def dbat_lens_camera(cam: DbatCamera, name: str, source: str, model_name: str) -> Camera:
+    """The DBAT camera as a :class:`Camera` of photogram model
+    ``model_name`` (a value of :data:`DBAT_LENS_MODELS`), in pixel units.
+
+    The models of :mod:`photogram.geometry.dbat_models` and ``brown`` take
+    DBAT's reported values (cc, px, py, K1-K3, P1-P2 in mm) as they are;
+    parameters the model lacks (B1, B2 of ``brown_forward``) are left out.
+    """
     from photogram.geometry import camera_model, rescale_parameters
-    model = camera_model("brown")
+    model = camera_model(model_name)
     names = tuple(model.parameter_names)
     px, py = cam.pixel_size
     mm = dict.fromkeys(names, 0.0)
@@ -331,5 +352,5 @@ def _brown_camera(cam: DbatCamera, name: str, source: str) -> Camera:
             mm[f"P{i + 1}"] = float(v)
     values = rescale_parameters(model, np.array([mm[n] for n in names]), 1.0 / px)
     params = {n: Parameter(value=float(v)) for n, v in zip(names, values)}
-    return Camera(name=name, model="brown", parameters=params, image_size=cam.image,
+    return Camera(name=name, model=model_name, parameters=params, image_size=cam.image,
                   pixel_size=(px, py), source=source)

@@ -29,7 +29,7 @@ from photogram.project.validate import check_single_rays, observation_rays, repe
 __all__ = ["DBAT_CONTROL_COLUMNS", "DBAT_IMAGE_COLUMNS"]
 
 OBSERVATION_ENTRY_KEYS = ("file", "format", "columns", "sxy")
-DBAT_CAMERA_KEYS = ("from_dbat", "camera", "free")
+DBAT_CAMERA_KEYS = ("from_dbat", "camera", "free", "lens_model")
 #: DBAT control-point formats that photogram.io.dbat.read_control_points reads.
 DBAT_CONTROL_COLUMNS = ("id,label,x,y,z", "id,label,x,y,z,sxyz", "id,label,x,y,z,sx,sy,sz")
 DBAT_IMAGE_COLUMNS = "im,id,x,y,sxy"
@@ -254,8 +254,10 @@ def _check_measured(station, point, files, lines, project: Project) -> None:
 
 def _camera_from_dbat(sec: Section, name: str, project: Project):
     """``[cameras.NAME] from_dbat = "camera.xml"``: a DBAT camera (camera
-    file or script XML) as a brown camera, everything fixed except ``free``."""
-    from photogram.project.dbat_tables import _brown_camera, read_camera_xml
+    file or script XML) in the photogram model of its DBAT lens model (the
+    XML's ``<model>`` or the key ``lens_model``; docs/camera-models.md,
+    section 4.5), everything fixed except ``free``."""
+    from photogram.project.dbat_tables import read_camera_xml
     sec.check_keys(DBAT_CAMERA_KEYS)
     ref = sec.string("from_dbat")
     path = project.folder / ref
@@ -278,8 +280,9 @@ def _camera_from_dbat(sec: Section, name: str, project: Project):
                             hint=suggest(wanted, [c.name for c in cams] + [c.id for c in cams],
                                          noun="cameras there"))
         cam = match[0]
-    camera = _brown_camera(cam, name, ref)
+    camera, lens = _dbat_lens_camera(sec, cam, name, ref, project)
     free = free_parameters(sec, camera)
+    _check_no_affinity(sec, lens, free)
     for p, par in camera.parameters.items():
         par.free = p in free
     if project.units.image == "mm":
@@ -292,8 +295,35 @@ def _camera_from_dbat(sec: Section, name: str, project: Project):
         values = rescale_parameters(camera_model(camera.model), camera.values(), px)
         for par, v in zip(camera.parameters.values(), values):
             par.value = float(v)
-    if cam.model not in (None, 3):
-        project.warnings.append(f"camera {name}: DBAT lens distortion model {cam.model} is "
-                                f"read as the brown model (DBAT's model 3)")
     project.warnings.extend(f"camera {name}: {note}" for note in cam.notes)
     return camera
+
+
+def _dbat_lens_camera(sec: Section, cam, name: str, ref: str, project: Project):
+    """The camera in the model of its DBAT lens model and that number
+    (``lens_model`` of the section, else the XML's ``<model>``, else 3)."""
+    from photogram.project.dbat_tables import DBAT_LENS_MODELS, dbat_lens_camera
+    known = ", ".join(str(k) for k in sorted(DBAT_LENS_MODELS))
+    lens = sec.integer("lens_model", None)
+    if lens is not None and lens not in DBAT_LENS_MODELS:
+        raise sec.error("lens_model", f"unknown DBAT lens model {lens} in {sec.label}",
+                        hint=f"DBAT's lens models: {known}")
+    if lens is None:
+        lens = 3 if cam.model is None else cam.model
+        if lens not in DBAT_LENS_MODELS:
+            project.warnings.append(f"camera {name}: DBAT lens distortion model {lens} is "
+                                    f"unknown ({known}); read as the brown model (DBAT's "
+                                    f"model 3)")
+            lens = 3
+    return dbat_lens_camera(cam, name, ref, DBAT_LENS_MODELS[lens]), lens
+
+
+def _check_no_affinity(sec: Section, lens: int, free: list) -> None:
+    """DBAT's lens models 1 and 2 have no aspect and skew: B1, B2 stay 0."""
+    from photogram.project.dbat_tables import DBAT_NO_AFFINITY
+    bad = [p for p in ("B1", "B2") if p in free]
+    if lens in DBAT_NO_AFFINITY and bad:
+        raise sec.error("free", f"{' and '.join(bad)} in free of {sec.label}: DBAT lens model "
+                                f"{lens} has no aspect or skew",
+                        hint="remove them from free, or use lens_model = 3 (brown, affinity "
+                             "first), 4 or 5")

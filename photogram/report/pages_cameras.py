@@ -58,6 +58,10 @@ def correlations(data, camera: str, limit: float = 0.95):
     return sorted(out, key=lambda t: -abs(t[2]))
 
 
+#: DBAT's other lens models (photogram.geometry.dbat_models): c, x0, y0 first.
+DBAT_LENS = ("brown_affine_after", "brown_aspect_first", "brown_forward")
+
+
 def displacement(cam, xy):
     """Displacement (n, 2) of measured image points ``xy`` from their
     distortion-free positions (image units, y down), or None for a model
@@ -67,7 +71,7 @@ def displacement(cam, xy):
         ideal = io[1:3] + model.correct(xy, io)
     elif cam.model == "opencv":
         ideal = io[2:4] + io[0:2] * model.image_to_ray(xy, io)
-    elif cam.model == "aicon":
+    elif cam.model == "aicon" or cam.model in DBAT_LENS:
         ideal = io[1:3] + io[0] * model.image_to_ray(xy, io)
     else:
         return None
@@ -87,8 +91,9 @@ def distortion_field(cam, fmt, nx=41, ny=31):
 
 def _principal_point(cam):
     io = cam.values()
-    return (io[1:3] if cam.model in ("brown", "aicon") else io[2:4] if cam.model == "opencv"
-            else None)
+    if cam.model in ("brown", "aicon") or cam.model in DBAT_LENS:
+        return io[1:3]
+    return io[2:4] if cam.model == "opencv" else None
 
 
 def _plot_distortion(doc, data, cam, fmt, field):
