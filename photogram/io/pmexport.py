@@ -104,8 +104,12 @@ def _photo_block(text, k: int, number: int) -> list:
         if what == "covariances" and not fields:
             out.append([])                              # PhotoModeler's empty line
             continue
+        if not fields or fields[0] != str(number):
+            raise text.error(k + j + 1, f"photo {number}: expected a line starting with "
+                                        f"{number} ({what}), found "
+                                        f"{lines[k + j].strip()[:40]!r}", hint=_BLOCK_HINT)
         vals = text.numbers(k + j + 1, fields, what=what)
-        if not vals or vals[0] != number:
+        if vals[0] != number:
             raise text.error(k + j + 1, f"photo {number}: expected a line starting with "
                                         f"{number} ({what}), found "
                                         f"{lines[k + j].strip()[:40]!r}", hint=_BLOCK_HINT)
@@ -301,6 +305,14 @@ def pmexport_project(path, name: str | None = None, image_size=None, *, control=
         log.warning("%s: object point(s) %s have no marked points and are left out", d["path"],
                     ", ".join(unmarked[:10]) + (" ..." if len(unmarked) > 10 else ""))
     ids = [p for p in objs if p in measured]
+    rays = {p: 0 for p in ids}
+    for p in obs_pt:
+        rays[p] += 1
+    single = [p for p in ids if rays[p] == 1 and p not in ctrl]
+    if single:
+        log.warning("%s: point(s) %s are marked on one photo only: the project is refused until "
+                    "they are marked again or removed (DBAT: structurally rank deficient)",
+                    d["path"], ", ".join(single[:10]) + (" ..." if len(single) > 10 else ""))
     control_ids = {p for p in ids if p in ctrl}
     kinds = ["control" if p in control_ids else "tie" for p in ids]
     xyz = np.array([ctrl[p][0] if p in control_ids else objs[p][1:4] for p in ids], float)
