@@ -107,7 +107,8 @@ def _file(where: _Where, el: ET.Element, base: Path) -> Path:
     if flat.is_file():
         log.warning("%s: %s not found, using %s beside the script", script, p, flat)
         return flat
-    raise where.error(el, f"file {name} not found (looked for {p} and {flat})",
+    looked = f"{p}" if p == flat else f"{p} and {flat}"
+    raise where.error(el, f"file {name} not found (looked for {looked})",
                       hint="correct the path (relative to base_dir) or copy the file there")
 
 
