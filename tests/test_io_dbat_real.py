@@ -8,7 +8,8 @@ at a relative change of 1e-6 ("Convergence tolerance: 1e-06" in its
 reports), which leaves a few parameters short of their printed digits: a
 value may then differ by at most 2e-5 of that parameter's deviation (the
 cases are named in the tests; photogram converges to 1e-12 here). The
-measured figures are in docs/interoperability.md, section 2.3.
+measured figures are in docs/interoperability.md, sections 2.1 and 2.2
+(``pytest -s tests/test_io_dbat_real.py`` prints them).
 """
 
 from __future__ import annotations
@@ -68,16 +69,21 @@ def interior_mismatches(result, report, loose=()) -> list[str]:
     ps = pixel_size(report)
     values = to_mm({n: p.value for n, p in cam.parameters.items()}, ps)
     sigmas = to_mm(result.camera_sigma[name], ps)
-    bad = []
+    bad, rows = [], []
     for n, heading in DBAT_NAMES.items():
         ref = report["camera"][heading]
         value, half = printed(ref["value"])
         dev, dev_half = printed(ref["deviation"])
         slack = 2e-5 * dev if n in loose else 0.0
+        rows.append(f"{n} {values[n]:.7g} ({ref['value']}, {abs(values[n] - value) / half / 2:.2f}"
+                    f" unit) sd {abs(sigmas[n]):.4g} ({ref['deviation']}, "
+                    f"{abs(abs(sigmas[n]) - dev) / dev_half / 2:.2f} unit)")
         if abs(values[n] - value) > max(half, slack):
             bad.append(f"{n}: {values[n]:.7g} vs DBAT {ref['value']}")
         if abs(abs(sigmas[n]) - dev) > dev_half:
             bad.append(f"sigma {n}: {abs(sigmas[n]):.4g} vs DBAT {ref['deviation']}")
+    print("interior (mm; DBAT's printed value, |ours - DBAT| in units of its last digit):\n  "
+          + "\n  ".join(rows))
     return bad
 
 
@@ -86,6 +92,8 @@ def summary_matches(result, report):
     assert s["status"] == "converged"
     assert s["redundancy"] == report["redundancy"]
     value, half = printed(report["sigma0"])
+    print(f"sigma0 {s['sigma0']:.7f} (DBAT {report['sigma0']}), redundancy {s['redundancy']} "
+          f"(DBAT {report['redundancy']}), unknowns {s['counts']['unknowns']}")
     assert abs(s["sigma0"] - value) <= half, (s["sigma0"], report["sigma0"])
 
 
