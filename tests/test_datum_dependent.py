@@ -192,7 +192,9 @@ def test_prj_round_trip(tmp_path):
     text = prj.read_text()
     assert 'datum = "dependent"' in text and 'dependent_station = "2"' in text
     assert 'dependent_coordinate = "z"' in text
-    prj.write_text(text.replace('dependent_coordinate = "z"', 'dependent_coordinate = "w"'))
-    with pytest.raises(InputError, match="dependent_coordinate") as err:
-        read_project(prj)
-    assert "dependent_coordinate" in prj.read_text().splitlines()[err.value.line - 1]
+    assert read_project(prj).adjustment.dependent_station == "2"
+    for key, bad in (("dependent_coordinate", '"w"'), ("dependent_station", '"99"')):
+        prj.write_text(text.replace(f'{key} = ', f'{key} = {bad} #'))
+        with pytest.raises(InputError, match=key) as err:
+            read_project(prj)
+        assert key in prj.read_text().splitlines()[err.value.line - 1]

@@ -156,8 +156,18 @@ def read_project(path: str | Path) -> Project:
         _read_observations(tables[2], project)
     _read_constraints(root.table("constraints", required=False), project)
     read_targets(root.table("targets", required=False), project)
+    _check_dependent(root, project)
     project.warnings = project.warnings + validate_project(project, src)
     return project
+
+
+def _check_dependent(root: Section, project: Project) -> None:
+    """``dependent_station`` must name a station (line of the key)."""
+    name = project.adjustment.dependent_station
+    if name is not None and name not in project.stations.names:
+        raise root.table("adjustment").error(
+            "dependent_station", f"dependent_station names unknown station {name!r}",
+            hint=suggest(name, project.stations.names, noun="stations"))
 
 
 def _read_track_project(root: Section, project: Project) -> Project:
