@@ -193,6 +193,8 @@ def test_prj_round_trip(tmp_path):
     assert 'datum = "dependent"' in text and 'dependent_station = "2"' in text
     assert 'dependent_coordinate = "z"' in text
     assert read_project(prj).adjustment.dependent_station == "2"
+    prj.write_text(text.replace('datum = "dependent"', 'datum = "free"'))
+    assert any("used only with datum" in w for w in read_project(prj).warnings)
     for key, bad in (("dependent_coordinate", '"w"'), ("dependent_station", '"99"')):
         prj.write_text(text.replace(f'{key} = ', f'{key} = {bad} #'))
         with pytest.raises(InputError, match=key) as err:
