@@ -291,3 +291,45 @@ def test_pmexport_latin1_names_and_no_image_size(tmp_path):
     assert cli_import("pmexport", src, "--to", tmp_path / "a") == 2      # no size: one line
     p = imported(tmp_path, "pmexport", src, "--image-size", "2272,1704")
     assert p.cameras["pm"].image_size == (2272, 1704)
+
+
+def test_pmexport_image_size_from_the_image_file(tmp_path):
+    """No WIDTH HEIGHT on line 2: as DBAT's loadpm, the size of the first
+    photo's image file (here beside the export, under its own name)."""
+    import cv2
+    lines = (PM / "camcal-pmexport5.txt").read_text(encoding="latin-1").splitlines()
+    lines[1] = " 0.000500 20"
+    src = tmp_path / "pm.txt"
+    src.write_text("\n".join(lines) + "\n", encoding="latin-1")
+    name = lines[5].split(maxsplit=1)[1].strip()           # data/dbat/images/cam/P8250021.JPG
+    (tmp_path / Path(name).parent).mkdir(parents=True)
+    cv2.imwrite(str(tmp_path / name), np.zeros((1704, 2272), np.uint8))
+    p = imported(tmp_path, "pmexport", src)
+    assert p.cameras["pm"].image_size == (2272, 1704)
+
+
+def test_pmexport_zero_sigmas(tmp_path, caplog):
+    """DBAT's rule: all marked-point sigmas 0 -> 1 px for all; zero sigmas
+    among non-zero ones get 1 px here, with a warning (DBAT gives them no
+    finite weight)."""
+    from photogram.io.pmexport import pmexport_project
+    lines = (PM / "camcal-pmexport5.txt").read_text(encoding="latin-1").splitlines()
+    marks = [i for i, ln in enumerate(lines) if len(ln.split()) == 6
+             and ln.split()[4] == "0.10000"]
+    zero = list(lines)
+    for i in marks:
+        zero[i] = zero[i].replace("0.10000", "0.00000")
+    src = tmp_path / "zero.txt"
+    src.write_text("\n".join(zero) + "\n", encoding="latin-1")
+    with caplog.at_level(logging.WARNING, logger="photogram"):
+        p = pmexport_project(src, control=CONTROL)
+    assert np.all(p.image_points.sigma == 1.0) and "every marked-point sigma is 0" in caplog.text
+    mixed = list(lines)
+    for i in marks[:3]:
+        mixed[i] = mixed[i].replace("0.10000", "0.00000")
+    src.write_text("\n".join(mixed) + "\n", encoding="latin-1")
+    with caplog.at_level(logging.WARNING, logger="photogram"):
+        p = pmexport_project(src, control=CONTROL)
+    assert np.count_nonzero(p.image_points.sigma == 1.0) == 3
+    assert np.count_nonzero(p.image_points.sigma == 0.1) == len(p.image_points) - 3
+    assert "3 marked point(s) have sigma 0 among others" in caplog.text
