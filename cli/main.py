@@ -144,6 +144,13 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
         sub.add_argument("--target", help="images: the target, e.g. chessboard:9x6:0.025")
         sub.add_argument("--model", choices=("opencv", "brown"), default="opencv",
                          help="images: camera model of the calibration project")
+        sub.add_argument("--control", type=Path, metavar="FILE",
+                         help="pmexport: DBAT control table id,label,x,y,z[,sx,sy,sz]")
+        sub.add_argument("--free", metavar="PARAMS",
+                         help="pmexport: camera parameters to estimate, 'all' (DBAT's c x0 y0 "
+                              "B1 K1 K2 K3 P1 P2) or a list such as c,x0,y0 (default: fixed)")
+        sub.add_argument("--image-size", metavar="W,H",
+                         help="pmexport: image size in pixels when line 2 lacks it")
     if name == "export":
         sub.add_argument("--force", action="store_true", help="replace existing files")
     if name == "measure":

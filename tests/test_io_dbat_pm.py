@@ -136,8 +136,8 @@ def write_pmexport(path: Path, n_marks: int | None = None) -> Path:
     lines += [f"{k} {v[0]} {v[1]} {v[2]} 0 0 0" for k, v in ctrl.items()] + [""]
     lines += [f"{k} {v[0]} {v[1]} {v[2]} 0 0 0" for k, v in pts.items()] + [""]
     rows = marks if n_marks is None else marks[:n_marks]
-    lines += [f"{int(m[0]) - 1} {int(m[1])} {float(m[2])!r} {float(m[3])!r} {0.1 * PH!r} "
-              f"{0.1 * PH!r}" for m in rows]
+    lines += [f"{int(m[0]) - 1} {int(m[1])} {float(m[2])!r} {float(m[3])!r} 0.1 0.1"
+              for m in rows]                   # sigmas in px, as PhotoModeler writes them
     path.write_text("\n".join(lines) + "\n")
     return path
 

@@ -8,7 +8,12 @@ blocks exist, and the datum:
 * ``weighted``: control coordinates are weighted observations (eq. (D3b))
   with sX sY sZ (or ``sigma_control``);
 * ``free``: inner constraints (minimum trace) over all points or the points
-  named in ``inner_constraints``; 6 conditions when a distance fixes scale.
+  named in ``inner_constraints``; 6 conditions when a distance fixes scale;
+* ``dependent``: DBAT's dependent relative orientation: the exterior
+  orientation of ``dependent_station`` (default: the first station) and one
+  projection-centre coordinate of another station are held fixed
+  (:func:`photogram.adjust.datum.dependent_orientation`); control points are
+  adjusted like tie points.
 
 Station priors (appendix D.2) and interior priors are added wherever the
 project gives sigmas; distances and verticality wherever given.
@@ -20,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from photogram.adjust.datum import inner_constraints
+from photogram.adjust.datum import dependent_orientation, inner_constraints
 from photogram.adjust.eccentric_blocks import with_ellipse_centres
 from photogram.adjust.residual_blocks import (
     DistanceBlock, ImagePointBlock, InteriorPriorBlock, PointPriorBlock,
@@ -190,6 +195,9 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
     station_sigma = _station_sigmas(project)
     free_st = np.full((n_s, 6), not fix_stations)
     free_st &= station_sigma != 0               # a sigma of 0 fixes the parameter
+    dependent = _dependent_fixed(project) if adj.datum == "dependent" else []
+    for j, k in dependent:
+        free_st[j, k] = False
     free = {"camera": [np.zeros(len(c.parameters), bool) if fix_interior else c.free_mask()
                        for c in cams],
             "station": free_st,
@@ -263,14 +271,42 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
             chosen = np.array([pidx[p] for p in adj.inner_constraints])
         G = inner_constraints(layout, state, chosen, scale=not dist)
     present = {"control": adj.datum in ("control", "weighted") and len(control) > 0,
-               "distance": bool(dist), "inner": G is not None}
+               "distance": bool(dist), "inner": G is not None, "dependent": dependent}
     if G is not None:
         idx = chosen if chosen is not None else np.flatnonzero(free_pt.any(axis=1))
         present["inner_points"] = (idx, [pts.ids[i] for i in idx])
     problem = Problem(state, layout, blocks, G=G,
                       point_labels=[pts.ids[i] for i in np.flatnonzero(~coupled)])
     return Built(problem, cam_names, present, control, check,
-                 warnings=_ignored_control_sigmas(project, control))
+                 warnings=_ignored_control_sigmas(project, control)
+                 + _dependent_control(project, control))
+
+
+def _dependent_fixed(project):
+    """(station, parameter) pairs that ``datum = "dependent"`` holds fixed
+    (DBAT's seteoest 'depend': :func:`~photogram.adjust.datum.dependent_orientation`)
+    at the approximate projection centres."""
+    adj, st = project.adjustment, project.stations
+    name = getattr(adj, "dependent_station", None)
+    if name is None:
+        base = 0
+    elif str(name) in st.names:
+        base = st.names.index(str(name))
+    else:
+        raise InputError(f"dependent_station names unknown station {name!r}", file=project.path,
+                         hint="use a name from the stations table")
+    return dependent_orientation(st.position, base,
+                                 getattr(adj, "dependent_coordinate", None) or "longest")
+
+
+def _dependent_control(project, control):
+    """With ``datum = "dependent"`` the control coordinates are only
+    approximations: say so (0 or 1 warning)."""
+    if project.adjustment.datum != "dependent" or not len(control):
+        return []
+    return [f'datum = "dependent" adjusts the {len(control)} control points like tie points: '
+            f'their coordinates are approximate values only (datum = "control" or "weighted" '
+            f'uses them)']
 
 
 def _ignored_control_sigmas(project, control):

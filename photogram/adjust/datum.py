@@ -237,3 +237,70 @@ def check_datum(problem, what_is_present):
         text += f" (undetermined: {', '.join(names)})"
     raise GeometryError(text, hint="add control points (3 non-collinear), weighted station "
                                    "priors, a distance, or use datum = \"free\"")
+
+
+#: ``dependent_coordinate`` of the dependent relative orientation: which
+#: coordinate offsets from the base station compete for the fixed one
+DEPENDENT_COORDINATES = {"longest": (0, 1, 2), "x": (0,), "y": (1,), "z": (2,)}
+
+
+def dependent_orientation(positions, base: int = 0, coordinate: str = "longest"):
+    """The parameters held fixed by a dependent relative orientation, as
+    DBAT's ``seteoest(s, 'depend', IMNO, [coord])`` chooses them (Börlin &
+    Grussenmeyer, DBAT, ``code/bundle/seteoest.m``, local function
+    ``setdepend``).
+
+    The base station keeps all six exterior parameters fixed (3 translations
+    and 3 rotations of the datum) and one projection-centre coordinate of
+    one other station is fixed (the scale). That coordinate is the one with
+    the **largest signed offset** from the base station,
+    ``max_{j, i in C} (X0[j, i] - X0[base, i])`` over the stations ``j``
+    and the allowed coordinates ``C`` (x, y, z for ``"longest"``, else the
+    one named), evaluated at the approximate values. DBAT takes the signed
+    maximum, not the largest absolute offset; on ties it fixes every tied
+    coordinate (MATLAB's ``find(offset == max(offset(:)))``), and so does
+    this function.
+
+    Parameters
+    ----------
+    positions : (n_s, 3) projection centres (approximate values)
+    base : int
+        Index of the base station (DBAT's ``ref_cam`` minus one).
+    coordinate : {"longest", "x", "y", "z"}
+
+    Returns
+    -------
+    list of (station index, parameter index)
+        The exterior parameters to hold fixed (parameter 0-2: X0 Y0 Z0,
+        3-5: the rotation), the base station's six first.
+
+    Raises
+    ------
+    GeometryError
+        Fewer than two stations, or no station with a positive offset in
+        the allowed coordinates from the base (then the fixed coordinate
+        would be the base station's own and the scale stays free).
+    """
+    X0 = np.asarray(positions, dtype=float).reshape(-1, 3)
+    n = len(X0)
+    if coordinate not in DEPENDENT_COORDINATES:
+        raise ValueError(f"dependent_coordinate must be one of {', '.join(DEPENDENT_COORDINATES)}")
+    if n < 2 or not 0 <= base < n:
+        raise GeometryError(f"a dependent relative orientation needs at least two stations and "
+                            f"a base station among them (have {n}, base {base + 1})",
+                            hint="name an existing station in dependent_station")
+    cols = list(DEPENDENT_COORDINATES[coordinate])
+    offset = X0[:, cols] - X0[base, cols]
+    best = np.nanmax(offset)
+    if not np.isfinite(best) or best <= 0:
+        raise GeometryError(
+            f"dependent relative orientation: no station lies in the positive "
+            f"{'x, y or z' if coordinate == 'longest' else coordinate} direction from the base "
+            f"station, so the fixed coordinate would be the base station's own and the scale "
+            f"stays undetermined (DBAT takes the largest signed offset)",
+            hint="choose another dependent_station (e.g. the one with the smallest coordinate) "
+                 "or another dependent_coordinate")
+    fixed = [(base, k) for k in range(6)]
+    js, ks = np.nonzero(offset == best)
+    fixed += [(int(j), cols[int(k)]) for j, k in zip(js, ks)]
+    return fixed

@@ -25,10 +25,35 @@ def run_import(args) -> int:
     to = _need(args, "to", usage)
     prj = import_project(fmt, src, to, name=getattr(args, "name", None),
                          target=getattr(args, "target", None),
-                         model=getattr(args, "model", None) or "opencv")
+                         model=getattr(args, "model", None) or "opencv",
+                         control=getattr(args, "control", None),
+                         free=_free(getattr(args, "free", None)),
+                         image_size=_size(getattr(args, "image_size", None)))
     if not getattr(args, "quiet", False):
         print(f"import {fmt}: {src} -> {prj}")
     return 0
+
+
+def _free(text):
+    """``--free all`` or ``--free c,x0,y0``."""
+    if text is None:
+        return None
+    words = [w.strip() for w in str(text).split(",") if w.strip()]
+    return "all" if words == ["all"] else words
+
+
+def _size(text):
+    """``--image-size 2272,1704`` -> (2272, 1704)."""
+    if text is None:
+        return None
+    try:
+        w, h = (int(v) for v in str(text).replace("x", ",").split(","))
+    except ValueError:
+        raise InputError(f"--image-size {text!r} is not WIDTH,HEIGHT in pixels",
+                         hint="e.g. --image-size 2272,1704") from None
+    if w <= 0 or h <= 0:
+        raise InputError(f"--image-size {text!r} must be positive")
+    return w, h
 
 
 def run_export(args) -> int:

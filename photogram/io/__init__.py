@@ -6,7 +6,8 @@ Each format lives in its own module and builds or reads the dataclasses of
 =====================  ==========================================================
 ``dbat``               DBAT projects -> project (their table parsers: project.dbat_tables)
 ``dbat_script``        DBAT XML scripts -> project
-``pmexport``           PhotoModeler text exports (DBAT's loadpm layout) -> project
+``dbat_script_ops``    their <operations> (initial values, estimated parameters, datum), <prior_eo>
+``pmexport``           PhotoModeler text exports as PhotoModeler writes them -> project
 ``pose2sim``           Pose2Sim / anipose calibration TOML, both ways
 ``opencv_fs``          OpenCV FileStorage calibration (YAML/XML/JSON), both ways
 ``colmap``             COLMAP text models, both ways

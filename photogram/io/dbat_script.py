@@ -1,7 +1,8 @@
 """DBAT XML project scripts (``camcaldemo.xml``, ``sxb.xml``) into a
-self-contained photogram project.
+self-contained photogram project (docs/project-files.md, "Mapping a DBAT
+script to a .prj"; DBAT's parser: ``code/script/*.m`` of niclasborlin/dbat).
 
-What is read (docs/project-files.md, "Mapping a DBAT script to a .prj"):
+What is read:
 
 * ``<input base_dir=...>``: ``$HERE`` (the script's folder), ``$HOME`` and
   ``$DBAT`` (environment variable ``DBAT``) are expanded. A table that is
@@ -9,18 +10,35 @@ What is read (docs/project-files.md, "Mapping a DBAT script to a .prj"):
   examples are often copied flat) with a warning in the log.
 * ``<ctrl_pts><file format=...>`` with ``<filter id="..">remove|keep</filter>``;
   ``<check_pts>`` likewise: the kept points become ``check`` points.
+* ``<images><file format="id,path">``: the image ids give the order of the
+  stations (DBAT's image numbers, ``ref_cam``); the image paths are not used.
 * ``<image_pts><file format=".." sxy="..">``, one or several.
-* ``<cameras><camera>``: one camera (``photogram.io.dbat.read_camera_xml``),
-  converted to a ``brown`` camera in pixels.
-* ``<set_bundle_estimate_params><io>``: which interior parameters are free
-  (``all``, ``cc``, ``pp``/``px``/``py``, ``aspect``, ``skew``, ``K``/``K1``..,
-  ``P``/``P1``..; ``nK``/``nP`` of the camera limit K and P).
-* Datum: ``control`` when the control points are fixed (no sigmas),
-  ``weighted`` when they have sigmas.
+* ``<cameras>``: one ``<camera>`` in the script, or ``<file>`` naming a DBAT
+  camera file (``<document><cameras><camera>``) beside it; converted to a
+  ``brown`` camera in pixels (:func:`photogram.io.dbat.read_camera_xml`).
+* ``<prior_eo><file format=".." units="..">``: DBAT's EO table
+  (:func:`photogram.io.dbat_script_ops.read_prior_eo`), matched to the
+  images by ``id`` (else in order); its values are the stations'
+  approximate values when ``<set_initial_values><eo>loaded``; a sigma of 0
+  fixes the parameter when ``<set_bundle_estimate_params><eo>default``. As
+  in DBAT's scripts the prior is not a weighted observation.
+* ``<operations>`` (:mod:`photogram.io.dbat_script_ops`):
+  ``set_initial_values`` (the interior start values, ``default`` or
+  ``loaded``), ``set_bundle_estimate_params`` (free interior parameters;
+  exterior ``true``/``false``/``default``), ``set_datum ... depend``
+  (``datum = "dependent"``, ``dependent_station`` = the ``ref_cam``-th
+  image, ``dependent_coordinate`` = ``ref_base``).
+* Datum otherwise: ``control`` when the control points are fixed (no
+  sigmas), ``weighted`` when they have sigmas, ``free`` without control.
 
-Not taken over: image file paths, the order of DBAT's operations (photogram's
-approximation chain replaces spatial resection / forward intersection),
-plots and output file names, control point labels.
+Unknown elements (DBAT refuses them too), missing files and bad values are
+one-line errors with the script's line.
+
+Not taken over: image file paths, the order of DBAT's numerical operations
+(photogram's approximation chain replaces spatial resection / forward
+intersection), ``<meta>``, ``<output>`` (plots and output file names),
+control point labels, numeric start values for aspect and skew, ``<op>``
+other than ``default``, several cameras.
 """
 
 from __future__ import annotations
@@ -28,42 +46,45 @@ from __future__ import annotations
 import logging
 import os
 import xml.etree.ElementTree as ET
+import xml.parsers.expat
 from pathlib import Path
 
 import numpy as np
 
 from photogram.errors import InputError
+from photogram.io.dbat_script_ops import ScriptState, _Where, read_prior_eo, run_operations
 
 __all__ = ["dbat_script_project", "read_dbat_script"]
 
 log = logging.getLogger("photogram")
 
-_IO_KEYS = {"cc": ("c",), "pp": ("x0", "y0"), "px": ("x0",), "py": ("y0",),
-            "aspect": ("B1",), "as": ("B1",), "skew": ("B2",), "sk": ("B2",),
-            "K": ("K1", "K2", "K3"), "K1": ("K1",), "K2": ("K2",), "K3": ("K3",),
-            "P": ("P1", "P2"), "P1": ("P1",), "P2": ("P2",)}
+_DOCUMENT = ("meta", "input", "operations", "output")
+_INPUT = ("ctrl_pts", "check_pts", "images", "prior_eo", "image_pts", "cameras")
+_CAMERA = ("id", "name", "unit", "sensor", "image", "aspect", "nK", "nP", "focal", "model",
+           "cc", "pp", "K", "P", "skew", "all", "calibrated", "calibration_info")
 
 
-def _parse(path: Path) -> ET.Element:
+def _parse(path: Path):
+    """(root element, {element: line}) of an XML file (expat, for lines)."""
     try:
-        return ET.parse(path).getroot()
-    except ET.ParseError as exc:
-        line = exc.position[0] if getattr(exc, "position", None) else None
-        raise InputError(f"XML syntax error: {exc.msg if hasattr(exc, 'msg') else exc}",
-                         file=path, line=line, hint="the file is damaged or truncated") from None
+        data = path.read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror}", file=path) from None
+    builder, lines = ET.TreeBuilder(), {}
+    parser = xml.parsers.expat.ParserCreate()
 
-
-def _line_of(path: Path, tag: str, text: str | None = None) -> int | None:
+    def start(tag, attrs):
+        lines[builder.start(tag, attrs)] = parser.CurrentLineNumber
+    parser.StartElementHandler = start
+    parser.EndElementHandler = builder.end
+    parser.CharacterDataHandler = builder.data
     try:
-        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
-    except OSError:
-        return None
-    for k, ln in enumerate(lines, 1):
-        if f"<{tag}" in ln and (text is None or text in ln):
-            return k
-    return None
+        parser.Parse(data, True)
+    except xml.parsers.expat.ExpatError as exc:
+        raise InputError(f"XML syntax error: {xml.parsers.expat.ErrorString(exc.code)}",
+                         file=path, line=exc.lineno,
+                         hint="the file is damaged or truncated") from None
+    return builder.close(), lines
 
 
 def _expand(text: str, here: Path) -> str:
@@ -73,10 +94,11 @@ def _expand(text: str, here: Path) -> str:
     return text
 
 
-def _file(el: ET.Element, base: Path, script: Path) -> Path:
+def _file(where: _Where, el: ET.Element, base: Path) -> Path:
+    script = where.script
     name = (el.text or "").strip()
     if not name:
-        raise InputError(f"empty <{el.tag}> element", file=script, line=_line_of(script, el.tag))
+        raise where.error(el, f"empty <{el.tag}> element", hint="name a file")
     p = Path(_expand(name, script.parent))
     p = p if p.is_absolute() else base / p
     if p.is_file():
@@ -85,8 +107,9 @@ def _file(el: ET.Element, base: Path, script: Path) -> Path:
     if flat.is_file():
         log.warning("%s: %s not found, using %s beside the script", script, p, flat)
         return flat
-    raise InputError(f"table {name} not found (looked for {p} and {flat})", file=script,
-                     line=_line_of(script, "file", name))
+    looked = f"{p}" if p == flat else f"{p} and {flat}"
+    raise where.error(el, f"file {name} not found (looked for {looked})",
+                      hint="correct the path (relative to base_dir) or copy the file there")
 
 
 def _ids(text: str) -> set[str]:
@@ -94,83 +117,169 @@ def _ids(text: str) -> set[str]:
     return {_ident(s.strip()) for s in (text or "").split(",") if s.strip()}
 
 
-def _points_block(el, base, script):
+def _points_block(where: _Where, el, base):
     """[(path, format, filter ids, keep?)] of a <ctrl_pts>/<check_pts> block."""
     if el is None:
         return []
+    where.check(el, ("file", "filter"), el.tag)
     out = []
     flt = el.find("filter")
     ids = _ids(flt.get("id", "")) if flt is not None else None
     mode = (flt.text or "").strip().lower() if flt is not None else None
     if mode not in (None, "keep", "remove"):
-        raise InputError(f"<filter> must say keep or remove, not {mode!r}", file=script,
-                         line=_line_of(script, "filter"))
+        raise where.error(flt, f"<filter> must say keep or remove, not {mode!r}")
     for f in el.findall("file"):
-        out.append((_file(f, base, script), f.get("format"), ids, mode))
+        out.append((_file(where, f, base), f.get("format"), ids, mode))
     return out
 
 
-def _free(root: ET.Element, cam) -> list[str]:
-    io = None
-    for op in root.iter("set_bundle_estimate_params"):
-        io = op.find("io")
-    if io is None:
-        return []
-    nk = int(cam.get("nK", 3))
-    np_ = int(cam.get("nP", 2))
-    allowed = {"c", "x0", "y0", "B1", "B2"} | {f"K{i}" for i in range(1, nk + 1)} \
-        | {f"P{i}" for i in range(1, np_ + 1)}
+def _camera(where: _Where, cams, base):
+    """The one DbatCamera of <cameras> (inline or from a camera file)."""
+    from photogram.io.dbat import read_camera_xml
+    where.check(cams, ("file", "camera"), "cameras")
+    files, inline = cams.findall("file"), cams.findall("camera")
+    if len(files) + len(inline) != 1:
+        raise where.error(cams, f"the script has {len(files) + len(inline)} cameras; photogram "
+                                f"imports scripts with exactly one")
+    if inline:
+        where.check(inline[0], _CAMERA, "camera")
+        return read_camera_xml(where.script)[0], where.script
+    path = _file(where, files[0], base)
+    root, lines = _parse(path)
+    inner = _Where(path, lines)
+    if root.tag != "document" or root.find("cameras") is None:
+        raise inner.error(root, "not a DBAT camera file (no <document><cameras>)",
+                          hint="the camera file holds <document><cameras><camera>...")
+    found = root.find("cameras").findall("camera")
+    if len(found) != 1:
+        raise inner.error(root.find("cameras"), f"the camera file has {len(found)} cameras; "
+                                                f"photogram imports scripts with exactly one")
+    inner.check(found[0], _CAMERA, "camera")
+    return read_camera_xml(path)[0], path
 
-    def flag(t):
-        return (t or "").strip().lower() in ("true", "1", "yes")
-    free: set[str] = set()
-    if len(io) == 0:
-        return sorted(allowed) if flag(io.text) else []
-    order = ["all"] + [c.tag for c in io if c.tag != "all"]
-    for tag in order:
-        child = io.find(tag)
-        if child is None:
-            continue
-        names = allowed if tag == "all" else set(_IO_KEYS.get(tag, ()))
-        (free.update if flag(child.text) else free.difference_update)(names)
-    model = ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2")
-    return [n for n in model if n in free and n in allowed]
+
+def _image_ids(where: _Where, el, base) -> list[str] | None:
+    """Image ids in the order of the <images> table (format 'id,path')."""
+    if el is None:
+        return None
+    where.check(el, ("file",), "images")
+    from photogram.project.dbat_tables import _ident, _rows
+    out = []
+    for f in el.findall("file"):
+        path = _file(where, f, base)
+        cols = [c.strip() for c in (f.get("format") or "id,path").split(",")]
+        if "id" not in cols:
+            raise where.error(f, f"<images> format {f.get('format')!r} has no id column")
+        for _, row in _rows(path):
+            out.append(_ident(row[cols.index("id")]))
+    return out
 
 
 def read_dbat_script(path) -> dict:
-    """The parts of a DBAT script photogram uses (paths resolved)."""
+    """The parts of a DBAT script photogram uses (paths resolved, the
+    operations applied: :class:`~photogram.io.dbat_script_ops.ScriptState`)."""
     path = Path(path).resolve()
-    root = _parse(path)
+    root, lines = _parse(path)
+    where = _Where(path, lines)
     if root.tag != "document" or root.find("input") is None:
         raise InputError("not a DBAT script (no <document><input>)", file=path, line=1,
                          hint="for a camera file use [cameras] from_dbat in a .prj")
+    where.check(root, _DOCUMENT, "document")
     inp = root.find("input")
+    where.check(inp, _INPUT, "input")
     base = Path(_expand(inp.get("base_dir", "$HERE"), path.parent))
-    ctrl = _points_block(inp.find("ctrl_pts"), base, path)
-    check = _points_block(inp.find("check_pts"), base, path)
+    ctrl = _points_block(where, inp.find("ctrl_pts"), base)
+    check = _points_block(where, inp.find("check_pts"), base)
     ip = inp.find("image_pts")
     images = []
+    if ip is not None:
+        where.check(ip, ("file",), "image_pts")
     for f in (ip.findall("file") if ip is not None else []):
         sxy = f.get("sxy")
         try:
             sxy = float(sxy) if sxy is not None else None
         except ValueError:
-            raise InputError(f"sxy={sxy!r} is not a number", file=path,
-                             line=_line_of(path, "file", f.text.strip())) from None
-        images.append((_file(f, base, path), f.get("format") or "im,id,x,y,sxy", sxy))
+            raise where.error(f, f"sxy={sxy!r} is not a number") from None
+        images.append((_file(where, f, base), f.get("format") or "im,id,x,y,sxy", sxy))
     if not images:
-        raise InputError("the script has no <image_pts><file>", file=path,
-                         line=_line_of(path, "input"))
+        raise where.error(inp, "the script has no <image_pts><file>")
     cams = inp.find("cameras")
-    cam_els = [] if cams is None else [c for c in cams.findall("camera")]
-    if len(cam_els) != 1:
-        raise InputError(f"the script has {len(cam_els)} cameras; photogram imports scripts with "
-                         f"exactly one", file=path, line=_line_of(path, "cameras"))
-    cam = {c.tag: (c.text or "").strip() for c in cam_els[0]}
+    if cams is None:
+        raise where.error(inp, "the script has no <cameras>",
+                          hint="add <cameras><camera>...</camera></cameras> or "
+                               "<cameras><file>camera.xml</file></cameras>")
+    camera, camera_file = _camera(where, cams, base)
+    prior = None
+    pe = inp.find("prior_eo")
+    if pe is not None:
+        where.check(pe, ("file",), "prior_eo")
+        f = pe.find("file")
+        if f is None:
+            raise where.error(pe, "<prior_eo> has no <file>")
+        if not f.get("format"):
+            raise where.error(f, "<prior_eo><file> has no format attribute",
+                              hint='e.g. format="id,x,y,z,omega,phi,kappa" units="degrees"')
+        prior = read_prior_eo(_file(where, f, base), f.get("format"), f.get("units"), where, f)
     name = (root.findtext("meta/name") or path.stem).strip()
     unit = (root.findtext("meta/project_unit") or "m").strip()
     return {"path": path, "name": name, "unit": unit, "ctrl": ctrl, "check": check,
-            "images": images, "camera": cam, "free": _free(root, cam)}
+            "images": images, "camera": camera, "camera_file": camera_file,
+            "image_ids": _image_ids(where, inp.find("images"), base), "prior_eo": prior,
+            "root": root, "where": where}
+
+
+def _stations(s, measured_images):
+    """Station names: the <images> ids (DBAT's image numbers), else the
+    measured image ids in order of appearance."""
+    ids = s["image_ids"]
+    if ids is None:
+        return list(dict.fromkeys(measured_images))
+    missing = [i for i in dict.fromkeys(measured_images) if i not in ids]
+    if missing:
+        raise InputError(f"image(s) {', '.join(missing[:5])} have measurements but are not in "
+                         f"the <images> table", file=s["path"],
+                         hint="add them to the images table")
+    return list(dict.fromkeys(ids))
+
+
+def _prior_rows(s, names):
+    """(n, 3) positions, (n, 3) angles, (n, 6) sigmas of the stations from
+    <prior_eo> (NaN where none)."""
+    n = len(names)
+    pos, ang, std = np.full((n, 3), np.nan), np.full((n, 3), np.nan), np.full((n, 6), np.nan)
+    pe = s["prior_eo"]
+    if pe is None:
+        return pos, ang, std
+    if pe["ids"] is not None:
+        index = {k: i for i, k in enumerate(names)}
+        bad = [k for k in pe["ids"] if k not in index]
+        if bad:
+            raise InputError(f"prior_eo names image(s) {', '.join(bad[:5])} that are not "
+                             f"stations", file=pe["path"], hint="use the ids of the images")
+        rows = [index[k] for k in pe["ids"]]
+    else:
+        if len(pe["position"]) != n:
+            raise InputError(f"prior_eo has {len(pe['position'])} rows for {n} images (no id "
+                             f"column: the rows are the images in order)", file=pe["path"],
+                             hint="add an id column to the format")
+        rows = list(range(n))
+    pos[rows], ang[rows], std[rows] = pe["position"], pe["angles"], pe["std"]
+    return pos, ang, std
+
+
+def _station_tables(s, state, names):
+    """Approximate values and sigmas (0: fixed, NaN: free) of the stations."""
+    pos, ang, std = _prior_rows(s, names)
+    if not state.eo_loaded:
+        pos[:], ang[:] = np.nan, np.nan
+    rot = state.eo_free[:, 3:]
+    partial = np.flatnonzero(rot.any(1) & ~rot.all(1))
+    if len(partial):
+        raise InputError(f"the script fixes only some rotation angles of image "
+                         f"{names[int(partial[0])]}; photogram fixes a rotation as a whole",
+                         file=s["path"], hint="estimate or fix omega, phi and kappa together")
+    sig = np.where(state.eo_free, np.nan, 0.0)
+    return pos, ang, sig[:, :3], sig[:, 3:]
 
 
 def dbat_script_project(path, name: str | None = None):
@@ -180,20 +289,36 @@ def dbat_script_project(path, name: str | None = None):
     Raises
     ------
     InputError
-        Malformed XML (with the line), missing tables, several cameras, and
-        every error of the DBAT table readers (file and line).
+        Malformed XML, unknown elements, missing files (with the script's
+        line), several cameras, and every error of the DBAT table readers
+        (file and line).
     """
-    from photogram.io.dbat import (_brown_camera, _slug, read_camera_xml, read_control_points,
-                                   read_image_points)
+    from photogram.io.dbat import _brown_camera, _slug, read_control_points, read_image_points
     from photogram.io.exchange import build_project
     s = read_dbat_script(path)
     script = s["path"]
-    cam = read_camera_xml(script)[0]
+    obs_st, obs_pt, obs_xy, obs_sig = [], [], [], []
+    seen = set()
+    for file, fmt, sxy in s["images"]:
+        ip = read_image_points(file, fmt, sxy)
+        for k in range(len(ip.image)):
+            key = (ip.image[k], ip.point[k])
+            if key in seen:
+                raise InputError(f"point {ip.point[k]} is measured twice in image "
+                                 f"{ip.image[k]}", file=file, line=int(ip.line[k]))
+            seen.add(key)
+        obs_st += ip.image
+        obs_pt += ip.point
+        obs_xy.append(ip.xy)
+        obs_sig.append(ip.sxy)
+    st_names = _stations(s, obs_st)
+    state = run_operations(s["root"], ScriptState(s["camera"], len(st_names)), s["where"],
+                           prior_std=_prior_rows(s, st_names)[2])
+    cam = state.camera
     cname = _slug(cam.name)
-    camera = _brown_camera(cam, cname, str(script))
-    for p in s["free"]:
+    camera = _brown_camera(cam, cname, str(s["camera_file"]))
+    for p in state.free:
         camera.parameters[p].free = True
-    # points: control (minus removed), check (kept)
     coords: dict[str, tuple] = {}
     kind: dict[str, str] = {}
     fixed = True
@@ -208,37 +333,30 @@ def dbat_script_project(path, name: str | None = None):
                 kind[pid] = role
                 if role == "control" and np.any(cp.sigma[k] > 0):
                     fixed = False
-    st_names, obs_st, obs_pt, obs_xy, obs_sig = [], [], [], [], []
-    seen = set()
-    for file, fmt, sxy in s["images"]:
-        ip = read_image_points(file, fmt, sxy)
-        for k in range(len(ip.image)):
-            key = (ip.image[k], ip.point[k])
-            if key in seen:
-                raise InputError(f"point {ip.point[k]} is measured twice in image "
-                                 f"{ip.image[k]}", file=file, line=int(ip.line[k]))
-            seen.add(key)
-        st_names += ip.image
-        obs_st += ip.image
-        obs_pt += ip.point
-        obs_xy.append(ip.xy)
-        obs_sig.append(ip.sxy)
-    st_names = list(dict.fromkeys(st_names))
     measured = list(dict.fromkeys(obs_pt))
     ids = list(coords) + [p for p in measured if p not in coords]
-    kinds = [kind.get(p, "tie") for p in ids]
     xyz = np.array([coords[p][0] if p in coords else [np.nan] * 3 for p in ids], float)
     sig = np.array([coords[p][1] if p in coords else [np.nan] * 3 for p in ids], float)
-    sigmas = np.concatenate(obs_sig)
     first = s["images"][0]
     sigma_image = first[2] if first[2] is not None else \
         float(np.nanmedian(obs_sig[0])) if np.isfinite(obs_sig[0]).any() else 1.0
+    has_control = "control" in kind.values()
+    datum = "dependent" if state.dependent else \
+        ("control" if fixed else "weighted") if has_control else "free"
+    pos, ang, pos_sig, ang_sig = _station_tables(s, state, st_names)
     project = build_project(name or script.stem, {cname: camera}, stations=st_names,
-                            station_camera=[cname] * len(st_names), point_ids=ids,
-                            kinds=kinds, xyz=xyz.reshape(-1, 3), point_sigma=sig.reshape(-1, 3),
+                            station_camera=[cname] * len(st_names), angles=ang, X0=pos,
+                            point_ids=ids, kinds=[kind.get(p, "tie") for p in ids],
+                            xyz=xyz.reshape(-1, 3), point_sigma=sig.reshape(-1, 3),
                             obs_station=obs_st, obs_point=obs_pt, obs_xy=np.vstack(obs_xy),
-                            obs_sigma=sigmas, length_unit=s["unit"] if s["unit"] in
-                            ("m", "dm", "cm", "mm") else "m",
-                            datum="control" if fixed else "weighted", sigma_image=sigma_image)
+                            obs_sigma=np.concatenate(obs_sig), length_unit=s["unit"] if
+                            s["unit"] in ("m", "dm", "cm", "mm") else "m",
+                            datum=datum, sigma_image=sigma_image)
+    project.stations.position_sigma[:] = pos_sig
+    project.stations.angle_sigma[:] = ang_sig
+    if state.dependent:
+        ref, base = state.dependent
+        project.adjustment.dependent_station = st_names[ref - 1]
+        project.adjustment.dependent_coordinate = base
     project.adjustment.max_iterations = 20
     return project

@@ -76,9 +76,13 @@ class LineText:
     """The lines of a text file with 1-based numbers, for readers that must
     name the line of every error."""
 
-    def __init__(self, path, what: str):
+    def __init__(self, path, what: str, fallback: str | None = None):
+        """``fallback``: an encoding for files that are not UTF-8 (e.g.
+        ``"latin-1"`` for PhotoModeler's exports); ``self.encoding`` says
+        which one was used."""
         self.path = Path(path)
         self.what = what
+        self.encoding = "utf-8"
         try:
             data = self.path.read_bytes()
         except OSError as exc:
@@ -87,6 +91,10 @@ class LineText:
         try:
             text = data.decode("utf-8-sig")
         except UnicodeDecodeError as exc:
+            if fallback:
+                self.encoding = fallback
+                self.lines = data.decode(fallback).splitlines()
+                return
             line = data[:exc.start].count(b"\n") + 1
             raise InputError(f"{what} is not UTF-8 text: byte 0x{data[exc.start]:02X} cannot be "
                              f"decoded", file=self.path, line=line,

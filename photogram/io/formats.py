@@ -53,9 +53,14 @@ def _format(name: str, table: dict) -> str:
 
 
 def import_project(fmt: str, source, to, *, name: str | None = None, target: str | None = None,
-                   model: str = "opencv") -> Path:
+                   model: str = "opencv", control=None, free=None,
+                   image_size=None) -> Path:
     """Read ``source`` in format ``fmt`` and write a new project into the
     folder ``to``; returns the .prj written.
+
+    ``control`` (a DBAT control table), ``free`` ("all" or camera parameter
+    names) and ``image_size`` ((w, h) px) are options of ``pmexport``
+    (:func:`photogram.io.pmexport.pmexport_project`).
 
     Raises
     ------
@@ -67,12 +72,16 @@ def import_project(fmt: str, source, to, *, name: str | None = None, target: str
     source = Path(source)
     if key != "images" and target is not None:
         raise InputError("--target is only used with the images format")
+    if key != "pmexport" and (control is not None or free is not None or image_size is not None):
+        raise InputError("--control, --free and --image-size are only used with the pmexport "
+                         "format")
     if key == "dbat":
         from photogram.io.dbat_script import dbat_script_project
         return exchange.save_project(dbat_script_project(source, name), to, name)
     if key == "pmexport":
         from photogram.io.pmexport import pmexport_project
-        return exchange.save_project(pmexport_project(source, name), to, name)
+        return exchange.save_project(pmexport_project(source, name, image_size, control=control,
+                                                      free=free), to, name)
     if key == "pose2sim":
         from photogram.io.pose2sim import pose2sim_project
         return exchange.save_calibration(pose2sim_project(source, name), to, name)

@@ -26,7 +26,9 @@ LENGTH_UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001}
 ANGLE_UNITS = ("rad", "deg", "gon")
 IMAGE_UNITS = ("px", "mm")
 POINT_KINDS = ("control", "check", "tie")
-DATUMS = ("control", "weighted", "free")
+DATUMS = ("control", "weighted", "free", "dependent")
+#: [adjustment] dependent_coordinate (datum = "dependent", DBAT's ref_base)
+DEPENDENT_COORDINATES = ("longest", "x", "y", "z")
 ROTATIONS = ("omega-phi-kappa",)           # as written in [project] rotation
 ROTATION_DIRECTIONS = ("world_to_camera", "camera_to_world")
 DAMPINGS = ("none", "lm", "armijo")
@@ -198,6 +200,8 @@ class AdjustmentSettings:
     variance_components: bool = False
     snooping_alpha: float | None = None
     inner_constraints: list[str] | None = None  # point ids; None: all points
+    dependent_station: str | None = None  # datum = "dependent": base station (None: first)
+    dependent_coordinate: str = "longest"  # ... and the coordinate of the scale
 
 
 @dataclass

@@ -17,7 +17,7 @@ from pathlib import Path
 from photogram.errors import InputError
 from photogram.project.camera_schema import invert_opk, read_camera  # noqa: F401
 from photogram.project.model import (  # noqa: F401  (also re-exported)
-    ANGLE_UNITS, DAMPINGS, DATUMS, IMAGE_UNITS, LENGTH_UNITS, POINT_KINDS,
+    ANGLE_UNITS, DAMPINGS, DATUMS, DEPENDENT_COORDINATES, IMAGE_UNITS, LENGTH_UNITS, POINT_KINDS,
     ROBUST_FUNCTIONS, ROTATION_DIRECTIONS, AdjustmentSettings, DistanceConstraint,
     ImageLines, ImagePoints, IntersectSettings, OutputSettings, Points, Project, Stations, Units,
     VerticalConstraint,
@@ -58,7 +58,7 @@ MAX_RUNS = 100_000
 MAX_WORKERS = 256
 ADJUSTMENT_KEYS = ("datum", "max_iterations", "tolerance", "sigma_image", "sigma_control",
                    "damping", "robust", "variance_components", "snooping_alpha",
-                   "inner_constraints")
+                   "inner_constraints", "dependent_station", "dependent_coordinate")
 
 
 def _resolve(path: str | Path) -> Path:
@@ -156,8 +156,18 @@ def read_project(path: str | Path) -> Project:
         _read_observations(tables[2], project)
     _read_constraints(root.table("constraints", required=False), project)
     read_targets(root.table("targets", required=False), project)
+    _check_dependent(root, project)
     project.warnings = project.warnings + validate_project(project, src)
     return project
+
+
+def _check_dependent(root: Section, project: Project) -> None:
+    """``dependent_station`` must name a station (line of the key)."""
+    name = project.adjustment.dependent_station
+    if name is not None and name not in project.stations.names:
+        raise root.table("adjustment").error(
+            "dependent_station", f"dependent_station names unknown station {name!r}",
+            hint=suggest(name, project.stations.names, noun="stations"))
 
 
 def _read_track_project(root: Section, project: Project) -> Project:
@@ -286,7 +296,20 @@ def _read_adjustment(sec: Section | None) -> AdjustmentSettings:
         snooping_alpha=sec.number("snooping_alpha", adj.snooping_alpha, positive=True,
                                   below=1.0),
         inner_constraints=sec.ids("inner_constraints", adj.inner_constraints),
+        dependent_station=_optional_name(sec, "dependent_station"),
+        dependent_coordinate=sec.string("dependent_coordinate", adj.dependent_coordinate,
+                                        choices=DEPENDENT_COORDINATES),
     )
+
+
+def _optional_name(sec: Section, key: str) -> str | None:
+    """A station name given as a string or an integer (``"1"`` or ``1``)."""
+    value = sec.data.get(key)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (str, int)):
+        raise sec.error(key, f"{key} must be a station name", hint='e.g. dependent_station = "1"')
+    return str(value)
 
 
 def _sigma_image(sec: Section, default):

@@ -194,6 +194,11 @@ def _check_settings(project, source: TomlSource | None, warnings: list[str]) -> 
         raise InputError("inner_constraints is empty", file=file,
                          line=where("inner_constraints"),
                          hint="list the points of the free datum or remove the key (all points)")
+    if adj.datum != "dependent" and (getattr(adj, "dependent_station", None) is not None
+                                     or getattr(adj, "dependent_coordinate", "longest")
+                                     != "longest"):
+        warnings.append(f'dependent_station and dependent_coordinate are used only with '
+                        f'datum = "dependent" (datum is "{adj.datum}")')
 
 
 def _check_usage(project, warnings: list[str]) -> None:

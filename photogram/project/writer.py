@@ -196,6 +196,15 @@ def _image_line_columns(project: Project) -> dict:
 
 def _settings(project: Project) -> dict:
     adj = project.adjustment
+    out = _base_settings(adj)
+    if adj.datum == "dependent":
+        if adj.dependent_station is not None:
+            out["dependent_station"] = str(adj.dependent_station)
+        out["dependent_coordinate"] = adj.dependent_coordinate
+    return out
+
+
+def _base_settings(adj) -> dict:
     return {
         "datum": adj.datum, "max_iterations": int(adj.max_iterations),
         "tolerance": float(adj.tolerance), "sigma_image": float(adj.sigma_image),

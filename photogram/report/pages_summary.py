@@ -14,7 +14,9 @@ from photogram.report.numbers import finite, num
 from photogram.report.registry import section
 
 _DATUM = {"control": "control points fixed", "weighted": "control points as weighted observations",
-          "free": "free network (inner constraints, minimum trace)"}
+          "free": "free network (inner constraints, minimum trace)",
+          "dependent": "dependent relative orientation (a base station and one coordinate "
+                       "of another fixed, as DBAT)"}
 
 _HOW_TO_READ = (
     "How to read this report. sigma0 compares how well the measurements fit with how well "
