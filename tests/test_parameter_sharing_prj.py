@@ -198,3 +198,21 @@ def test_cameras_sharing_c_are_listed_once(tmp_path):
     cams = read_results(tmp_path / "results").cameras
     assert cams["K1"].parameters["c"].value == cams["K2"].parameters["c"].value
     assert cams["K1"].parameters["c"].sigma_estimated == float(c[0]["est_sigma"])
+
+
+def test_the_documented_example_reads(tmp_path):
+    """The [cameras] example of docs/project-files.md, "Parameter sharing",
+    in place of the lab project's cameras."""
+    doc = (Path(__file__).parents[1] / "docs" / "project-files.md").read_text()
+    part = doc[doc.index("### Parameter sharing"):]
+    block = part[part.index("```toml\n") + 8:]
+    block = block[:block.index("```")]
+    prj = make_project(tmp_path)
+    text = prj.read_text()
+    start, end = text.index("[cameras.K1]"), text.index("[stations]")
+    prj.write_text(text[:start] + block + "\n" + text[end:])
+    project = read_project(prj)
+    k1, k2, v1 = (project.cameras[n] for n in ("K1", "K2", "V1"))
+    assert k1.per_station == ("x0", "y0") and k1.shared == k2.shared == {"c": "lens",
+                                                                          "K1": "lens-K1"}
+    assert v1.ties == {"fy": "fx"} and v1.parameters["fy"].value == 1000.0
