@@ -216,3 +216,14 @@ def test_the_documented_example_reads(tmp_path):
     assert k1.per_station == ("x0", "y0") and k1.shared == k2.shared == {"c": "lens",
                                                                           "K1": "lens-K1"}
     assert v1.ties == {"fy": "fx"} and v1.parameters["fy"].value == 1000.0
+
+
+def test_check_names_the_sharing(tmp_path):
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        "check_of_this_tree", Path(__file__).parents[1] / "cli" / "check.py")
+    check = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(check)
+    prj = _lab(tmp_path, 'per_station = ["x0", "y0"]\ntie = { P2 = "P1" }\n')
+    text = "\n".join(check.summary_lines(read_project(prj)))
+    assert "K1 (brown, 5 free, per station x0 y0, P2 = P1)" in text
