@@ -254,3 +254,23 @@ def test_mixed_sharing_recovers_the_truth():
     assert s.status == "converged" and 0.6 < s.sigma0 < 1.5
     k1 = [v[4] for v in problem.state.io]
     assert len(set(k1)) == 1                    # one k1 for every instance of both cameras
+
+
+def test_weighted_shared_parameters_are_one_prior_per_unknown():
+    """A weighted parameter shared by two cameras is one prior observation;
+    a weighted per-station parameter one per station."""
+    proj = _two_cameras({"c": "lens"})
+    for cam in proj.cameras.values():
+        cam.parameters["c"].sigma = 20.0
+    blocks = [b for b in build_problem(proj).problem.blocks if b.name == "interior priors"]
+    assert len(blocks) == 1 and len(blocks[0]) == 1
+    proj, truth = _per_station_project()
+    proj.cameras["K1"].parameters["x0"].sigma = 5.0
+    built = build_problem(proj)
+    prior = next(b for b in built.problem.blocks if b.name == "interior priors")
+    assert len(prior) == len(truth)
+    cols = prior.slot_cols[0].ravel()
+    assert len(set(cols.tolist())) == len(truth)        # one column per station
+    res = adjust(proj)
+    plain = adjust(_per_station_project()[0])
+    assert res.summary["redundancy"] == plain.summary["redundancy"] + len(truth)
