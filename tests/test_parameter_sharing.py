@@ -16,6 +16,7 @@ networks with known truth (photogram.simulation.network).
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -274,3 +275,27 @@ def test_weighted_shared_parameters_are_one_prior_per_unknown():
     res = adjust(proj)
     plain = adjust(_per_station_project()[0])
     assert res.summary["redundancy"] == plain.summary["redundancy"] + len(truth)
+
+
+ROOT = Path(__file__).resolve().parents[1]
+DBAT = ROOT.parent / "shared" / "data" / "dbat"
+
+
+@pytest.mark.skipif(not (DBAT / "camcal").is_dir(), reason=f"DBAT data not found at {DBAT}")
+def test_camcal_with_a_principal_point_per_image():
+    """Real data (DBAT's CAMCAL, 21 images of the C4040Z, read in place):
+    a principal point per image is 42 unknowns instead of 2; the figures of
+    docs/project-files.md, "Parameter sharing". (DBAT's own image-variant
+    results for CAMCAL are not in ../shared/data: no reference to match.)"""
+    from photogram.project import read_project
+    prj = ROOT / "projects" / "camcal" / "camcal.prj"
+    plain = adjust(read_project(prj))
+    project = read_project(prj)
+    project.cameras["C4040Z"].per_station = ("x0", "y0")
+    res = adjust(project)
+    assert res.summary["status"] == "converged"
+    assert res.summary["redundancy"] == plain.summary["redundancy"] - 40
+    assert plain.summary["sigma0"] == pytest.approx(1.6148, abs=1e-4)
+    assert res.summary["sigma0"] == pytest.approx(1.1130, abs=1e-4)
+    x0 = [r for r in res.summary["interior"] if r["parameter"] == "x0"]
+    assert len(x0) == 21 and max(r["sigma"] for r in x0) < 1.5
