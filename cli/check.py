@@ -15,9 +15,21 @@ def _cameras(project: Project) -> str:
         free = sum(p.free for p in cam.parameters.values())
         weighted = sum(p.free and p.sigma is not None for p in cam.parameters.values())
         text = f"{name} ({cam.model}, {free} free" + (f", {weighted} weighted" if weighted else "")
+        text += _sharing(cam)
         parts.append(text + (f", from {cam.source})" if cam.source else ")"))
     shown = ", ".join(parts[:4])
     return shown + (f", ... {len(parts) - 4} more" if len(parts) > 4 else "")
+
+
+def _sharing(cam) -> str:
+    """``", per station x0 y0, fy = fx, c in group lens"`` (docs/project-files.md,
+    "Parameter sharing"), or ``""``."""
+    parts = []
+    if cam.per_station:
+        parts.append("per station " + " ".join(cam.per_station))
+    parts += [f"{p} = {q}" for p, q in cam.ties.items()]
+    parts += [f"{p} in group {g}" for p, g in cam.shared.items()]
+    return "".join(", " + x for x in parts)
 
 
 def summary_lines(project: Project) -> list[str]:

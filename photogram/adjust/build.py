@@ -27,6 +27,7 @@ import numpy as np
 
 from photogram.adjust.datum import dependent_orientation, inner_constraints
 from photogram.adjust.eccentric_blocks import with_ellipse_centres
+from photogram.adjust.interior_map import interior_map
 from photogram.adjust.residual_blocks import (
     DistanceBlock, ImagePointBlock, InteriorPriorBlock, PointPriorBlock,
     StationPriorBlock, VerticalBlock)
@@ -44,6 +45,7 @@ class Built:
     control: np.ndarray      # indices of control points
     check: np.ndarray        # indices of check points
     warnings: list = None    # what the configuration silently ignores
+    interior: object = None  # InteriorMap when cameras share parameters (else None)
 
 
 def _missing_approximations(project):
@@ -202,9 +204,19 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
                        for c in cams],
             "station": free_st,
             "point": free_pt}
-    layout = Layout([len(c.parameters) for c in cams], n_s, n_p, coupled, free)
+    # shared interior parameters (per station, across cameras, ties); with
+    # fix_interior every parameter is held at its value and nothing is shared
+    imap = None if fix_interior else interior_map(cams, cam_names, st.names, station_cam)
+    if imap is None:
+        layout = Layout([len(c.parameters) for c in cams], n_s, n_p, coupled, free)
+        io_start = [c.values() for c in cams]
+    else:
+        free["camera"] = [imap.free[c] for c in imap.columns]
+        layout = Layout([], n_s, n_p, coupled, free, camera_columns=imap.columns,
+                        n_camera_columns=imap.n_io)
+        io_start = imap.instance_values()
     state = State(pts.xyz.astype(float).copy(), opk_to_matrix(st.angles), st.position.astype(float).copy(),
-                  [c.values() for c in cams])
+                  io_start)
 
     blocks = []
     st_names, pt_ids = np.array(st.names, dtype=str), np.array(pts.ids, dtype=str)
@@ -217,7 +229,8 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
             sig = np.where(np.isfinite(obs.sigma[rows]), obs.sigma[rows], default)
             labels = np.char.add(np.char.add(st_names[obs.station[rows]], "/"),
                                  pt_ids[obs.point[rows]])
-            blk = ImagePointBlock(models[k], [k], np.zeros(len(rows), int), obs.station[rows],
+            io_blocks, io_block = _io_blocks(imap, k, obs.station[rows])
+            blk = ImagePointBlock(models[k], io_blocks, io_block, obs.station[rows],
                                   obs.point[rows], obs.xy[rows], sig, layout, labels=labels)
             blk.group = f"image {group}" if group else f"image {name}"
             blk.rows = rows
@@ -246,6 +259,8 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
         pri = [(k, j, p.value, p.sigma) for k, c in enumerate(cams)
                for j, p in enumerate(c.parameters.values())
                if p.free and p.sigma is not None and np.isfinite(p.sigma) and p.sigma > 0]
+        if imap is not None:            # one prior per shared unknown
+            pri = imap.prior_rows()
         if pri:
             k, j, v, s = map(np.array, zip(*pri))
             blocks.append(InteriorPriorBlock(k, j, v, s, layout))
@@ -279,7 +294,7 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
                       point_labels=[pts.ids[i] for i in np.flatnonzero(~coupled)])
     return Built(problem, cam_names, present, control, check,
                  warnings=_ignored_control_sigmas(project, control)
-                 + _dependent_control(project, control))
+                 + _dependent_control(project, control), interior=imap)
 
 
 def _dependent_fixed(project):
@@ -307,6 +322,17 @@ def _dependent_control(project, control):
     return [f'datum = "dependent" adjusts the {len(control)} control points like tie points: '
             f'their coordinates are approximate values only (datum = "control" or "weighted" '
             f'uses them)']
+
+
+def _io_blocks(imap, k, stations):
+    """The interior blocks (indices into ``state.io``) of camera ``k``'s
+    observations at ``stations``, and each observation's block among them:
+    the camera itself, or with shared parameters its instances
+    (:mod:`photogram.adjust.interior_map`)."""
+    if imap is None:
+        return [k], np.zeros(len(stations), int)
+    blocks, which = np.unique(imap.station_instance[stations], return_inverse=True)
+    return blocks, which.astype(int).ravel()
 
 
 def _ignored_control_sigmas(project, control):

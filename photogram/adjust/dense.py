@@ -61,6 +61,9 @@ class DenseStructure:
         row = 0
         self.flat = []                  # per block, per slot: flat indices (N*d*s,) or None
         self.flat_all = []              # the same into (m, n_columns)
+        # a column named twice in a row (a tie fy = fx of shared interior
+        # parameters): its Jacobian entries add up instead of being written
+        self.accumulate = False
         for b in problem.blocks:
             N, d = len(b), b.dim
             rows = row + np.arange(N * d).reshape(N, d)
@@ -68,6 +71,9 @@ class DenseStructure:
             per, per_all = [], []
             for cols in b.slot_cols:
                 cols = np.asarray(cols).reshape(N, -1)
+                if cols.shape[1] > 1 and len(cols):
+                    srt = np.sort(cols, axis=1)
+                    self.accumulate |= bool(np.any(srt[:, 1:] == srt[:, :-1]))
                 c = col_of[cols][:, None, :]
                 if np.all(c < 0):
                     per.append(None)            # every column fixed: nothing to write
@@ -112,6 +118,8 @@ def dense_jacobian(problem, state, *, all_columns=False, residuals_only=False, w
         if getattr(st, "_buffer", None) is None:
             st._buffer = np.zeros(st.m * st.n + 1)
         J = st._buffer
+        if st.accumulate:
+            J[:] = 0.0
     Jall = np.zeros(st.m * problem.layout.n_columns) if all_columns else None
     for k, b in enumerate(problem.blocks):
         if st.io_hint[k] and not all_columns:
@@ -128,9 +136,13 @@ def dense_jacobian(problem, state, *, all_columns=False, residuals_only=False, w
             if flat is None and not all_columns or Jj is None:
                 continue
             vals = (Jj * w[:, :, None]).ravel()
-            if flat is not None:
+            if flat is not None and st.accumulate:
+                np.add.at(J, flat, vals)
+            elif flat is not None:
                 J[flat] = vals
-            if all_columns:
+            if all_columns and st.accumulate:
+                np.add.at(Jall, st.flat_all[k][j], vals)
+            elif all_columns:
                 Jall[st.flat_all[k][j]] = vals
     if residuals_only:
         return r

@@ -65,6 +65,21 @@ def _group_ids(keys, n):
     return gid
 
 
+def _slot_key(cols):
+    """An integer key per row that identifies the row's columns of one
+    slot: the first column where it fixes the others (every parameter
+    block has its own columns), else the row's number among the distinct
+    rows (shared interior parameters: instances with the same first column,
+    e.g. a shared c, and different others, e.g. a principal point per
+    station)."""
+    first = cols[:, 0]
+    if cols.shape[1] > 1 and len(first):
+        _, at, inv = np.unique(first, return_index=True, return_inverse=True)
+        if not np.array_equal(cols, cols[at][inv.ravel()]):
+            return np.unique(cols, axis=0, return_inverse=True)[1].ravel()
+    return first
+
+
 class RowClass:
     """Rows of one residual block with the same reduced/eliminated slots."""
 
@@ -149,7 +164,7 @@ class Structure:
                         continue
                     gather.append((k, None if len(keep) == ck.shape[1] else keep))
                     cols.append(ck[:, keep])
-                    keys.append(ck[:, 0])
+                    keys.append(_slot_key(ck))
                 rcols = np.hstack(cols) if cols else np.zeros((len(rows), 0), dtype=np.int64)
                 group = _group_ids(keys, len(rows))
                 order = np.argsort(group, kind="stable")

@@ -63,15 +63,27 @@ class Layout:
     free : dict
         ``camera``: list of (p_k,) bool, ``station``: (n_s, 6) bool,
         ``point``: (n_p, 3) bool.
+    camera_columns : list of (p_k,) int, optional
+        Shared interior parameters (:mod:`photogram.adjust.interior_map`):
+        the column of each parameter of each interior block (an "io
+        instance": a camera, or a camera at one station), numbered
+        ``0 .. n_camera_columns - 1``; blocks that share a parameter (a
+        camera's stations, tied cameras, ``fy = fx``) name the same column.
+        Default: every camera its own consecutive columns (``camera_sizes``).
     """
 
-    def __init__(self, camera_sizes, n_stations, n_points, reduced_points, free):
+    def __init__(self, camera_sizes, n_stations, n_points, reduced_points, free,
+                 camera_columns=None, n_camera_columns=None):
         reduced_points = np.asarray(reduced_points, dtype=bool)
         self.camera_cols = []
         col = 0
-        for p in camera_sizes:
+        if camera_columns is not None:
+            self.camera_cols = [np.asarray(c, dtype=int) for c in camera_columns]
+            col = int(n_camera_columns)
+        for p in camera_sizes if camera_columns is None else ():
             self.camera_cols.append(np.arange(col, col + p))
             col += p
+        self.n_camera_columns = col
         self.station_cols = col + np.arange(n_stations * STATION_SIZE).reshape(-1, STATION_SIZE)
         col += n_stations * STATION_SIZE
         self.point_cols = np.zeros((n_points, 3), dtype=int)

@@ -129,7 +129,7 @@ def _adjust(project, fix_interior):
         "cost_trace": s.cost_trace,
         "counts": {"observations": s.n_observations, "unknowns": s.n_unknowns,
                    "conditions": s.n_conditions,
-                   "interior": int(sum(problem.layout.free[c].sum() for c in problem.layout.camera_cols)),
+                   "interior": _interior_unknowns(problem.layout),
                    "exterior": int(problem.layout.free[problem.layout.station_cols].sum()),
                    "points": int(problem.layout.free[problem.layout.point_cols].sum())},
         "timings": {"approximation": t_approx - t0, "adjustment": t_solve - t_approx,
@@ -139,3 +139,10 @@ def _adjust(project, fix_interior):
         summary["warnings"].append(s.message)
     result.summary = summary
     return result
+
+
+def _interior_unknowns(layout):
+    """Free interior columns (a shared parameter counts once)."""
+    if not layout.camera_cols:
+        return 0
+    return int(layout.free[np.unique(np.concatenate(layout.camera_cols))].sum())

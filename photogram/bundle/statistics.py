@@ -78,6 +78,36 @@ def collect(project, built, cof, s0sq, summary):
     out.points.xyz = st.points.copy()
     out.stations.position = st.X0.copy()
     out.stations.angles = matrix_to_opk(st.R)
+    interior = None
+    if getattr(built, "interior", None) is not None:     # shared interior parameters
+        from photogram.bundle.shared_interior import collect_shared_cameras
+        camera_sigma, cams, interior = collect_shared_cameras(out, built, cof, s0sq, summary)
+    else:
+        camera_sigma, cams = _collect_cameras(out, built, cof, s0sq, summary)
+    P = point_covariances(cof, s0sq)
+    S = station_covariances(cof, st.R, s0sq)
+    point_sigma = np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0, None))
+    station_sigma = np.sqrt(np.clip(np.diagonal(S, axis1=1, axis2=2), 0, None))
+    if len(built.check):
+        d = st.points[built.check] - project.points.xyz[built.check]
+        summary["check_points"] = {
+            "ids": [project.points.ids[i] for i in built.check],
+            "differences": d.tolist(),
+            "rmse": np.sqrt(np.mean(d ** 2, axis=0)).tolist()}
+    labels, cov = orientation_covariance(cof, problem, project, built.camera_names, s0sq,
+                                         interior=getattr(built, "interior", None))
+    covariances = {"points": P, "stations": S, "cameras": cams,
+                   "orientation_labels": labels, "orientation": cov}
+    if interior is not None:
+        covariances["interior_labels"], covariances["interior"] = interior
+    return BundleResult(out, summary, camera_sigma, station_sigma, point_sigma, {}, covariances)
+
+
+def _collect_cameras(out, built, cof, s0sq, summary):
+    """Each camera's estimated parameters into ``out`` and their sigmas
+    (every parameter one value per camera); high correlations into the
+    summary. Returns ``(camera_sigma, covariance per camera)``."""
+    st = built.problem.state
     cams = camera_covariances(cof, s0sq)
     camera_sigma, corr = {}, {}
     for k, name in enumerate(built.camera_names):
@@ -91,40 +121,38 @@ def collect(project, built, cof, s0sq, summary):
         high = high_correlations(cams[k][np.ix_(free, free)], names)
         for a, b, r in high:
             summary["warnings"].append(f"camera {name}: correlation {a}-{b} = {r:+.3f}")
+
         corr[name] = high
     summary["high_correlations"] = {k: v for k, v in corr.items() if v}
-    P = point_covariances(cof, s0sq)
-    S = station_covariances(cof, st.R, s0sq)
-    point_sigma = np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0, None))
-    station_sigma = np.sqrt(np.clip(np.diagonal(S, axis1=1, axis2=2), 0, None))
-    if len(built.check):
-        d = st.points[built.check] - project.points.xyz[built.check]
-        summary["check_points"] = {
-            "ids": [project.points.ids[i] for i in built.check],
-            "differences": d.tolist(),
-            "rmse": np.sqrt(np.mean(d ** 2, axis=0)).tolist()}
-    labels, cov = orientation_covariance(cof, problem, project, built.camera_names, s0sq)
-    return BundleResult(out, summary, camera_sigma, station_sigma, point_sigma, {},
-                        {"points": P, "stations": S, "cameras": cams,
-                         "orientation_labels": labels, "orientation": cov})
+    return camera_sigma, cams
 
 
-def orientation_covariance(cof, problem, project, camera_names, s0sq):
+def orientation_covariance(cof, problem, project, camera_names, s0sq, interior=None):
     """Joint covariance of all interior parameters and exterior orientations
     (X0 Y0 Z0 in length units, omega phi kappa in radians), with the
     cross-covariances between stations, for propagation by later commands.
+    With shared interior parameters (``interior``, an InteriorMap) one row
+    per camera parameter or per station of a per-station parameter
+    (:func:`photogram.bundle.shared_interior.shared_orientation_columns`).
     """
     lay = problem.layout
-    cols = np.concatenate([c for c in lay.camera_cols] + [lay.station_cols.ravel()])
+    if interior is not None:
+        from photogram.bundle.shared_interior import shared_orientation_columns
+        io_cols, io_labels = shared_orientation_columns(interior, camera_names, project.cameras)
+    else:
+        io_cols = np.concatenate([c for c in lay.camera_cols]) if lay.camera_cols else \
+            np.zeros(0, dtype=int)
+        io_labels = [f"{n}.{p}" for n in camera_names for p in project.cameras[n].parameters]
+    cols = np.concatenate([io_cols, lay.station_cols.ravel()])
     Q = cof.Qcc[np.ix_(cols, cols)]
-    n_io = sum(len(c) for c in lay.camera_cols)
+    n_io = len(io_cols)
     T = np.eye(len(cols))
     from photogram.geometry import angle_increment_map
     _, E = angle_increment_map(problem.state.R)
     for s in range(len(E)):
         i = n_io + 6 * s + 3
         T[i:i + 3, i:i + 3] = E[s]
-    labels = [f"{n}.{p}" for n in camera_names for p in project.cameras[n].parameters]
+    labels = list(io_labels)
     labels += [f"{st}.{p}" for st in project.stations.names
                for p in ("X0", "Y0", "Z0", "omega", "phi", "kappa")]
     return labels, s0sq * T @ Q @ T.T

@@ -60,10 +60,14 @@ def _write_covariance(path, result):
     import io
     from photogram.project.atomic import atomic_write_bytes
     buf = io.BytesIO()
+    shared = {}
+    if "interior_labels" in result.covariances:    # shared interior parameters, each once
+        shared = {"interior_labels": np.array(result.covariances["interior_labels"]),
+                  "interior_matrix": result.covariances["interior"]}
     np.savez(buf, labels=np.array(result.covariances["orientation_labels"]),
              matrix=result.covariances["orientation"],
              point_ids=np.array(result.project.points.ids, dtype=str),
-             point_covariance=result.covariances["points"])
+             point_covariance=result.covariances["points"], **shared)
     atomic_write_bytes(path, buf.getvalue())
 
 

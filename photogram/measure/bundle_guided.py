@@ -254,7 +254,10 @@ def _with_state(project, built):
     points = replace(project.points, xyz=st.points.copy())
     out = replace(project, stations=stations, points=points,
                   cameras=copy.deepcopy(project.cameras))
-    for name, values in zip(built.camera_names, st.io):
+    io = st.io
+    if built.interior is not None:      # shared parameters: each camera's first instance
+        io = [st.io[built.interior.instances_of(k)[0]] for k in range(len(built.camera_names))]
+    for name, values in zip(built.camera_names, io):
         cam = out.cameras[name]
         for p, v in zip(cam.parameters.values(), values):
             p.value = float(v)

@@ -100,6 +100,11 @@ class EngineBundle:
     def __init__(self, project, *, fix_interior: bool):
         adj = project.adjustment
         built = build_problem(project, fix_interior=fix_interior)
+        if built.interior is not None:
+            raise InputError("photogram montecarlo does not support shared interior "
+                             "parameters (per_station, tie, shared) yet", file=project.path,
+                             hint="remove per_station, tie and shared from the cameras of the "
+                                  "calibrate step, or use orient (interior fixed)")
         self.built = built
         # one image block per camera model: the same residuals and weights
         pb = self.problem = merged_image_blocks(built.problem)

@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from photogram.project.model import IMAGE_UNITS, Camera, Parameter
+from photogram.project.reader_sharing import (SHARING_KEYS, apply_sharing, read_sharing,
+                                              sharing_to_toml)
 from photogram.project.text_input import DOCS, suggest
 from photogram.project.toml_source import Section, TomlSource
 from photogram.project.toml_writer import Inline
@@ -211,12 +213,13 @@ def _inline_camera(sec: Section, name: str, image_unit: str) -> Camera:
         raise sec.error("model", f"unknown camera model '{model}' in {sec.label}",
                         hint=suggest(model, camera_models(), noun="known models"))
     for key in sec.data:
-        if key not in CAMERA_KEYS and key not in names:
+        if key not in CAMERA_KEYS + SHARING_KEYS and key not in names:
             raise sec.error(key, f"unknown parameter '{key}' for camera model {model} "
                                  f"in {sec.label}",
                             hint=suggest(key, list(names) + list(CAMERA_KEYS)))
+    per_station, ties, shared = read_sharing(sec, model, names, parameter_dims(model))
     for key in REQUIRED_PARAMETERS.get(model, ()):
-        if key not in sec.data:
+        if key not in sec.data and key not in ties:
             raise sec.error(None, f"camera {name} has no {key}",
                             hint=f"add {key} = ...; it is required for model {model}")
     size = sec.numbers("image_size", 2, None, integer=True)
@@ -225,8 +228,9 @@ def _inline_camera(sec: Section, name: str, image_unit: str) -> Camera:
     params = {p: _parameter(sec, p) if p in sec.data else defaults.get(p, Parameter(0.0))
               for p in names}
     _check_constants(sec, model, params)
-    return Camera(name=name, model=model, parameters=params, image_size=size,
-                  pixel_size=pixel)
+    camera = Camera(name=name, model=model, parameters=params, image_size=size,
+                    pixel_size=pixel, per_station=per_station, ties=ties, shared=shared)
+    return apply_sharing(sec, camera, sec.data) if camera.shares() else camera
 
 
 def _check_constants(sec: Section, model: str, params: dict, free=()) -> None:
@@ -415,4 +419,4 @@ def camera_to_toml(camera: Camera, sigma_estimated=None) -> dict:
         else:
             table[p] = Inline(value=float(par.value), free=bool(par.free),
                               sigma=_clean(par.sigma), sigma_estimated=est)
-    return table
+    return sharing_to_toml(camera, table)

@@ -67,6 +67,17 @@ class Camera:
     image_size: tuple[int, int] | None = None      # width, height in px
     pixel_size: tuple[float, float] | None = None  # mm per px (x, y)
     source: str | None = None                      # file it was taken from
+    # parameter sharing (docs/project-files.md, "Parameter sharing"); empty:
+    # every parameter is one value for all stations of this camera
+    per_station: tuple[str, ...] = ()              # one value per station of the camera
+    ties: dict[str, str] = field(default_factory=dict)    # parameter -> the one it equals
+    shared: dict[str, str] = field(default_factory=dict)  # parameter -> group across cameras
+    # estimated per-station values (results): parameter -> {station: value}
+    station_values: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def shares(self) -> bool:
+        """Whether any parameter is not simply one value for the camera."""
+        return bool(self.per_station or self.ties or self.shared)
 
     def values(self) -> np.ndarray:
         """Parameter values as an array, in model order."""

@@ -25,6 +25,7 @@ from photogram.project.model import (  # noqa: F401  (also re-exported)
 from photogram.project.model import PERTURBATIONS, TRUTHS, MonteCarloSettings
 from photogram.project.reader_targets import read_targets
 from photogram.project.reader_dbat import _camera_from_dbat, _read_dbat_style, _uses_dbat_features
+from photogram.project.reader_sharing import check_groups
 from photogram.project.reader_sections import PROJECT_KEYS, _read_output, _read_project_section  # noqa: F401
 from photogram.project.reader_tables import (_read_observations, _read_points, _read_stations,
                                              _source_table)
@@ -350,6 +351,7 @@ def _read_cameras(sec: Section, project: Project) -> None:
         project.cameras[name] = camera
         if camera.source:
             project.sources[f"cameras:{name}"] = project.folder / camera.source
+    check_groups(sec, project.cameras)
 
 
 # --------------------------------------------------------------------------

@@ -274,6 +274,10 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
              "points.csv": _point_table(project, point_sigma, point_extra),
              "residuals.csv": _residual_table(project, residuals),
              "log.txt": log_text}
+    if summary.get("interior"):        # cameras that share parameters
+        from photogram.project.results_interior import INTERIOR_FILE, interior_table
+        check_targets([folder / INTERIOR_FILE], project, overwrite=True)
+        files[INTERIOR_FILE] = interior_table(summary["interior"])
     for name, content in files.items():
         atomic_write_text(folder / name, content)
     return folder

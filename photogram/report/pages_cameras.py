@@ -10,6 +10,7 @@ from photogram.errors import PhotogramError
 from photogram.geometry import camera_model
 from photogram.report.layout import decorate
 from photogram.report.numbers import finite, num, pair
+from photogram.report.pages_sharing import per_station_label, shared_table, sharing_note
 from photogram.report.registry import section
 
 #: parameters that are never zero: no significance test
@@ -48,7 +49,8 @@ def correlations(data, camera: str, limit: float = 0.95):
     M = np.asarray(cov["matrix"], float)
     s = np.sqrt(np.clip(np.diag(M), 0, None))
     ok = s > 0
-    own = np.array([lab.split(".")[0] == camera for lab in labels]) & ok
+    own = np.array([lab.split(".")[0] == camera and not per_station_label(lab)
+                    for lab in labels]) & ok
     out = []
     for i in np.flatnonzero(own):
         r = M[i, ok] / (s[i] * s[ok])
@@ -136,7 +138,8 @@ def _heatmap(doc, data, name):
     if cov is None or "labels" not in cov:
         return
     labels = [str(x) for x in cov["labels"]]
-    idx = [i for i, lab in enumerate(labels) if lab.split(".")[0] == name]
+    idx = [i for i, lab in enumerate(labels)
+           if lab.split(".")[0] == name and not per_station_label(lab)]
     M = np.asarray(cov["matrix"], float)[np.ix_(idx, idx)]
     s = np.sqrt(np.clip(np.diag(M), 0, None))
     keep = s > 0
@@ -174,10 +177,11 @@ def build(doc, data):
             s = par.sigma_estimated
             v, sv = pair(par.value, s if par.free else None)
             rows.append([pname, _unit(dim, data.image_unit), v, sv,
-                         "estimated" if par.free else "fixed",
+                         ("estimated" if par.free else "fixed") + sharing_note(cam, pname),
                          *_significance(pname, par.value, s if par.free else None, dof)])
         doc.table(["parameter", "unit", "value", "sigma", "", "t", "p", "significant"], rows,
                   align="llrrlrrl", title="Parameters")
+        shared_table(doc, data, name, cam)
         _heatmap(doc, data, name)
         high = correlations(data, name)
         doc.table(["parameter", "with", "correlation"],
