@@ -29,12 +29,15 @@ FALLBACK_PARAMETERS: dict[str, tuple[str, ...]] = {
     "brown": ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2"),
     "opencv": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"),
     "opencv_fisheye": ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4"),
+    "opencv_full": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6",
+                    "s1", "s2", "s3", "s4", "tauX", "tauY"),
 }
 #: Power of the image length unit in each parameter (for px <-> mm).
 FALLBACK_DIMS: dict[str, tuple[int, ...]] = {
     "brown": (1, 1, 1, -2, -4, -6, -1, -1, 0, 0),
     "opencv": (1, 1, 1, 1, 0, 0, 0, 0, 0),
     "opencv_fisheye": (1, 1, 1, 1, 0, 0, 0, 0),
+    "opencv_full": (1, 1, 1, 1) + (0,) * 14,
 }
 #: Parameters a camera section must give. The principal point defaults to
 #: the format centre (as ``default_parameters`` of photogram.geometry), all
@@ -43,9 +46,11 @@ REQUIRED_PARAMETERS: dict[str, tuple[str, ...]] = {
     "brown": ("c",),
     "opencv": ("fx", "fy"),
     "opencv_fisheye": ("fx", "fy"),
+    "opencv_full": ("fx", "fy"),
 }
 PRINCIPAL_POINT: dict[str, tuple[str, str]] = {"brown": ("x0", "y0"), "opencv": ("cx", "cy"),
-                                               "opencv_fisheye": ("cx", "cy")}
+                                               "opencv_fisheye": ("cx", "cy"),
+                                               "opencv_full": ("cx", "cy")}
 CAMERA_KEYS = ("model", "image_size", "pixel_size")
 FROM_KEYS = ("from", "name", "free", "weighted")
 PARAMETER_KEYS = ("value", "free", "sigma", "sigma_estimated")
