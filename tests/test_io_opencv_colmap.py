@@ -229,7 +229,7 @@ def test_colmap_from_results_folder(lab_results, tmp_path):
 
 
 BAD_COLMAP = [
-    ("cameras.txt", lambda t: t.replace("OPENCV", "OPENCV_FISHEYE"), 3, "not supported"),
+    ("cameras.txt", lambda t: t.replace("OPENCV 1920 1080", "FOV 1920 1080"), 3, "not supported"),
     ("cameras.txt", lambda t: t.rsplit(" ", 1)[0] + "\n", 3, "expected 8"),
     ("images.txt", lambda t: t[:t.rfind(" ")] + "\n", 9, "triples"),
     ("images.txt", lambda t: t.replace(" 7 img_2.jpg", " 8 img_2.jpg"), 6, "CAMERA_ID 8"),
