@@ -149,6 +149,12 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
         # Pose2Sim's (and anipose's) world is in metres: convert the translations
         views = [dataclasses.replace(v, t_cv=np.asarray(v.t_cv, float) * src.metres)
                  for v in views]
+        for v in views:
+            if np.any(np.asarray(v.dist, float)[5:] != 0):
+                raise InputError(f"camera {v.camera} has rational, thin-prism or tilt "
+                                 f"distortion (opencv_full), which Pose2Sim's [k1, k2, p1, "
+                                 f"p2, k3] cannot hold", file=source,
+                                 hint="export opencv (FileStorage keeps all 14 terms)")
         if project.units.length != "m":
             log.info("Pose2Sim export: translations converted from %s to m",
                      project.units.length)
