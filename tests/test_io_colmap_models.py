@@ -437,3 +437,21 @@ def test_binary_is_preferred_when_both_are_there(tmp_path):
     write_bin(tmp_path / "m", cams, images, points)
     write_txt(tmp_path / "m", [(3, "PINHOLE", 1920, 1080, PARAMS["PINHOLE"])], images, points)
     assert read_colmap(tmp_path / "m").views[0].extra["colmap_model"] == "RADIAL"
+
+
+def test_rational_camera_through_orient_and_back(tmp_path):
+    """A FULL_OPENCV (rational) model imports as an opencv_full camera, the
+    engine adjusts it (sigma0 at rounding level on exact data), and the
+    results export as COLMAP binary with the same FULL_OPENCV camera."""
+    import json
+
+    from photogram_cli.main import main
+    write_bin(tmp_path / "m", *scene("FULL_OPENCV"))
+    prj = import_project("colmap", tmp_path / "m", tmp_path / "imp")
+    assert main(["orient", "-q", str(prj), "--output", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["sigma0"] < 1e-9
+    assert main(["export", "-q", "colmap-bin", str(tmp_path / "out"), "--to",
+                 str(tmp_path / "back")]) == 0
+    model, w, h, params = read_bin_cameras(tmp_path / "back" / "cameras.bin")[3]
+    assert model == "FULL_OPENCV" and np.allclose(params, PARAMS["FULL_OPENCV"], rtol=1e-12)

@@ -65,7 +65,7 @@ def displacement(cam, xy):
     model, io = camera_model(cam.model), cam.values()
     if cam.model == "brown":
         ideal = io[1:3] + model.correct(xy, io)
-    elif cam.model == "opencv":
+    elif cam.model in ("opencv", "opencv_full"):
         ideal = io[2:4] + io[0:2] * model.image_to_ray(xy, io)
     else:
         return None
@@ -85,7 +85,9 @@ def distortion_field(cam, fmt, nx=41, ny=31):
 
 def _principal_point(cam):
     io = cam.values()
-    return io[1:3] if cam.model == "brown" else io[2:4] if cam.model == "opencv" else None
+    if cam.model == "brown":
+        return io[1:3]
+    return io[2:4] if cam.model in ("opencv", "opencv_full") else None
 
 
 def _plot_distortion(doc, data, cam, fmt, field):
