@@ -130,10 +130,24 @@ def write_bin(folder: Path, cameras, images, points, rigs=None, frames=None):
         (folder / "frames.bin").write_bytes(b)
 
 
-def write_txt(folder: Path, cameras, images, points):
-    """The same as text, numbers as COLMAP writes them (precision 17)."""
+def write_txt(folder: Path, cameras, images, points, rigs=None, frames=None):
+    """The same as text, numbers as COLMAP writes them (precision 17; sensor
+    types by name, as COLMAP's operator<< of SensorType)."""
     folder.mkdir(parents=True, exist_ok=True)
     g = "{:.17g}".format
+    if rigs is not None:
+        lines = ["# Rig calib list"]
+        for rid, ref, sensors in rigs:
+            f = [str(rid), str(len(sensors) + 1), ref[0], str(ref[1])]
+            for kind, sid, q, t in sensors:
+                f += [kind, str(sid)] + (["1"] + [g(c) for c in (*q, *t)] if q else ["0"])
+            lines.append(" ".join(f))
+        (folder / "rigs.txt").write_text("\n".join(lines) + "\n")
+        lines = ["# Frame list"]
+        for fid, rid, q, t, data in frames:
+            lines.append(" ".join([str(fid), str(rid)] + [g(c) for c in (*q, *t)] +
+                                  [str(len(data))] + [f"{k} {a} {b}" for k, a, b in data]))
+        (folder / "frames.txt").write_text("\n".join(lines) + "\n")
     (folder / "cameras.txt").write_text("# Camera list\n" + "".join(
         f"{cid} {model} {w} {h} " + " ".join(map(g, params)) + "\n"
         for cid, model, w, h, params in cameras))
@@ -339,6 +353,40 @@ def test_rig_frames_give_the_image_poses(tmp_path, caplog):
     assert [(v.extra["rig"], v.extra["frame"]) for v in model.views[:2]] == [(1, 1), (1, 1)]
 
 
+def test_rigs_text_equal_rigs_binary(tmp_path):
+    """rigs.txt / frames.txt as COLMAP writes them give the poses of the
+    binary files (to the 17 digits of the text)."""
+    data = rig_scene()
+    write_bin(tmp_path / "b", *data)
+    write_txt(tmp_path / "t", *data)
+    a, b = read_colmap(tmp_path / "b"), read_colmap(tmp_path / "t")
+    assert not b.binary and len(b.records.rigs) == 1 and len(b.records.frames) == 3
+    for u, v in zip(a.views, b.views):
+        assert np.allclose(u.R_cv, v.R_cv, rtol=0, atol=1e-15)
+        assert np.allclose(u.t_cv, v.t_cv, rtol=1e-15, atol=1e-15)
+    assert np.abs(residuals(colmap_project(tmp_path / "t"))).max() < 1e-9
+
+
+def test_malformed_rigs_text(tmp_path):
+    write_txt(tmp_path / "t", *rig_scene())
+    f = tmp_path / "t" / "rigs.txt"
+    text = f.read_text()
+    f.write_text(text.replace("1 2 CAMERA 1 CAMERA 2 1", "1 2 CAMERA 1 LIDAR 2 1"))
+    with pytest.raises(InputError, match="sensor type 'LIDAR'") as err:
+        read_colmap(tmp_path / "t")
+    assert err.value.file == str(f) and err.value.line == 2
+    f.write_text(text.replace("1 2 CAMERA 1 CAMERA 2 1", "1 3 CAMERA 1 CAMERA 2 1"))
+    with pytest.raises(InputError, match="ends before its NUM_SENSORS") as err:
+        read_colmap(tmp_path / "t")
+    assert err.value.file == str(f) and err.value.line == 2
+    g = tmp_path / "t" / "frames.txt"
+    f.write_text(f.read_text().replace("1 3 CAMERA", "1 2 CAMERA"))
+    g.write_text(g.read_text().replace(" 2 CAMERA 1 1 CAMERA 2 2", " 2 CAMERA 1 1 CAMERA 2"))
+    with pytest.raises(InputError, match="NUM_DATA_IDS is 2 but 5 values") as err:
+        read_colmap(tmp_path / "t")
+    assert err.value.line == 2
+
+
 def test_rig_errors_name_the_file(tmp_path):
     cams, images, points, rigs, frames = rig_scene()
     frames[2] = (3, 1, frames[2][2], frames[2][3], frames[2][4][:1])   # image 6 in no frame
@@ -455,3 +503,14 @@ def test_rational_camera_through_orient_and_back(tmp_path):
                  str(tmp_path / "back")]) == 0
     model, w, h, params = read_bin_cameras(tmp_path / "back" / "cameras.bin")[3]
     assert model == "FULL_OPENCV" and np.allclose(params, PARAMS["FULL_OPENCV"], rtol=1e-12)
+
+
+def test_unknown_point_names_the_points_line(tmp_path):
+    cams, images, points = scene("PINHOLE")
+    write_txt(tmp_path / "t", cams, images, points[1:])       # point 100 missing
+    with pytest.raises(InputError, match="POINT3D_ID 100 of image img_1.jpg") as err:
+        read_colmap(tmp_path / "t")
+    assert err.value.file.endswith("images.txt") and err.value.line == 5
+    write_bin(tmp_path / "b", cams, images, points[1:])
+    with pytest.raises(InputError, match=r"record 2: POINT3D_ID 100"):
+        read_colmap(tmp_path / "b")

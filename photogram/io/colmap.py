@@ -102,8 +102,11 @@ def read_records(folder) -> tuple[Records, bool]:
     return rec, is_bin
 
 
-def _error(rec: Records, kind: str, item, what: str, hint: str | None = None) -> InputError:
-    line = getattr(item, "line", None)
+def _error(rec: Records, kind: str, item, what: str, hint: str | None = None,
+           line: int | None = None) -> InputError:
+    """InputError at the line of ``item`` (text; ``line`` if given) or its
+    record number (binary)."""
+    line = line if line is not None else getattr(item, "line", None)
     if line is None and getattr(item, "record", 0):
         what = f"record {item.record}: {what}"
     return InputError(what, file=rec.files.get(kind), line=line, hint=hint)
@@ -160,10 +163,8 @@ def read_colmap(folder, pixel_shift: float = PIXEL_SHIFT) -> ColmapModel:
             if pid == -1:
                 continue
             if int(pid) not in known:
-                where = im if im.points_line is None else ImageRecord(
-                    0, None, None, 0, "", None, None, line=im.points_line)
-                raise _error(rec, "images", where, f"POINT3D_ID {pid} of image {im.name} is "
-                                                   f"not in points3D")
+                raise _error(rec, "images", im, f"POINT3D_ID {pid} of image {im.name} is not in "
+                                                f"points3D", line=im.points_line)
             obs.append((im.name, str(int(pid)), x - pixel_shift, y - pixel_shift))
     return ColmapModel(views=views, image_ids=[im.image_id for im in rec.images],
                        point_ids=[str(int(p)) for p in pts.ids], xyz=pts.xyz,
