@@ -239,14 +239,15 @@ def test_import_reproduces_colmaps_projection(tmp_path, model, fmt):
     assert len(prj.stations) == 4 and len(prj.points) == 30
 
 
+@pytest.mark.parametrize("src", ["bin", "txt"])
 @pytest.mark.parametrize("out", ["colmap", "colmap-bin"])
 @pytest.mark.parametrize("model", list(PARAMS))
-def test_round_trip_is_exact_and_keeps_the_model(tmp_path, model, out):
-    """COLMAP binary -> photogram project -> COLMAP (text or binary) ->
-    the same COLMAP model and parameters (1e-12 relative; the 0.5 px shift
-    is the only arithmetic), poses and points."""
+def test_round_trip_is_exact_and_keeps_the_model(tmp_path, model, out, src):
+    """COLMAP binary or text -> photogram project -> COLMAP (text or
+    binary) -> the same COLMAP model and parameters (1e-12 relative; the
+    0.5 px shift is the only arithmetic), poses and points."""
     cams, images, points = scene(model)
-    write_bin(tmp_path / "m", cams, images, points)
+    (write_bin if src == "bin" else write_txt)(tmp_path / "m", cams, images, points)
     prj = import_project("colmap", tmp_path / "m", tmp_path / "imp")
     export_results(out, prj, tmp_path / "back")
     ext = ".bin" if out == "colmap-bin" else ".txt"
