@@ -156,22 +156,30 @@ def read_colmap(folder, pixel_shift: float = PIXEL_SHIFT) -> ColmapModel:
     rec, is_bin = read_records(folder)
     views = _views(rec, pixel_shift)
     pts = rec.points
-    known = {int(p) for p in pts.ids}
-    obs = []
-    for im in rec.images:
-        for (x, y), pid in zip(im.xy, im.point3d):
-            if pid == -1:
-                continue
-            if int(pid) not in known:
-                raise _error(rec, "images", im, f"POINT3D_ID {pid} of image {im.name} is not in "
-                                                f"points3D", line=im.points_line)
-            obs.append((im.name, str(int(pid)), x - pixel_shift, y - pixel_shift))
+    obs_image, obs_point, obs_xy = _observations(rec)
     return ColmapModel(views=views, image_ids=[im.image_id for im in rec.images],
                        point_ids=[str(int(p)) for p in pts.ids], xyz=pts.xyz,
-                       rgb=pts.rgb, error=pts.error,
-                       obs_image=[o[0] for o in obs], obs_point=[o[1] for o in obs],
-                       obs_xy=np.array([o[2:4] for o in obs], float).reshape(-1, 2),
-                       records=rec, binary=is_bin)
+                       rgb=pts.rgb, error=pts.error, obs_image=obs_image, obs_point=obs_point,
+                       obs_xy=obs_xy - pixel_shift, records=rec, binary=is_bin)
+
+
+def _observations(rec: Records):
+    """Image NAME, POINT3D_ID (text) and xy (COLMAP's frame) of every 2D
+    point with a 3D point, all images at once."""
+    counts = [len(im.point3d) for im in rec.images]
+    ids = np.concatenate([np.asarray(im.point3d, np.int64) for im in rec.images])
+    xy = np.concatenate([np.asarray(im.xy, float).reshape(-1, 2) for im in rec.images])
+    image = np.repeat(np.arange(len(rec.images)), counts)
+    keep = ids != -1
+    ids, xy, image = ids[keep], xy[keep], image[keep]
+    known = np.isin(ids, rec.points.ids)
+    if not np.all(known):
+        k = int(np.flatnonzero(~known)[0])
+        im = rec.images[image[k]]
+        raise _error(rec, "images", im, f"POINT3D_ID {ids[k]} of image {im.name} is not in "
+                                        f"points3D", line=im.points_line)
+    names = [im.name for im in rec.images]
+    return [names[i] for i in image], ids.astype(str).tolist(), xy
 
 
 def colmap_project(folder, name: str | None = None, pixel_shift: float = PIXEL_SHIFT):

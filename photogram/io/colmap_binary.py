@@ -25,6 +25,7 @@ that ends inside a record is an InputError naming the file and the record.
 
 from __future__ import annotations
 
+import functools
 import struct
 from pathlib import Path
 
@@ -39,6 +40,16 @@ __all__ = ["read_cameras_bin", "read_images_bin", "read_points_bin", "read_rigs_
            "read_frames_bin", "format_binary"]
 
 _TYPE_IDS = {v: k for k, v in SENSOR_TYPES.items()}
+
+
+@functools.lru_cache(maxsize=None)
+def _struct(fmt: str) -> struct.Struct:
+    return struct.Struct("<" + fmt)
+
+
+@functools.lru_cache(maxsize=None)
+def _dtype(fmt: str) -> np.dtype:
+    return np.dtype([(f"f{i}", "<" + c) for i, c in enumerate(fmt)])
 
 
 class _Reader:
@@ -59,17 +70,17 @@ class _Reader:
                           hint=hint)
 
     def take(self, fmt: str):
-        size = struct.calcsize("<" + fmt)
-        if self.pos + size > len(self.data):
+        st = _struct(fmt)
+        if self.pos + st.size > len(self.data):
             raise self.error(f"the file ends {len(self.data) - self.pos} bytes into a "
-                             f"{size}-byte field", hint="the file is truncated, or not a COLMAP "
-                                                        "binary model")
-        out = struct.unpack_from("<" + fmt, self.data, self.pos)
-        self.pos += size
+                             f"{st.size}-byte field", hint="the file is truncated, or not a "
+                                                           "COLMAP binary model")
+        out = st.unpack_from(self.data, self.pos)
+        self.pos += st.size
         return out
 
     def array(self, fmt: str, count: int) -> np.ndarray:
-        dt = np.dtype([(f"f{i}", "<" + c) for i, c in enumerate(fmt)])
+        dt = _dtype(fmt)
         if self.pos + dt.itemsize * count > len(self.data):
             raise self.error(f"{count} entries of {dt.itemsize} bytes do not fit in the "
                              f"{len(self.data) - self.pos} bytes left",
@@ -151,17 +162,16 @@ def read_images_bin(path: Path) -> list[ImageRecord]:
 def read_points_bin(path: Path) -> PointRecords:
     r = _Reader(path, "COLMAP points3D.bin")
     n = r.count()
-    ids, xyz, rgb, err, tracks = np.zeros(n, np.int64), np.zeros((n, 3)), \
-        np.zeros((n, 3), np.int64), np.zeros(n), []
+    rows, tracks = [], []
     for k in range(n):
         r.record = k + 1
-        v = r.take("Q3d3Bd")
-        ids[k], xyz[k], rgb[k], err[k] = v[0], v[1:4], v[4:7], v[7]
-        t = r.array("II", r.count())
-        tracks.append(np.column_stack([t["f0"], t["f1"]]).astype(np.int64))
+        rows.append(r.take("Q3d3Bd"))
+        tracks.append(r.array("I", 2 * r.count())["f0"].astype(np.int64).reshape(-1, 2))
     r.done()
-    return PointRecords(ids=ids, xyz=xyz, rgb=rgb, error=err, tracks=tracks,
-                        lines=[None] * n)
+    ids = np.array([v[0] for v in rows], np.uint64).astype(np.int64)
+    v = np.array([v[1:] for v in rows], float).reshape(-1, 7)
+    return PointRecords(ids=ids, xyz=v[:, :3], rgb=v[:, 3:6].astype(np.int64), error=v[:, 6],
+                        tracks=tracks, lines=[None] * n)
 
 
 def read_rigs_bin(path: Path) -> list[RigRecord]:
