@@ -537,3 +537,14 @@ def test_damaged_binary_files_give_one_line_errors(tmp_path, name):
             read_colmap(tmp_path / "m")
         except InputError as err:
             assert err.file is not None and "\n" not in str(err)
+
+
+def test_ids_outside_colmaps_integer_types_are_renumbered():
+    K = np.array([[1500.0, 0, 960], [0, 1500.0, 540], [0, 0, 1]])
+    views = [View(name=n, camera=c, K=K, dist=np.zeros(5), R_cv=np.eye(3), t_cv=np.zeros(3),
+                  image_size=(1920, 1080)) for n, c in (("a", "99999999999"), ("b", "-1"))]
+    rec = colmap_records(views, ["18446744073709551615", "5"], np.ones((2, 3)),
+                         [(0, 0, 1.0, 2.0), (1, 1, 3.0, 4.0)])
+    assert sorted(rec.cameras) == [1, 2] and list(rec.points.ids) == [1, 2]
+    from photogram.io.colmap_binary import format_binary
+    assert set(format_binary(rec)) == {"cameras.bin", "images.bin", "points3D.bin"}

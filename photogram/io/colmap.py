@@ -213,13 +213,16 @@ def colmap_project(folder, name: str | None = None, pixel_shift: float = PIXEL_S
 # export
 # --------------------------------------------------------------------------
 
-def _integer_ids(names) -> list[int] | None:
+def _integer_ids(names, limit: int = 2 ** 32 - 1) -> list[int] | None:
+    """The names as COLMAP ids if all are distinct whole numbers in
+    [0, limit) (camera_t, image_t: uint32; point3D_t: uint64 with 2^64-1
+    reserved), else None (the caller numbers them)."""
     try:
         ids = [int(n) for n in names]
     except ValueError:
         return None
-    return ids if len(set(ids)) == len(ids) and all(str(i) == str(n).strip() and i >= 0
-                                                    for i, n in zip(ids, names)) else None
+    ok = all(str(i) == str(n).strip() and 0 <= i < limit for i, n in zip(ids, names))
+    return ids if ok and len(set(ids)) == len(ids) else None
 
 
 def _camera_record(v: View, cid: int, shift: float) -> CameraRecord:
@@ -251,7 +254,7 @@ def colmap_records(views: list[View], point_ids=(), xyz=None, obs=(), error=None
     image_ids = _integer_ids([v.extra.get("image_id", "") for v in views]) or \
         list(range(1, len(views) + 1))
     point_ids = [str(p) for p in point_ids]
-    pids = _integer_ids(point_ids) or list(range(1, len(point_ids) + 1))
+    pids = _integer_ids(point_ids, 2 ** 63 - 1) or list(range(1, len(point_ids) + 1))
     per_view: list[list] = [[] for _ in views]
     track: list[list] = [[] for _ in point_ids]
     for vi, pi, x, y in obs:
