@@ -548,3 +548,14 @@ def test_ids_outside_colmaps_integer_types_are_renumbered():
     assert sorted(rec.cameras) == [1, 2] and list(rec.points.ids) == [1, 2]
     from photogram.io.colmap_binary import format_binary
     assert set(format_binary(rec)) == {"cameras.bin", "images.bin", "points3D.bin"}
+
+
+def test_ids_given_twice(tmp_path):
+    cams, images, points = scene("PINHOLE")
+    write_txt(tmp_path / "t", cams, images, points + [points[3]])
+    with pytest.raises(InputError, match="POINT3D_ID 103 is given twice") as err:
+        read_colmap(tmp_path / "t")
+    assert err.value.line == 32
+    write_bin(tmp_path / "b", cams, images + [images[1][:4] + ("other.jpg", [])], points)
+    with pytest.raises(InputError, match="record 5: IMAGE_ID 11 is given twice"):
+        read_colmap(tmp_path / "b")

@@ -154,13 +154,29 @@ def read_colmap(folder, pixel_shift: float = PIXEL_SHIFT) -> ColmapModel:
         record), unknown camera or point ids, unsupported camera models.
     """
     rec, is_bin = read_records(folder)
-    views = _views(rec, pixel_shift)
+    _unique(rec, "images", [im.image_id for im in rec.images], rec.images, "IMAGE_ID")
     pts = rec.points
+    _unique(rec, "points3D", pts.ids.tolist(), None, "POINT3D_ID")
+    views = _views(rec, pixel_shift)
     obs_image, obs_point, obs_xy = _observations(rec)
     return ColmapModel(views=views, image_ids=[im.image_id for im in rec.images],
                        point_ids=[str(int(p)) for p in pts.ids], xyz=pts.xyz,
                        rgb=pts.rgb, error=pts.error, obs_image=obs_image, obs_point=obs_point,
                        obs_xy=obs_xy - pixel_shift, records=rec, binary=is_bin)
+
+
+def _unique(rec: Records, kind: str, ids: list, items, what: str) -> None:
+    """Refuse an id given twice (naming the line or record of the second)."""
+    seen = set()
+    for k, i in enumerate(ids):
+        if i in seen:
+            item = items[k] if items is not None else None
+            line = rec.points.lines[k] if items is None and rec.points.lines else None
+            if item is None and line is None:
+                raise InputError(f"record {k + 1}: {what} {i} is given twice",
+                                 file=rec.files.get(kind))
+            raise _error(rec, kind, item, f"{what} {i} is given twice", line=line)
+        seen.add(i)
 
 
 def _observations(rec: Records):
