@@ -559,3 +559,10 @@ def test_ids_given_twice(tmp_path):
     write_bin(tmp_path / "b", cams, images + [images[1][:4] + ("other.jpg", [])], points)
     with pytest.raises(InputError, match="record 5: IMAGE_ID 11 is given twice"):
         read_colmap(tmp_path / "b")
+
+
+def test_sparse_folder_names_its_models(tmp_path):
+    write_bin(tmp_path / "sparse" / "0", *scene("PINHOLE"))
+    with pytest.raises(InputError, match="no cameras.txt here") as err:
+        read_colmap(tmp_path / "sparse")
+    assert "give one of: 0" in str(err.value)

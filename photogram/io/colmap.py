@@ -86,9 +86,13 @@ def read_records(folder) -> tuple[Records, bool]:
     ext = ".bin" if is_bin else ".txt"
     for f in COLMAP_FILES:
         if not (folder / (f + ext)).is_file():
-            raise InputError(f"no {f}{ext} here", file=folder,
-                             hint="give the folder of a COLMAP model (cameras, images, "
-                                  "points3D as .bin or .txt)")
+            models = sorted(p.name for p in folder.glob("*") if p.is_dir() and any(
+                (p / ("cameras" + e)).is_file() for e in (".bin", ".txt")))
+            hint = (f"COLMAP writes one model per sub-folder; give one of: "
+                    f"{', '.join(models)}" if models else
+                    "give the folder of a COLMAP model (cameras, images, points3D as .bin "
+                    "or .txt)")
+            raise InputError(f"no {f}{ext} here", file=folder, hint=hint)
     mod = binary if is_bin else text
     sfx = "bin" if is_bin else "text"
     rec = Records(files={k: folder / (k + ext) for k in COLMAP_FILES})
