@@ -21,6 +21,9 @@ PARAMS = {
     "opencv": np.array([1420.0, 1425.0, 322.0, 238.0, -0.25, 0.3, 1.0e-3, -8.0e-4, -0.5]),
     # Kannala-Brandt: theta_d = theta (1 + k1 theta^2 + ... + k4 theta^8)
     "opencv_fisheye": np.array([1420.0, 1425.0, 322.0, 238.0, 0.05, -0.3, 0.8, -1.2]),
+    # OpenCV's full set: rational k4..k6, thin prism s1..s4, tilt tauX tauY (rad)
+    "opencv_full": np.array([1420.0, 1425.0, 322.0, 238.0, -0.25, 0.3, 1.0e-3, -8.0e-4, -0.5,
+                             0.1, -0.05, 0.2, 2.0e-3, -1.0e-3, 1.5e-3, 5.0e-4, 0.02, -0.015]),
     # BAL (Snavely): f, k1, k2 of normalised radii; origin at the image centre
     "bal": np.array([1420.0, -0.25, 0.3]),
     # AICON / Australis forward form: balanced radial (r0 = 250 px),
@@ -42,6 +45,7 @@ TYPICAL = {
                        1 / 400, 1 / 400, 1, 1]),
     "opencv": np.array([1420, 1420, 1420, 1420, 1, 1, 1, 1, 1]),
     "opencv_fisheye": np.array([1420, 1420, 1420, 1420, 1, 1, 1, 1]),
+    "opencv_full": np.array([1420, 1420, 1420, 1420] + [1] * 14),
     "bal": np.array([1420, 1, 1]),
     "aicon": np.array([1420, 1420, 1420, 400.0 ** -2, 400.0 ** -4, 400.0 ** -6,
                        1 / 400, 1 / 400, 1, 1, 400]),
@@ -147,6 +151,7 @@ def test_jacobian_shapes(model):
 # ---------------------------------------------------------------- registry
 def test_registry():
     assert set(CAMERA_MODELS) == {"aicon", "bal", "brown", "opencv", "opencv_fisheye",
+                                  "opencv_full",
                                   "brown_affine_after", "brown_aspect_first", "brown_forward"}
     assert camera_model("brown").parameter_names == (
         "c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2")

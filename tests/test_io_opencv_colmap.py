@@ -111,19 +111,36 @@ def test_opencv_malformed_files(tmp_path):
     with pytest.raises(InputError, match="skew") as err:
         read_opencv(skew)
     assert err.value.line == text.splitlines().index("camera_matrix: !!opencv-matrix") + 1
-    rational = tmp_path / "rational.yml"
-    fs = cv2.FileStorage(str(rational), cv2.FILE_STORAGE_WRITE)
-    fs.write("camera_matrix", K)
-    fs.write("distortion_coefficients", np.r_[DIST, 0.1, 0, 0].reshape(1, 8))
-    fs.release()
-    with pytest.raises(InputError, match="rational"):
-        read_opencv(rational)
     none = tmp_path / "none.yml"
     fs = cv2.FileStorage(str(none), cv2.FILE_STORAGE_WRITE)
     fs.write("something", 1)
     fs.release()
     with pytest.raises(InputError, match="no camera matrix"):
         read_opencv(none)
+
+
+@pytest.mark.parametrize("extra", [[0.1, 0, 0.02], [0.1, 0, 0.02, 1e-3, 0, -2e-3, 5e-4],
+                                   [0.1, 0, 0.02, 1e-3, 0, -2e-3, 5e-4, 0.01, -0.02]])
+def test_opencv_rational_thin_prism_tilt_round_trip(tmp_path, extra):
+    """8, 12 and 14 coefficients import as an ``opencv_full`` camera that
+    projects as cv2.projectPoints (1e-9 px) and export back unchanged."""
+    path = tmp_path / "full.yml"
+    v = view()
+    v.dist = np.r_[DIST, extra]
+    write_opencv(path, [v])
+    prj = import_project("opencv", path, tmp_path / "imp")
+    p = load_source(prj.parent).project
+    cam = p.cameras["cam"]
+    assert cam.model == "opencv_full"
+    X = np.random.default_rng(1).uniform(-1, 1, (50, 3))
+    xy = camera_model("opencv_full").project(X, p.stations.angles[0], p.stations.position[0],
+                                             cam.values())
+    assert np.abs(xy - v.project(X)).max() < 1e-9
+    out = export_results("opencv", prj.parent, tmp_path / "back.yml")[0]
+    back = read_opencv(out)[0]
+    assert np.array_equal(back.dist, v.dist) and np.array_equal(back.K, v.K)
+    with pytest.raises(InputError, match="Pose2Sim"):
+        export_results("pose2sim", prj.parent, tmp_path / "p.toml")
 
 
 # --------------------------------------------------------------------------
@@ -229,7 +246,7 @@ def test_colmap_from_results_folder(lab_results, tmp_path):
 
 
 BAD_COLMAP = [
-    ("cameras.txt", lambda t: t.replace("OPENCV", "OPENCV_FISHEYE"), 3, "not supported"),
+    ("cameras.txt", lambda t: t.replace("OPENCV 1920 1080", "FOV 1920 1080"), 3, "not supported"),
     ("cameras.txt", lambda t: t.rsplit(" ", 1)[0] + "\n", 3, "expected 8"),
     ("images.txt", lambda t: t[:t.rfind(" ")] + "\n", 9, "triples"),
     ("images.txt", lambda t: t.replace(" 7 img_2.jpg", " 8 img_2.jpg"), 6, "CAMERA_ID 8"),

@@ -13,6 +13,7 @@ from photogram.geometry.camera import (
 from photogram.geometry.brown import BrownModel
 from photogram.geometry.opencv_model import OpenCVModel
 from photogram.geometry.fisheye_model import OpenCVFisheyeModel
+from photogram.geometry.opencv_full_model import OpenCVFullModel
 from photogram.geometry.bal_model import BALModel
 from photogram.geometry.aicon_model import AiconModel
 from photogram.geometry.dbat_models import (
@@ -30,7 +31,8 @@ __all__ = [
     "skew", "small_rotation", "to_radians",
     "CAMERA_MODELS", "CameraModel", "camera_frame", "camera_model",
     "ideal_projection", "opencv_pose", "photogrammetric_pose", "pose_jacobians",
-    "rescale_parameters", "BrownModel", "OpenCVModel", "OpenCVFisheyeModel", "BALModel",
+    "rescale_parameters", "BrownModel", "OpenCVModel", "OpenCVFisheyeModel", "OpenCVFullModel",
+    "BALModel",
     "AiconModel", "aicon_to_brown", "aicon_to_opencv", "brown_to_aicon", "change_r0",
     "opencv_to_aicon",
     "BrownAffineAfterModel", "BrownAspectFirstModel", "BrownForwardModel",

@@ -10,7 +10,10 @@ Each format lives in its own module and builds or reads the dataclasses of
 ``pmexport``           PhotoModeler text exports as PhotoModeler writes them -> project
 ``pose2sim``           Pose2Sim / anipose calibration TOML, both ways
 ``opencv_fs``          OpenCV FileStorage calibration (YAML/XML/JSON), both ways
-``colmap``             COLMAP text models, both ways
+``colmap``             COLMAP models (binary and text, rigs), both ways; its parts:
+``colmap_records``     the records of the files; ``colmap_text``, ``colmap_binary``
+``colmap_cameras``     COLMAP's camera models <-> photogram's (exact both ways)
+``colmap_rigs``        COLMAP >= 3.12 rigs and frames: the image poses
 ``bal``                BAL problem files (the engine's BAL mode: bundle.bal)
 ``bal_import``         BAL problems (read by ``bal``) -> project
 ``ply``                object points with sigmas (PLY)

@@ -1,11 +1,11 @@
-"""COLMAP text models: ``cameras.txt``, ``images.txt``, ``points3D.txt``.
+"""COLMAP models, text and binary: import into and export from photogram.
 
-Layout (``#`` comment lines are skipped)::
-
-    cameras.txt   CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]
-    images.txt    IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME
-                  X Y POINT3D_ID X Y POINT3D_ID ...        (second line, may be empty)
-    points3D.txt  POINT3D_ID X Y Z R G B ERROR IMAGE_ID POINT2D_IDX ...
+A COLMAP model folder holds ``cameras``, ``images``, ``points3D`` and, from
+COLMAP 3.12 on, ``rigs`` and ``frames``, each as ``.bin`` (COLMAP's
+default) or ``.txt``; the reader takes the binary files when
+``cameras.bin`` is there, else the text ones (as COLMAP's
+``Reconstruction::Read``). Layouts: :mod:`photogram.io.colmap_records`,
+:mod:`photogram.io.colmap_text`, :mod:`photogram.io.colmap_binary`.
 
 Conventions (COLMAP's documentation): ``(QW, QX, QY, QZ)`` is the Hamilton
 quaternion of the world-to-camera rotation of the OpenCV camera frame and
@@ -16,41 +16,49 @@ import the principal point and every 2D point are shifted by -0.5 px, on
 export by +0.5 px (``pixel_shift``), so that a COLMAP model and a Pose2Sim
 or OpenCV calibration of the same camera agree in photogram.
 
-Camera models read: ``SIMPLE_PINHOLE`` (f cx cy), ``PINHOLE`` (fx fy cx cy),
-``SIMPLE_RADIAL`` (f cx cy k), ``RADIAL`` (f cx cy k1 k2), ``OPENCV`` (fx fy
-cx cy k1 k2 p1 p2) and ``FULL_OPENCV`` with k4 = k5 = k6 = 0; all are
-photogram's ``opencv`` model exactly. Fisheye and other models are refused.
-Written: ``OPENCV``, or ``FULL_OPENCV`` when k3 is not zero.
+Camera models: :mod:`photogram.io.colmap_cameras` (SIMPLE_PINHOLE, PINHOLE,
+SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV -> ``opencv`` / ``opencv_full``;
+OPENCV_FISHEYE, SIMPLE_RADIAL_FISHEYE, RADIAL_FISHEYE -> ``opencv_fisheye``;
+exact both ways; export writes the smallest model that holds the camera).
+Rigs: :mod:`photogram.io.colmap_rigs` (image poses composed from the
+frames; the rig constraint itself is not kept by the import).
 
 Lost on import: 2D points without a 3D point (unmatched features), the
-colours and the ERROR column of points3D.txt.
+colours and the ERROR column of points3D, the rig constraint.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from photogram.errors import InputError
-from photogram.io.exchange import LineText, View, build_project, cv_to_station, opencv_camera
+from photogram.io import colmap_binary as binary
+from photogram.io import colmap_text as text
+from photogram.io.colmap_cameras import (colmap_to_model, intrinsics_model, model_camera,
+                                         model_to_colmap, view_intrinsics)
+from photogram.io.colmap_records import CameraRecord, ImageRecord, PointRecords, Records
+from photogram.io.colmap_rigs import frame_poses, rig_summary
+from photogram.io.exchange import View, build_project, cv_to_station
 
-__all__ = ["ColmapModel", "read_colmap", "colmap_project", "format_colmap", "write_colmap",
-           "PIXEL_SHIFT"]
+__all__ = ["ColmapModel", "read_colmap", "read_records", "colmap_project", "format_colmap",
+           "colmap_records", "write_colmap", "PIXEL_SHIFT", "COLMAP_FILES"]
+
+log = logging.getLogger("photogram")
 
 PIXEL_SHIFT = 0.5
-_MODELS = {"SIMPLE_PINHOLE": 3, "PINHOLE": 4, "SIMPLE_RADIAL": 4, "RADIAL": 5, "OPENCV": 8,
-           "FULL_OPENCV": 12}
-_IMAGE_HEADER = ("# Image list with two lines of data per image:\n"
-                 "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
-                 "#   POINTS2D[] as (X, Y, POINT3D_ID)\n")
+COLMAP_FILES = ("cameras", "images", "points3D")
 
 
 @dataclass
 class ColmapModel:
     """A COLMAP model as read: views (one per image, pixel frame already
-    shifted to OpenCV's), and points with their tracks."""
+    shifted to OpenCV's; ``extra`` has ``image_id``, ``colmap_model``,
+    ``model`` and ``params`` (photogram's), ``fisheye``, and ``rig``,
+    ``frame`` for images of frames), and points with their tracks."""
 
     views: list[View]
     image_ids: list[int]
@@ -61,173 +69,157 @@ class ColmapModel:
     obs_image: list[str] = field(default_factory=list)     # image NAME per observation
     obs_point: list[str] = field(default_factory=list)
     obs_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    records: Records | None = None
+    binary: bool = False
 
 
-def _data_lines(text: LineText, keep_blank: bool = False):
-    for no, line in enumerate(text.lines, 1):
-        s = line.strip()
-        if s.startswith("#"):
-            continue
-        if s or keep_blank:
-            yield no, s
+def _folder(folder) -> Path:
+    folder = Path(folder)
+    return folder.parent if folder.is_file() else folder
 
 
-def _int(text: LineText, no: int, s: str, what: str) -> int:
-    try:
-        return int(s)
-    except ValueError:
-        raise text.error(no, f"{what} {s!r} is not an integer",
-                         hint="COLMAP ids are whole numbers (see COLMAP's text format)") from None
+def read_records(folder) -> tuple[Records, bool]:
+    """The records of the COLMAP model in ``folder`` and whether they came
+    from the binary files."""
+    folder = _folder(folder)
+    is_bin = (folder / "cameras.bin").is_file()
+    ext = ".bin" if is_bin else ".txt"
+    for f in COLMAP_FILES:
+        if not (folder / (f + ext)).is_file():
+            models = sorted(p.name for p in folder.glob("*") if p.is_dir() and any(
+                (p / ("cameras" + e)).is_file() for e in (".bin", ".txt")))
+            hint = (f"COLMAP writes one model per sub-folder; give one of: "
+                    f"{', '.join(models)}" if models else
+                    "give the folder of a COLMAP model (cameras, images, points3D as .bin "
+                    "or .txt)")
+            raise InputError(f"no {f}{ext} here", file=folder, hint=hint)
+    mod = binary if is_bin else text
+    sfx = "bin" if is_bin else "text"
+    rec = Records(files={k: folder / (k + ext) for k in COLMAP_FILES})
+    rec.cameras = getattr(mod, f"read_cameras_{sfx}")(rec.files["cameras"])
+    rec.images = getattr(mod, f"read_images_{sfx}")(rec.files["images"])
+    rec.points = getattr(mod, f"read_points_{sfx}")(rec.files["points3D"])
+    for kind in ("rigs", "frames"):
+        if (folder / (kind + ext)).is_file():
+            rec.files[kind] = folder / (kind + ext)
+            setattr(rec, kind, getattr(mod, f"read_{kind}_{sfx}")(rec.files[kind]))
+    return rec, is_bin
 
 
-def _read_cameras(path: Path, shift: float) -> dict[int, tuple]:
-    text = LineText(path, "COLMAP cameras.txt")
+def _error(rec: Records, kind: str, item, what: str, hint: str | None = None,
+           line: int | None = None) -> InputError:
+    """InputError at the line of ``item`` (text; ``line`` if given) or its
+    record number (binary)."""
+    line = line if line is not None else getattr(item, "line", None)
+    if line is None and getattr(item, "record", 0):
+        what = f"record {item.record}: {what}"
+    return InputError(what, file=rec.files.get(kind), line=line, hint=hint)
+
+
+def _views(rec: Records, shift: float) -> list[View]:
+    from photogram.geometry import quaternion_to_matrix
     cams = {}
-    for no, s in _data_lines(text):
-        f = s.split()
-        if len(f) < 4:
-            raise text.error(no, f"expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[], found "
-                                 f"{len(f)} fields", hint="the file is truncated")
-        cid = _int(text, no, f[0], "CAMERA_ID")
-        model = f[1]
-        if model not in _MODELS:
-            raise text.error(no, f"camera model {model} is not supported",
-                             hint=f"supported: {', '.join(_MODELS)}; undistort the images "
-                                  f"(colmap image_undistorter) for other models")
-        w, h = text.numbers(no, f[2:4], what="WIDTH HEIGHT")
-        p = text.numbers(no, f[4:], _MODELS[model], what=f"parameters of {model}")
-        if model == "SIMPLE_PINHOLE":
-            vals = [p[0], p[0], p[1], p[2]]
-        elif model == "PINHOLE":
-            vals = p[:4]
-        elif model == "SIMPLE_RADIAL":
-            vals = [p[0], p[0], p[1], p[2], p[3]]
-        elif model == "RADIAL":
-            vals = [p[0], p[0], p[1], p[2], p[3], p[4]]
-        elif model == "OPENCV":
-            vals = p
-        else:
-            if any(p[9:12]):
-                raise text.error(no, "FULL_OPENCV with k4, k5, k6 (rational model) is not "
-                                     "supported", hint="only k1, k2, p1, p2, k3")
-            vals = p[:9]
-        fx, fy, cx, cy = vals[:4]
-        K = np.array([[fx, 0.0, cx - shift], [0.0, fy, cy - shift], [0.0, 0.0, 1.0]])
-        dist = np.zeros(5)
-        dist[:len(vals) - 4] = vals[4:]
-        if cid in cams:
-            raise text.error(no, f"CAMERA_ID {cid} is given twice")
-        cams[cid] = (K, dist, (int(w), int(h)), model, no)
-    if not cams:
-        raise InputError("no cameras in the file", file=path, line=1)
-    return cams
+    for cid, c in rec.cameras.items():
+        model, values = colmap_to_model(c.model, c.params, shift)
+        cams[cid] = (model, values, *view_intrinsics(model, values))
+    poses, rigs = frame_poses(rec)
+    views, names = [], set()
+    for im in rec.images:
+        if im.camera_id not in cams:
+            raise _error(rec, "images", im, f"unknown CAMERA_ID {im.camera_id}",
+                         hint="not in cameras")
+        norm = np.linalg.norm(im.q)
+        if not 0.5 < norm < 2:
+            raise _error(rec, "images", im, f"the quaternion has norm {norm:g}, not 1")
+        if im.name in names:
+            raise _error(rec, "images", im, f"image NAME {im.name} is given twice")
+        names.add(im.name)
+        R, t = poses.get(im.image_id, (quaternion_to_matrix(im.q / norm), np.asarray(im.t)))
+        model, values, K, dist, fisheye = cams[im.camera_id]
+        c = rec.cameras[im.camera_id]
+        extra = {"image_id": im.image_id, "line": im.line, "colmap_model": c.model,
+                 "model": model, "params": values, "fisheye": fisheye}
+        if im.image_id in rigs:
+            extra["rig"], extra["frame"] = rigs[im.image_id]
+        views.append(View(name=im.name, camera=str(im.camera_id), K=K, dist=dist, R_cv=R,
+                          t_cv=np.asarray(t, float), image_size=(int(c.width), int(c.height)),
+                          extra=extra))
+    return views
 
 
 def read_colmap(folder, pixel_shift: float = PIXEL_SHIFT) -> ColmapModel:
-    """Read a COLMAP text model from ``folder`` (or the folder of one of its
-    files).
+    """Read a COLMAP model (binary or text) from ``folder`` (or the folder
+    of one of its files).
 
     Raises
     ------
     InputError
-        Missing files, malformed lines (file and line), unknown camera or
-        point ids, unsupported camera models.
+        Missing files, malformed lines or records (file and line or
+        record), unknown camera or point ids, unsupported camera models.
     """
-    from photogram.geometry import quaternion_to_matrix
-    folder = Path(folder)
-    if folder.is_file():
-        folder = folder.parent
-    for f in ("cameras.txt", "images.txt", "points3D.txt"):
-        if not (folder / f).is_file():
-            raise InputError(f"no {f} here", file=folder,
-                             hint="give the folder of a COLMAP text model (colmap "
-                                  "model_converter --output_type TXT)")
-    cams = _read_cameras(folder / "cameras.txt", pixel_shift)
-    text = LineText(folder / "images.txt", "COLMAP images.txt")
-    views, image_ids, obs = [], [], []
-    lines = list(_data_lines(text, keep_blank=True))
-    i = 0
-    names = set()
-    while i < len(lines):
-        no, s = lines[i]
-        if not s:
-            i += 1
-            continue
-        f = s.split(maxsplit=9)
-        if len(f) < 10:
-            raise text.error(no, f"expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME, found "
-                                 f"{len(f)} fields", hint="the file is truncated")
-        iid = _int(text, no, f[0], "IMAGE_ID")
-        q = np.array(text.numbers(no, f[1:5], what="QW QX QY QZ"))
-        t = np.array(text.numbers(no, f[5:8], what="TX TY TZ"))
-        cid = _int(text, no, f[8], "CAMERA_ID")
-        if cid not in cams:
-            raise text.error(no, f"unknown CAMERA_ID {cid}", hint="not in cameras.txt")
-        norm = np.linalg.norm(q)
-        if not 0.5 < norm < 2:
-            raise text.error(no, f"the quaternion has norm {norm:g}, not 1")
-        name = f[9].strip()
-        if name in names:
-            raise text.error(no, f"image NAME {name} is given twice")
-        names.add(name)
-        K, dist, size, _, _ = cams[cid]
-        views.append(View(name=name, camera=str(cid), K=K, dist=dist,
-                          R_cv=quaternion_to_matrix(q / norm), t_cv=t, image_size=size,
-                          extra={"image_id": iid, "line": no}))
-        image_ids.append(iid)
-        pts_no, pts = lines[i + 1] if i + 1 < len(lines) else (no + 1, "")
-        values = pts.split()
-        if len(values) % 3:
-            raise text.error(pts_no, f"POINTS2D needs triples (X, Y, POINT3D_ID), found "
-                                     f"{len(values)} values", hint="the file is truncated")
-        for k in range(0, len(values), 3):
-            x, y = text.numbers(pts_no, values[k:k + 2], what="X Y of a 2D point")
-            pid = _int(text, pts_no, values[k + 2], "POINT3D_ID")
-            if pid != -1:
-                obs.append((name, str(pid), x - pixel_shift, y - pixel_shift, pts_no))
-        i += 2
-    if not views:
-        raise InputError("no images in the file", file=text.path, line=1)
-    ptext = LineText(folder / "points3D.txt", "COLMAP points3D.txt")
-    ids, xyz, rgb, err = [], [], [], []
-    for no, s in _data_lines(ptext):
-        f = s.split()
-        if len(f) < 8 or (len(f) - 8) % 2:
-            raise ptext.error(no, "expected POINT3D_ID X Y Z R G B ERROR (IMAGE_ID POINT2D_IDX)*",
-                              hint="the file is truncated")
-        ids.append(str(_int(ptext, no, f[0], "POINT3D_ID")))
-        v = ptext.numbers(no, f[1:8], what="X Y Z R G B ERROR")
-        xyz.append(v[:3])
-        rgb.append([int(c) for c in v[3:6]])
-        err.append(v[6])
-    known = set(ids)
-    obs = [o for o in obs if o[1] in known or _unknown_point(text, o)]
-    return ColmapModel(views=views, image_ids=image_ids, point_ids=ids,
-                       xyz=np.array(xyz, float).reshape(-1, 3),
-                       rgb=np.array(rgb, int).reshape(-1, 3), error=np.array(err, float),
-                       obs_image=[o[0] for o in obs], obs_point=[o[1] for o in obs],
-                       obs_xy=np.array([o[2:4] for o in obs], float).reshape(-1, 2))
+    rec, is_bin = read_records(folder)
+    _unique(rec, "images", [im.image_id for im in rec.images], rec.images, "IMAGE_ID")
+    pts = rec.points
+    _unique(rec, "points3D", pts.ids.tolist(), None, "POINT3D_ID")
+    views = _views(rec, pixel_shift)
+    obs_image, obs_point, obs_xy = _observations(rec)
+    return ColmapModel(views=views, image_ids=[im.image_id for im in rec.images],
+                       point_ids=[str(int(p)) for p in pts.ids], xyz=pts.xyz,
+                       rgb=pts.rgb, error=pts.error, obs_image=obs_image, obs_point=obs_point,
+                       obs_xy=obs_xy - pixel_shift, records=rec, binary=is_bin)
 
 
-def _unknown_point(text: LineText, o) -> bool:
-    raise text.error(o[4], f"POINT3D_ID {o[1]} of image {o[0]} is not in points3D.txt")
+def _unique(rec: Records, kind: str, ids: list, items, what: str) -> None:
+    """Refuse an id given twice (naming the line or record of the second)."""
+    seen = set()
+    for k, i in enumerate(ids):
+        if i in seen:
+            item = items[k] if items is not None else None
+            line = rec.points.lines[k] if items is None and rec.points.lines else None
+            if item is None and line is None:
+                raise InputError(f"record {k + 1}: {what} {i} is given twice",
+                                 file=rec.files.get(kind))
+            raise _error(rec, kind, item, f"{what} {i} is given twice", line=line)
+        seen.add(i)
+
+
+def _observations(rec: Records):
+    """Image NAME, POINT3D_ID (text) and xy (COLMAP's frame) of every 2D
+    point with a 3D point, all images at once."""
+    counts = [len(im.point3d) for im in rec.images]
+    ids = np.concatenate([np.asarray(im.point3d, np.int64) for im in rec.images])
+    xy = np.concatenate([np.asarray(im.xy, float).reshape(-1, 2) for im in rec.images])
+    image = np.repeat(np.arange(len(rec.images)), counts)
+    keep = ids != -1
+    ids, xy, image = ids[keep], xy[keep], image[keep]
+    known = np.isin(ids, rec.points.ids)
+    if not np.all(known):
+        k = int(np.flatnonzero(~known)[0])
+        im = rec.images[image[k]]
+        raise _error(rec, "images", im, f"POINT3D_ID {ids[k]} of image {im.name} is not in "
+                                        f"points3D", line=im.points_line)
+    names = [im.name for im in rec.images]
+    return [names[i] for i in image], ids.astype(str).tolist(), xy
 
 
 def colmap_project(folder, name: str | None = None, pixel_shift: float = PIXEL_SHIFT):
-    """Import a COLMAP text model as a project: one ``opencv`` camera per
-    CAMERA_ID (named by the id), one station per image (named by NAME), the
-    3D points as tie points with COLMAP's coordinates as approximations, the
-    2D points that have a 3D point as observations; free datum (COLMAP's
-    model has no control)."""
-    folder = Path(folder)
-    if folder.is_file():
-        folder = folder.parent
+    """Import a COLMAP model as a project: one camera per CAMERA_ID (named
+    by the id, in the photogram model that holds the COLMAP one exactly),
+    one station per image (named by NAME), the 3D points as tie points with
+    COLMAP's coordinates as approximations, the 2D points that have a 3D
+    point as observations; free datum (COLMAP's model has no control).
+    Images of multi-camera rigs become independent stations (logged)."""
+    folder = _folder(folder)
     model = read_colmap(folder, pixel_shift)
+    lost = rig_summary(model.records)
+    if lost:
+        log.warning(lost)
     cameras = {}
     for v in model.views:
         if v.camera not in cameras:
-            cameras[v.camera] = opencv_camera(v.camera, v.K, v.dist, v.image_size,
-                                              source=str(folder / "cameras.txt"))
+            cameras[v.camera] = model_camera(v.camera, v.extra["model"], v.extra["params"],
+                                             v.image_size,
+                                             source=str(model.records.files["cameras"]))
     poses = [cv_to_station(v.R_cv, v.t_cv) for v in model.views]
     return build_project(name or folder.name, cameras, stations=[v.name for v in model.views],
                          station_camera=[v.camera for v in model.views],
@@ -237,104 +229,132 @@ def colmap_project(folder, name: str | None = None, pixel_shift: float = PIXEL_S
                          obs_xy=model.obs_xy, length_unit="m", datum="free")
 
 
-def _r(x) -> str:
-    return repr(float(x))
+# --------------------------------------------------------------------------
+# export
+# --------------------------------------------------------------------------
 
-
-def _integer_ids(names) -> list[int] | None:
+def _integer_ids(names, limit: int = 2 ** 32 - 1) -> list[int] | None:
+    """The names as COLMAP ids if all are distinct whole numbers in
+    [0, limit) (camera_t, image_t: uint32; point3D_t: uint64 with 2^64-1
+    reserved), else None (the caller numbers them)."""
     try:
         ids = [int(n) for n in names]
     except ValueError:
         return None
-    return ids if len(set(ids)) == len(ids) and all(str(i) == str(n).strip()
-                                                    for i, n in zip(ids, names)) else None
+    ok = all(str(i) == str(n).strip() and 0 <= i < limit for i, n in zip(ids, names))
+    return ids if ok and len(set(ids)) == len(ids) else None
 
 
-def format_colmap(views: list[View], point_ids=(), xyz=None, obs=(), error=None,
-                  pixel_shift: float = PIXEL_SHIFT) -> dict[str, str]:
-    """Texts of cameras.txt, images.txt and points3D.txt.
+def _camera_record(v: View, cid: int, shift: float) -> CameraRecord:
+    if v.image_size is None:
+        raise InputError(f"camera {v.camera} has no image_size, which COLMAP needs")
+    model, values = intrinsics_model(v.K, v.dist, bool(v.extra.get("fisheye")))
+    colmap, params = model_to_colmap(model, values, shift, name=v.camera)
+    return CameraRecord(cid, colmap, int(v.image_size[0]), int(v.image_size[1]), params)
+
+
+def colmap_records(views: list[View], point_ids=(), xyz=None, obs=(), error=None,
+                   pixel_shift: float = PIXEL_SHIFT, rgb=None) -> Records:
+    """The records of a COLMAP model of ``views`` and points.
 
     ``obs`` is a list of ``(view index, point index, x, y)`` in photogram's
     (OpenCV's) pixel frame. Camera and point ids are kept where they are
-    integers, else numbered from 1; image ids are 1..n in view order.
+    integers, else numbered from 1; image ids likewise from the views'
+    ``extra["image_id"]``, else 1..n in view order. Points without a finite
+    position or without a track are left out (COLMAP has none such).
     """
     from photogram.geometry import matrix_to_quaternion
     cam_names = list(dict.fromkeys(v.camera for v in views))
     cam_ids = _integer_ids(cam_names) or list(range(1, len(cam_names) + 1))
     cid = dict(zip(cam_names, cam_ids))
-    lines = ["# Camera list with one line of data per camera:",
-             "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]",
-             f"# Number of cameras: {len(cam_names)}"]
-    done = set()
+    rec = Records()
     for v in views:
-        if v.camera in done:
-            continue
-        done.add(v.camera)
-        K, d = v.K, np.zeros(5)
-        d[:min(5, len(v.dist))] = np.asarray(v.dist, float)[:5]
-        if v.image_size is None:
-            raise InputError(f"camera {v.camera} has no image_size, which COLMAP needs")
-        params = [K[0, 0], K[1, 1], K[0, 2] + pixel_shift, K[1, 2] + pixel_shift, *d[:4]]
-        model = "OPENCV"
-        if d[4] != 0:
-            model = "FULL_OPENCV"
-            params += [d[4], 0.0, 0.0, 0.0]
-        lines.append(" ".join([str(cid[v.camera]), model, str(int(v.image_size[0])),
-                               str(int(v.image_size[1]))] + [_r(p) for p in params]))
-    cameras_txt = "\n".join(lines) + "\n"
-
+        if cid[v.camera] not in rec.cameras:
+            rec.cameras[cid[v.camera]] = _camera_record(v, cid[v.camera], pixel_shift)
+    image_ids = _integer_ids([v.extra.get("image_id", "") for v in views]) or \
+        list(range(1, len(views) + 1))
     point_ids = [str(p) for p in point_ids]
-    pids = _integer_ids(point_ids) or list(range(1, len(point_ids) + 1))
+    pids = _integer_ids(point_ids, 2 ** 63 - 1) or list(range(1, len(point_ids) + 1))
     per_view: list[list] = [[] for _ in views]
     track: list[list] = [[] for _ in point_ids]
     for vi, pi, x, y in obs:
-        track[pi].append((vi + 1, len(per_view[vi])))
+        track[pi].append((image_ids[vi], len(per_view[vi])))
         per_view[vi].append((x + pixel_shift, y + pixel_shift, pids[pi]))
-    n_obs = sum(len(p) for p in per_view)
-    lines = [_IMAGE_HEADER.rstrip("\n"),
-             f"# Number of images: {len(views)}, mean observations per image: "
-             f"{n_obs / max(len(views), 1):g}"]
     for k, v in enumerate(views):
-        q = matrix_to_quaternion(v.R_cv)
-        lines.append(" ".join([str(k + 1)] + [_r(c) for c in q] + [_r(c) for c in v.t_cv] +
-                              [str(cid[v.camera]), v.name]))
-        lines.append(" ".join(f"{_r(x)} {_r(y)} {p}" for x, y, p in per_view[k]))
-    images_txt = "\n".join(lines) + "\n"
-
+        pv = np.array(per_view[k], float).reshape(-1, 3)
+        rec.images.append(ImageRecord(image_ids[k], matrix_to_quaternion(v.R_cv),
+                                      np.asarray(v.t_cv, float), cid[v.camera], v.name,
+                                      pv[:, :2], np.array([p[2] for p in per_view[k]],
+                                                          np.int64)))
     xyz = np.zeros((0, 3)) if xyz is None else np.asarray(xyz, float)
     err = np.zeros(len(point_ids)) if error is None else np.asarray(error, float)
-    rows, n_track = [], 0
-    for i in range(len(point_ids)):
-        if not np.all(np.isfinite(xyz[i])) or not track[i]:
-            continue                      # COLMAP has no 3D point without a track
-        n_track += len(track[i])
-        e = err[i] if np.isfinite(err[i]) else 0.0
-        rows.append(" ".join([str(pids[i])] + [_r(c) for c in xyz[i]] + ["128", "128", "128",
-                                                                          _r(e)] +
-                             [f"{a} {b}" for a, b in track[i]]))
-    mean_track = n_track / max(len(rows), 1)
-    lines = ["# 3D point list with one line of data per point:",
-             "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)",
-             f"# Number of points: {len(rows)}, mean track length: {mean_track:g}"] + rows
-    return {"cameras.txt": cameras_txt, "images.txt": images_txt,
-            "points3D.txt": "\n".join(lines) + "\n"}
+    keep = [i for i in range(len(point_ids)) if np.all(np.isfinite(xyz[i])) and track[i]]
+    colours = np.full((len(point_ids), 3), 128) if rgb is None else np.asarray(rgb)
+    rec.points = PointRecords(ids=np.array([pids[i] for i in keep], np.int64),
+                              xyz=xyz[keep].reshape(-1, 3),
+                              rgb=colours[keep].reshape(-1, 3).astype(np.int64),
+                              error=np.where(np.isfinite(err[keep]), err[keep], 0.0),
+                              tracks=[np.array(track[i], np.int64) for i in keep])
+    return rec
 
 
-def write_colmap(folder, views, point_ids=(), xyz=None, obs=(), error=None, *,
-                 force: bool = False, pixel_shift: float = PIXEL_SHIFT) -> Path:
-    """Write a COLMAP text model into ``folder`` (created; the three files
-    are written atomically; existing ones are refused unless ``force``)."""
-    from photogram.io.exchange import write_new_text
+def format_colmap(views: list[View], point_ids=(), xyz=None, obs=(), error=None,
+                  pixel_shift: float = PIXEL_SHIFT, binary_files: bool = False) -> dict:
+    """Contents of cameras, images and points3D (``.txt`` texts, or
+    ``.bin`` bytes with ``binary_files``); see :func:`colmap_records`."""
+    rec = colmap_records(views, point_ids, xyz, obs, error, pixel_shift)
+    return binary.format_binary(rec) if binary_files else text.format_text(rec)
+
+
+def write_records(folder, rec: Records, *, binary_files: bool = False,
+                  force: bool = False) -> list[Path]:
+    """Write ``rec`` into ``folder`` (created; every file written atomically;
+    existing ones are refused unless ``force``); returns the files."""
+    from photogram.io.exchange import write_new_bytes, write_new_text
     folder = Path(folder)
-    texts = format_colmap(views, point_ids, xyz, obs, error, pixel_shift)
+    files = binary.format_binary(rec) if binary_files else text.format_text(rec)
     if folder.exists() and not folder.is_dir():
         raise InputError("is a file; COLMAP models are folders", file=folder)
     folder.mkdir(parents=True, exist_ok=True)
     if not force:
-        for f in texts:
+        for f in files:
             if (folder / f).exists():
                 raise InputError("file exists", file=folder / f,
                                  hint="choose a new folder, or pass --force")
-    for f, t in texts.items():
-        write_new_text(folder / f, t, force)
-    return folder
+    write = write_new_bytes if binary_files else write_new_text
+    return [write(folder / f, data, force) for f, data in files.items()]
+
+
+def write_colmap(folder, views, point_ids=(), xyz=None, obs=(), error=None, *,
+                 force: bool = False, pixel_shift: float = PIXEL_SHIFT,
+                 binary_files: bool = False) -> Path:
+    """Write a COLMAP model (text, or binary with ``binary_files``) into
+    ``folder``; see :func:`colmap_records` and :func:`write_records`."""
+    rec = colmap_records(views, point_ids, xyz, obs, error, pixel_shift)
+    write_records(folder, rec, binary_files=binary_files, force=force)
+    return Path(folder)
+
+
+def colmap_views(project) -> list[View]:
+    """The stations of ``project`` as views for COLMAP: cameras of model
+    opencv, opencv_full and opencv_fisheye exactly, brown fitted and bal
+    exactly through OpenCV's model
+    (:func:`photogram.io.colmap_cameras.camera_intrinsics`)."""
+    from photogram.io.colmap_cameras import camera_intrinsics
+    from photogram.io.exchange import station_to_cv
+    st = project.stations
+    intrinsics, views = {}, []
+    for i, name in enumerate(st.names):
+        if not (np.all(np.isfinite(st.position[i])) and np.all(np.isfinite(st.angles[i]))):
+            raise InputError(f"station {name} has no orientation to export",
+                             file=project.path,
+                             hint="export a results folder of calibrate, orient or intersect")
+        cam = project.cameras[st.camera[i]]
+        if cam.name not in intrinsics:
+            intrinsics[cam.name] = camera_intrinsics(cam, project.units.image)
+        K, dist, fisheye, misfit = intrinsics[cam.name]
+        R_cv, t_cv = station_to_cv(st.angles[i], st.position[i])
+        views.append(View(name=name, camera=cam.name, K=K, dist=dist, R_cv=R_cv, t_cv=t_cv,
+                          image_size=cam.image_size,
+                          extra={"misfit_px": misfit, "fisheye": fisheye}))
+    return views

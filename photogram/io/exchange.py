@@ -34,8 +34,8 @@ from photogram.project.atomic import atomic_write_bytes, atomic_write_text
 from photogram.project.model import (Camera, ImagePoints, Parameter, Points, Project,
                                      Stations, Units)
 
-__all__ = ["View", "LineText", "opencv_camera", "fisheye_camera", "cv_to_station",
-           "station_to_cv", "build_project", "save_project", "save_calibration",
+__all__ = ["View", "LineText", "opencv_camera", "fisheye_camera", "opencv_distortion_vector",
+           "cv_to_station", "station_to_cv", "build_project", "save_project", "save_calibration",
            "opencv_intrinsics", "write_new_text", "write_new_bytes", "check_new_file"]
 
 log = logging.getLogger("photogram")
@@ -132,11 +132,11 @@ class LineText:
 def opencv_camera(name: str, K, dist, image_size=None, *, source: str | None = None,
                   file=None, line=None, free: bool = False) -> Camera:
     """A camera of model ``opencv`` from a camera matrix and OpenCV's
-    distortion vector.
+    distortion vector, or ``opencv_full`` when the vector has non-zero
+    rational, thin-prism or tilt terms (k4 ... tauY; same order, exact).
 
-    ``dist`` may have 0, 4, 5, 8, 12 or 14 coefficients; beyond k3 (the
-    rational and thin-prism terms) they must be zero, since the ``opencv``
-    model does not have them. A skewed ``K`` (``K[0, 1] != 0``) is refused.
+    ``dist`` may have 0, 4, 5, 8, 12 or 14 coefficients. A skewed ``K``
+    (``K[0, 1] != 0``) is refused.
     """
     K = np.asarray(K, dtype=float)
     if K.shape != (3, 3):
@@ -155,15 +155,16 @@ def opencv_camera(name: str, K, dist, image_size=None, *, source: str | None = N
     if dist.size not in (0, 4, 5, 8, 12, 14):
         raise InputError(f"camera {name}: {dist.size} distortion coefficients; OpenCV uses "
                          f"4, 5, 8, 12 or 14", file=file, line=line)
+    model, names = "opencv", OPENCV_NAMES
     if dist.size > 5 and np.any(dist[5:] != 0):
-        raise InputError(f"camera {name}: rational or thin-prism distortion (k4 ... ) is not "
-                         f"supported", file=file, line=line,
-                         hint="recalibrate with k1, k2, p1, p2, k3 only")
-    d[:min(5, dist.size)] = dist[:5]
+        from photogram.geometry import camera_model
+        model, names = "opencv_full", camera_model("opencv_full").parameter_names
+        d = np.zeros(14)
+    d[:min(d.size, dist.size)] = dist[:d.size]
     values = [K[0, 0], K[1, 1], K[0, 2], K[1, 2], *d]
     size = None if image_size is None else (int(round(image_size[0])), int(round(image_size[1])))
-    params = {n: Parameter(value=float(v), free=free) for n, v in zip(OPENCV_NAMES, values)}
-    return Camera(name=name, model="opencv", parameters=params, image_size=size, source=source)
+    params = {n: Parameter(value=float(v), free=free) for n, v in zip(names, values)}
+    return Camera(name=name, model=model, parameters=params, image_size=size, source=source)
 
 
 def fisheye_camera(name: str, K, dist, image_size=None, *, source: str | None = None,
@@ -200,10 +201,11 @@ def station_to_cv(angles, X0) -> tuple[np.ndarray, np.ndarray]:
 
 def opencv_intrinsics(camera: Camera, image_unit: str = "px",
                       tolerance: float = 0.01) -> tuple[np.ndarray, np.ndarray, float]:
-    """``(K, dist(5), misfit_px)`` of a camera in OpenCV terms.
+    """``(K, dist, misfit_px)`` of a camera in OpenCV terms.
 
-    ``opencv`` cameras convert exactly (misfit 0). ``brown`` cameras are
-    converted by the exact pinhole part plus a least-squares fit of k1, k2,
+    ``opencv`` cameras convert exactly (misfit 0, dist of 5), ``opencv_full``
+    too (dist of 5, 8, 12 or 14: the shortest that holds its non-zero
+    terms). ``brown`` cameras are converted by the exact pinhole part plus a least-squares fit of k1, k2,
     p1, p2, k3 over the format (:func:`photogram.geometry.fit_distortion`);
     ``aicon`` cameras exactly where possible, else by a fit of all nine;
     the RMS misfit in px is returned and logged when above ``tolerance``.
@@ -218,6 +220,9 @@ def opencv_intrinsics(camera: Camera, image_unit: str = "px",
                              f"to be exported in pixels")
         values = rescale_parameters(camera.model, values, 1.0 / camera.pixel_size[0])
     misfit = 0.0
+    if camera.model == "opencv_full":
+        K = np.array([[values[0], 0.0, values[2]], [0.0, values[1], values[3]], [0.0, 0.0, 1.0]])
+        return K, opencv_distortion_vector(values[4:]), 0.0
     if camera.model == "opencv":
         p = values
     elif camera.model == "brown":
@@ -265,6 +270,19 @@ def _aicon_to_opencv(camera: Camera, values) -> tuple[np.ndarray, float]:
                                target_params=aicon_to_opencv(values, strict=False),
                                free=("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"))
     return np.asarray(p, float), misfit
+
+
+def opencv_distortion_vector(d) -> np.ndarray:
+    """OpenCV's distortion vector (k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4 tauX
+    tauY) cut to the shortest length OpenCV takes (5, 8, 12 or 14) that
+    keeps every non-zero term."""
+    d = np.asarray(d, float).ravel()
+    nonzero = np.flatnonzero(d)
+    last = int(nonzero[-1]) + 1 if nonzero.size else 0
+    n = next(k for k in (5, 8, 12, 14) if k >= min(last, 14))
+    out = np.zeros(n)
+    out[:min(n, d.size)] = d[:n]
+    return out
 
 
 # --------------------------------------------------------------------------

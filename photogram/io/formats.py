@@ -26,7 +26,8 @@ IMPORT_FORMATS = {
     "pmexport": "PhotoModeler text export (the layout DBAT's loadpm reads)",
     "pose2sim": "Pose2Sim / anipose calibration TOML (Calib_*.toml)",
     "opencv": "OpenCV FileStorage calibration (YAML/XML/JSON)",
-    "colmap": "COLMAP text model (folder with cameras.txt, images.txt, points3D.txt)",
+    "colmap": "COLMAP model, binary or text (folder with cameras, images, points3D .bin or "
+              ".txt; rigs and frames read)",
     "bal": "Bundle Adjustment in the Large problem (.txt, .bz2; read by photogram.io.bal)",
     "images": "folder of planar-target images (--target) -> a calibration project",
 }
@@ -34,6 +35,7 @@ EXPORT_FORMATS = {
     "pose2sim": "Pose2Sim / anipose calibration TOML",
     "opencv": "OpenCV FileStorage (one file per station; a folder for several)",
     "colmap": "COLMAP text model (a folder)",
+    "colmap-bin": "COLMAP binary model, COLMAP's default (a folder)",
     "ply": "object points with their sigmas (ASCII PLY)",
     "trc": "trajectories for OpenSim (.trc, metres, Y up)",
     "c3d": "trajectories as C3D (mm, Z up, residual and camera mask)",
@@ -142,7 +144,11 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
                           project.points.kind, unit=project.units.length, force=force,
                           comment=f"from {src.folder}")]
     _refuse_moving_cameras(src, key, source)
-    views = views_of(project)
+    if key in ("colmap", "colmap-bin"):
+        from photogram.io.colmap import colmap_views
+        views = colmap_views(project)
+    else:
+        views = views_of(project)
     if not views:
         raise InputError("no stations to export", file=source)
     if key == "pose2sim":
@@ -152,6 +158,12 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
         # Pose2Sim's (and anipose's) world is in metres: convert the translations
         views = [dataclasses.replace(v, t_cv=np.asarray(v.t_cv, float) * src.metres)
                  for v in views]
+        for v in views:
+            if np.any(np.asarray(v.dist, float)[5:] != 0):
+                raise InputError(f"camera {v.camera} has rational, thin-prism or tilt "
+                                 f"distortion (opencv_full), which Pose2Sim's [k1, k2, p1, "
+                                 f"p2, k3] cannot hold", file=source,
+                                 hint="export opencv (FileStorage keeps all 14 terms)")
         if project.units.length != "m":
             log.info("Pose2Sim export: translations converted from %s to m",
                      project.units.length)
@@ -164,8 +176,8 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
     obs, error = _observations(src)
     _check_tracks(src, obs)
     folder = write_colmap(to, views, project.points.ids, project.points.xyz, obs, error,
-                          force=force)
-    return [folder / f for f in ("cameras.txt", "images.txt", "points3D.txt")]
+                          force=force, binary_files=key == "colmap-bin")
+    return _targets(key, folder)
 
 
 #: files of a results folder (or calibration folder) that the exporters read
@@ -207,8 +219,9 @@ def export_inputs(source) -> list[Path]:
 
 
 def _targets(key: str, to: Path) -> list[Path]:
-    if key == "colmap":
-        return [to / f for f in ("cameras.txt", "images.txt", "points3D.txt")]
+    if key in ("colmap", "colmap-bin"):
+        ext = ".bin" if key == "colmap-bin" else ".txt"
+        return [to / (f + ext) for f in ("cameras", "images", "points3D")]
     if key == "csv":
         from photogram.io.trajectories import csv_sidecar
         return [to, csv_sidecar(to)]

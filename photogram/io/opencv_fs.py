@@ -8,7 +8,8 @@ them; the first present name wins):
 intrinsics          ``camera_matrix``, ``cameraMatrix``, ``K``, ``M``, ``mtx``,
                     ``intrinsic``
 distortion          ``distortion_coefficients``, ``dist_coeffs``, ``distCoeffs``,
-                    ``D``, ``dist`` (4, 5 or more; beyond k3 must be zero)
+                    ``D``, ``dist`` (4, 5, 8, 12 or 14: with non-zero terms beyond k3
+                    the camera is ``opencv_full``)
 image size          ``image_width`` + ``image_height``, or ``image_size``/``imageSize``
 pose (optional)     ``R`` (3 x 3 matrix or Rodrigues vector) or ``rvec``, with ``T``,
                     ``t`` or ``tvec``: ``x_cv = R X + T``; or OpenCV's calibration
@@ -18,7 +19,8 @@ pose (optional)     ``R`` (3 x 3 matrix or Rodrigues vector) or ``rvec``, with `
 A stereo file (``M1 D1 M2 D2 R T`` of ``cv2.stereoCalibrate``) gives two
 cameras: the first at the origin, the second at ``R, T``.
 
-Written: ``camera_matrix``, ``distortion_coefficients`` (1 x 5),
+Written: ``camera_matrix``, ``distortion_coefficients`` (1 x 5; 1 x 8, 12
+or 14 for ``opencv_full`` cameras),
 ``image_width``, ``image_height``, ``R`` (3 x 3), ``rvec``, ``T`` (3 x 1)
 and ``camera_name`` per file; ``cv2.FileStorage`` writes doubles with 17
 significant digits, so the numbers read back exactly. Several stations are

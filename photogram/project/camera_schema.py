@@ -37,6 +37,8 @@ FALLBACK_PARAMETERS: dict[str, tuple[str, ...]] = {
     "brown_affine_after": ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2"),
     "brown_aspect_first": ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2"),
     "brown_forward": ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2"),
+    "opencv_full": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6",
+                    "s1", "s2", "s3", "s4", "tauX", "tauY"),
 }
 #: Power of the image length unit in each parameter (for px <-> mm).
 FALLBACK_DIMS: dict[str, tuple[int, ...]] = {
@@ -47,6 +49,7 @@ FALLBACK_DIMS: dict[str, tuple[int, ...]] = {
     "brown_affine_after": (1, 1, 1, -2, -4, -6, -1, -1, 0, 0),
     "brown_aspect_first": (1, 1, 1, -2, -4, -6, -1, -1, 0, 0),
     "brown_forward": (1, 1, 1, -2, -4, -6, -1, -1),
+    "opencv_full": (1, 1, 1, 1) + (0,) * 14,
 }
 #: Parameters a camera section must give. The principal point defaults to
 #: the format centre (as ``default_parameters`` of photogram.geometry), all
@@ -59,9 +62,11 @@ REQUIRED_PARAMETERS: dict[str, tuple[str, ...]] = {
     "brown_affine_after": ("c",),
     "brown_aspect_first": ("c",),
     "brown_forward": ("c",),
+    "opencv_full": ("fx", "fy"),
 }
 PRINCIPAL_POINT: dict[str, tuple[str, str]] = {"brown": ("x0", "y0"), "opencv": ("cx", "cy"),
                                                "opencv_fisheye": ("cx", "cy"),
+                                               "opencv_full": ("cx", "cy"),
                                                "aicon": ("xh", "yh")}
 PRINCIPAL_POINT.update(dict.fromkeys(("brown_affine_after", "brown_aspect_first",
                                       "brown_forward"), ("x0", "y0")))

@@ -71,7 +71,7 @@ def displacement(cam, xy):
     model, io = camera_model(cam.model), cam.values()
     if cam.model == "brown":
         ideal = io[1:3] + model.correct(xy, io)
-    elif cam.model == "opencv":
+    elif cam.model in ("opencv", "opencv_full"):
         ideal = io[2:4] + io[0:2] * model.image_to_ray(xy, io)
     elif cam.model == "aicon" or cam.model in DBAT_LENS:
         ideal = io[1:3] + io[0] * model.image_to_ray(xy, io)
@@ -95,7 +95,7 @@ def _principal_point(cam):
     io = cam.values()
     if cam.model in ("brown", "aicon") or cam.model in DBAT_LENS:
         return io[1:3]
-    return io[2:4] if cam.model == "opencv" else None
+    return io[2:4] if cam.model in ("opencv", "opencv_full") else None
 
 
 def _plot_distortion(doc, data, cam, fmt, field):
