@@ -309,3 +309,28 @@ def test_a_misnumbered_board_view_is_left_out():
     for c in cams:
         assert np.linalg.norm(res.cameras[c].centre - clean.cameras[c].centre) < 1e-3
     assert res.sigma0 == pytest.approx(clean.sigma0, rel=0.05)
+
+
+def test_a_view_with_corners_along_one_row_does_not_stop_the_start():
+    """cv2.calibrateCamera stops with an assertion (initIntrinsicParams2D)
+    when one view's corners lie on one row of the board (seen on a rendered
+    harsh set); that view is left out of the start, the rest calibrates."""
+    from photogram.rig.initial import camera_intrinsics, planar_view_ok
+    P = TARGET.object_points()
+    K = np.array([[1000.0, 0, 640], [0, 1000, 360], [0, 0, 1]])
+    rng = np.random.default_rng(0)
+    frames = {}
+    for f in range(8):
+        xy, _ = cv2.projectPoints(P, rng.normal(0, 0.3, 3), np.array([-0.2, -0.15, 1.5 + f / 25]),
+                                  K, np.zeros(5))
+        frames[f] = (np.arange(len(P)), xy.reshape(-1, 2) + rng.normal(0, 0.1, (len(P), 2)))
+    row = np.flatnonzero(np.isclose(P[:, 1], P[0, 1]))
+    frames[9] = (row, frames[3][1][row])
+    assert not planar_view_ok(P[row], frames[9][1]) and planar_view_ok(P, frames[3][1])
+    with pytest.raises(cv2.error):
+        cv2.calibrateCamera([P[frames[f][0]].astype(np.float32) for f in frames],
+                            [frames[f][1].astype(np.float32).reshape(-1, 1, 2) for f in frames],
+                            (1280, 720), None, None)
+    K_est, _, poses, rms = camera_intrinsics(frames, P, (1280, 720), name="c")
+    assert 9 not in poses and len(poses) == 8
+    assert abs(K_est[0, 0] / 1000 - 1) < 0.01 and rms < 0.3

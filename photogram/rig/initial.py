@@ -22,7 +22,7 @@ import numpy as np
 from photogram.errors import InputError
 
 __all__ = ["camera_intrinsics", "chordal_mean", "relative_poses", "spanning_tree",
-           "initial_rig"]
+           "initial_rig", "planar_view_ok"]
 
 
 def _T(R, t) -> np.ndarray:
@@ -46,6 +46,23 @@ def chordal_mean(Rs) -> np.ndarray:
     return U @ D @ Vt
 
 
+def planar_view_ok(board_points, xy, min_ratio: float = 0.05) -> bool:
+    """Whether a view of a planar board can start a calibration: its
+    corners are not (nearly) on one line of the board (the smaller singular
+    value of the centred board coordinates at least ``min_ratio`` of the
+    larger) and their homography exists (``cv2.findHomography``). A view
+    failing either makes ``cv2.calibrateCamera``'s ``initIntrinsicParams2D``
+    stop with an assertion (seen on rendered harsh sets: ChArUco corners
+    decoded along one row)."""
+    import cv2
+    P = np.asarray(board_points, float)[:, :2]
+    s = np.linalg.svd(P - P.mean(axis=0), compute_uv=False)
+    if len(P) < 4 or s[0] <= 0 or s[1] < min_ratio * s[0]:
+        return False
+    H, _ = cv2.findHomography(P.astype(np.float64), np.asarray(xy, np.float64).reshape(-1, 2))
+    return H is not None and bool(np.all(np.isfinite(H)))
+
+
 def camera_intrinsics(frames: dict, board_points: np.ndarray, image_size, *,
                       fix_k3: bool = True, name: str = "camera", fisheye: bool = False):
     """OpenCV's calibration of one camera from its own detections
@@ -63,7 +80,8 @@ def camera_intrinsics(frames: dict, board_points: np.ndarray, image_size, *,
     K : (3, 3), dist : (5,), poses : dict frame -> T_cb (4, 4), rms : float
     """
     import cv2
-    keys = [f for f, (ids, _) in frames.items() if len(ids) >= 6]
+    keys = [f for f, (ids, xy) in frames.items()
+            if len(ids) >= 6 and planar_view_ok(board_points[ids], xy)]
     if len(keys) < 3:
         raise InputError(f"camera {name}: the board is seen in {len(keys)} frame(s) with at "
                          "least 6 corners; a calibration needs 3 or more",
@@ -76,8 +94,14 @@ def camera_intrinsics(frames: dict, board_points: np.ndarray, image_size, *,
     else:
         flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
         # planar board: initCameraMatrix2D inside calibrateCamera
-        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, size, None, None,
-                                                         flags=flags)
+        try:
+            rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, size, None, None,
+                                                             flags=flags)
+        except cv2.error as exc:
+            raise InputError(f"camera {name}: OpenCV's calibration gives no start "
+                             f"({str(exc).strip().splitlines()[-1]})",
+                             hint="more board views at several tilts, each with corners "
+                                  "over the whole board") from None
     poses = {}
     for f, r, t in zip(keys, rvecs, tvecs):
         poses[f] = _T(cv2.Rodrigues(np.asarray(r, float))[0], np.asarray(t, float))
