@@ -333,3 +333,30 @@ def test_pmexport_zero_sigmas(tmp_path, caplog):
     assert np.count_nonzero(p.image_points.sigma == 1.0) == 3
     assert np.count_nonzero(p.image_points.sigma == 0.1) == len(p.image_points) - 3
     assert "3 marked point(s) have sigma 0 among others" in caplog.text
+
+
+@pytest.mark.parametrize("lens", [2, 4, -1])
+def test_camcaldemo_script_with_other_lens_models(tmp_path, lens):
+    """The camcaldemo script with ``<model>N</model>`` in its camera file
+    imports a camera of DBAT's lens model N (docs/camera-models.md 4.5; models
+    1, 2 and -1 have no aspect and skew, so ``<all>true</all>`` frees 8
+    parameters) and reproduces sigma0 and redundancy of DBAT's CAMCAL report
+    for that model (camcal-dbatreport-modelN.txt: the same network, same
+    control)."""
+    import shutil
+    from photogram.project.dbat_tables import DBAT_LENS_MODELS
+    folder = tmp_path / "script"
+    shutil.copytree(SCRIPTS / "camcaldemo", folder)
+    for xml in folder.rglob("*.xml"):
+        text = xml.read_text(encoding="utf-8")
+        if "<model>3</model>" in text:
+            xml.chmod(0o644)
+            xml.write_text(text.replace("<model>3</model>", f"<model>{lens}</model>"),
+                           encoding="utf-8")
+    p = imported(tmp_path, "dbat", folder / "camcaldemo.xml")
+    cam = next(iter(p.cameras.values()))
+    assert cam.model == DBAT_LENS_MODELS[lens]
+    assert sum(q.free for q in cam.parameters.values()) == (8 if lens in (2, -1) else 9)
+    result = converged(p)
+    report = dbat_report(REPORTS / f"camcal-dbatreport-model{lens}.txt")
+    summary_matches(result, report)

@@ -86,7 +86,9 @@ def load_dbat_project(markpts, control, camera_xml, name: str = "camcal", *,
     cams = read_camera_xml(camera_xml)
     cam = cams[0]
     cname = camera_name or _slug(cam.name)
-    camera = _brown_camera(cam, cname, str(camera_xml))
+    from photogram.project.dbat_tables import DBAT_LENS_MODELS, dbat_lens_camera
+    lens = 3 if cam.model is None or cam.model not in DBAT_LENS_MODELS else int(cam.model)
+    camera = dbat_lens_camera(cam, cname, str(camera_xml), DBAT_LENS_MODELS[lens])
 
     st_names = sorted(set(ip.image), key=_sort_key)
     n_st = len(st_names)

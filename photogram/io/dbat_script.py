@@ -282,6 +282,24 @@ def _station_tables(s, state, names):
     return pos, ang, sig[:, :3], sig[:, 3:]
 
 
+def _lens_camera(cam, name: str, source: str, free):
+    """The script's camera in the photogram model of its DBAT lens model
+    (``<model>`` of the camera file, 3 when absent; docs/camera-models.md
+    4.5), and the parameters to free: DBAT's models 1, 2 and -1 have no
+    aspect and skew, so ``<all>true</all>`` frees neither (as in DBAT)."""
+    from photogram.project.dbat_tables import (DBAT_LENS_MODELS, DBAT_NO_AFFINITY,
+                                               dbat_lens_camera)
+    lens = 3 if cam.model is None else int(cam.model)
+    if lens not in DBAT_LENS_MODELS:
+        log.warning("%s: DBAT lens model %d is not known to photogram; read as model 3 "
+                    "(brown)", source, lens)
+        lens = 3
+    camera = dbat_lens_camera(cam, name, source, DBAT_LENS_MODELS[lens])
+    if lens in DBAT_NO_AFFINITY:
+        free = [p for p in free if p not in ("B1", "B2")]
+    return camera, [p for p in free if p in camera.parameters]
+
+
 def dbat_script_project(path, name: str | None = None):
     """Import a DBAT script as a :class:`~photogram.project.model.Project`
     (tables copied into photogram's CSV tables when written).
@@ -293,7 +311,7 @@ def dbat_script_project(path, name: str | None = None):
         line), several cameras, and every error of the DBAT table readers
         (file and line).
     """
-    from photogram.io.dbat import _brown_camera, _slug, read_control_points, read_image_points
+    from photogram.io.dbat import _slug, read_control_points, read_image_points
     from photogram.io.exchange import build_project
     s = read_dbat_script(path)
     script = s["path"]
@@ -316,8 +334,8 @@ def dbat_script_project(path, name: str | None = None):
                            prior_std=_prior_rows(s, st_names)[2])
     cam = state.camera
     cname = _slug(cam.name)
-    camera = _brown_camera(cam, cname, str(s["camera_file"]))
-    for p in state.free:
+    camera, free = _lens_camera(cam, cname, str(s["camera_file"]), state.free)
+    for p in free:
         camera.parameters[p].free = True
     coords: dict[str, tuple] = {}
     kind: dict[str, str] = {}
