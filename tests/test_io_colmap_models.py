@@ -237,6 +237,11 @@ def test_import_reproduces_colmaps_projection(tmp_path, model, fmt):
     assert cam.parameters["cx"].value == p[2 if model in ("PINHOLE", "OPENCV", "FULL_OPENCV",
                                                           "OPENCV_FISHEYE") else 1] - 0.5
     assert len(prj.stations) == 4 and len(prj.points) == 30
+    # one focal length f: the camera says fy = fx (parameter sharing), so a
+    # self-calibration keeps COLMAP's model
+    single_f = ("SIMPLE_PINHOLE", "SIMPLE_RADIAL", "RADIAL", "SIMPLE_RADIAL_FISHEYE",
+                "RADIAL_FISHEYE")
+    assert cam.ties == ({"fy": "fx"} if model in single_f else {})
 
 
 @pytest.mark.parametrize("src", ["bin", "txt"])
@@ -249,6 +254,9 @@ def test_round_trip_is_exact_and_keeps_the_model(tmp_path, model, out, src):
     cams, images, points = scene(model)
     (write_bin if src == "bin" else write_txt)(tmp_path / "m", cams, images, points)
     prj = import_project("colmap", tmp_path / "m", tmp_path / "imp")
+    from photogram.project import read_project
+    assert read_project(prj).cameras["3"].ties == \
+        colmap_project(tmp_path / "m").cameras["3"].ties          # the .prj keeps the tie
     export_results(out, prj, tmp_path / "back")
     ext = ".bin" if out == "colmap-bin" else ".txt"
     assert (tmp_path / "back" / ("cameras" + ext)).is_file()

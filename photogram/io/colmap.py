@@ -38,8 +38,8 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.io import colmap_binary as binary
 from photogram.io import colmap_text as text
-from photogram.io.colmap_cameras import (colmap_to_model, intrinsics_model, model_camera,
-                                         model_to_colmap, view_intrinsics)
+from photogram.io.colmap_cameras import (colmap_ties, colmap_to_model, intrinsics_model,
+                                         model_camera, model_to_colmap, view_intrinsics)
 from photogram.io.colmap_records import CameraRecord, ImageRecord, PointRecords, Records
 from photogram.io.colmap_rigs import frame_poses, rig_summary
 from photogram.io.exchange import View, build_project, cv_to_station
@@ -219,7 +219,8 @@ def colmap_project(folder, name: str | None = None, pixel_shift: float = PIXEL_S
         if v.camera not in cameras:
             cameras[v.camera] = model_camera(v.camera, v.extra["model"], v.extra["params"],
                                              v.image_size,
-                                             source=str(model.records.files["cameras"]))
+                                             source=str(model.records.files["cameras"]),
+                                             ties=colmap_ties(v.extra["colmap_model"]))
     poses = [cv_to_station(v.R_cv, v.t_cv) for v in model.views]
     return build_project(name or folder.name, cameras, stations=[v.name for v in model.views],
                          station_camera=[v.camera for v in model.views],

@@ -159,14 +159,27 @@ def view_intrinsics(model: str, values) -> tuple[np.ndarray, np.ndarray, bool]:
     return K, v[4:].copy(), model == "opencv_fisheye"
 
 
+def colmap_ties(colmap: str) -> dict[str, str]:
+    """The equality ties of a COLMAP camera model as photogram's ``tie``
+    (docs/project-files.md, "Parameter sharing"): one focal length f is
+    ``fy = fx`` (SIMPLE_PINHOLE, SIMPLE_RADIAL, RADIAL and their fisheyes)."""
+    ties = {}
+    for group in COLMAP_CAMERAS[colmap][2]:
+        if isinstance(group, tuple):
+            ties.update({g: group[0] for g in group[1:]})
+    return ties
+
+
 def model_camera(name: str, model: str, values, image_size=None, *, source=None,
-                 free: bool = False):
-    """A project camera of ``model`` with ``values`` (px)."""
+                 free: bool = False, ties: dict | None = None):
+    """A project camera of ``model`` with ``values`` (px) and the equality
+    ``ties`` (e.g. :func:`colmap_ties`)."""
     from photogram.project.model import Camera, Parameter
     size = None if image_size is None else (int(image_size[0]), int(image_size[1]))
     params = {n: Parameter(value=float(v), free=free)
               for n, v in zip(_names(model), np.asarray(values, float))}
-    return Camera(name=name, model=model, parameters=params, image_size=size, source=source)
+    return Camera(name=name, model=model, parameters=params, image_size=size, source=source,
+                  ties=dict(ties or {}))
 
 
 def camera_intrinsics(camera, image_unit: str = "px", tolerance: float = 0.01):
