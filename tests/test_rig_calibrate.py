@@ -334,3 +334,27 @@ def test_a_view_with_corners_along_one_row_does_not_stop_the_start():
     K_est, _, poses, rms = camera_intrinsics(frames, P, (1280, 720), name="c")
     assert 9 not in poses and len(poses) == 8
     assert abs(K_est[0, 0] / 1000 - 1) < 0.01 and rms < 0.3
+
+
+def test_a_board_pose_seen_only_in_views_left_out_of_the_start():
+    """A frame whose only view lies along one board row (left out of the
+    start: planar_view_ok) has no start pose; the adjustment goes on
+    without it instead of stopping (a KeyError on the rendered harsh set),
+    and the rig is the one without that frame."""
+    cams = _rig(4, 0)
+    poses = _poses(40, 0)
+    dets, sizes = _detections(cams, poses, 0.1, 7)
+    f = next(f for f in sorted(dets["cam02"]) if f != 0 and len(dets["cam02"][f][0]) == 48)
+    for d in dets.values():
+        d.pop(f, None)
+    clean = calibrate_rig(dets, sizes, TARGET, floor_frame=0, sigma_image=0.1)
+    P = TARGET.object_points()
+    row = np.flatnonzero(np.isclose(P[:, 1], P[0, 1]))
+    xy, _ = cv2.projectPoints(P[row] @ poses[f][0].T + poses[f][1],
+                              cv2.Rodrigues(cams["cam02"][2])[0], cams["cam02"][3],
+                              cams["cam02"][0], cams["cam02"][1])
+    dets["cam02"][f] = (row, xy.reshape(-1, 2))
+    res = calibrate_rig(dets, sizes, TARGET, floor_frame=0, sigma_image=0.1)
+    assert f not in res.board_poses
+    for c in cams:
+        assert np.linalg.norm(res.cameras[c].centre - clean.cameras[c].centre) < 1e-9

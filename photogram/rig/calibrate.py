@@ -176,6 +176,8 @@ class _Rig:
         fidx = {f: j for j, f in enumerate(frames)}
         for i, c in enumerate(names):
             for f, (ids, p) in dets[c].items():
+                if f not in fidx:       # a board pose no camera's start placed
+                    continue            # (its only views were left out of the start)
                 cam += [i] * len(ids)
                 pose += [n_c + fidx[f]] * len(ids)
                 pts.append(board[ids])
