@@ -68,8 +68,9 @@ DEFAULT_CUTOFF_HZ = 12.0
 #: default robust scale sigma^2 (px^2) of the Geman-McClure reprojection norm
 #: rho = e^2 / (e^2 + sigma^2) (docs/mocap.md section 6); the paper's is 100 px^2
 #: (``PAPER_SIGMA2``, still reachable: ``[mocap.reconstruction] sigma2 = 100``). 400 px^2
-#: fits Pose2Sim's real demo better (mean reprojection error and jerk) and the
-#: simulated skiing as well or better: benchmarks/mocap_smoothness.py, docs/mocap.md section 10
+#: fits Pose2Sim's real demo better (mean reprojection error, jerk, bone lengths), the
+#: simulated skiing about as well (mixed), but lets one camera with a static bias of
+#: 10-30 px into the joints more (benchmarks/mocap_smoothness.py, docs/mocap.md sections 6, 10)
 DEFAULT_SIGMA2 = 400.0
 PAPER_SIGMA2 = 100.0
 
