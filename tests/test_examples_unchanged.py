@@ -17,8 +17,16 @@ default (ski-ptz MPJPE 8.72 -> 4.83 mm; Pose2Sim's demo median jerk 1866
 -> 199 m/s^3), and the athlete chosen by multi-view consistency (one
 camera-frame of ski-ptz and of the demo left out: a whole-body swap in C2
 of ski-ptz (frame 260), OpenPose's split of the athlete in cam_01 frame 37
-of the demo). The real-data steps (DBAT's CAMCAL and SXB, the Pose2Sim demo) skip
-when ../shared/data is absent.
+of the demo). And the same three mocap steps re-recorded again on
+2026-12-02 (issue 20, item 3; only these three, with
+``tests/examples_run.py``'s ``run_examples`` restricted to them) when the
+default robust scale of the reconstruction became sigma^2 = 400 px^2 (the
+paper's 100 px^2 is still ``[mocap.reconstruction] sigma2 = 100``): ski-ptz
+MPJPE 4.83 -> 4.53 mm, ski-ptz-estimate 43.9 -> 38.2 mm, the demo's
+bone-length CV 7.6 -> 5.1 %, cam_03's median reprojection error 25.5 -> 21.3
+px and cam_01, cam_02, cam_04's 6.0, 6.4, 5.2 -> 7.7, 7.2, 6.6 px
+(docs/mocap.md section 10). The real-data steps (DBAT's CAMCAL and SXB, the
+Pose2Sim demo) skip when ../shared/data is absent.
 """
 
 import math

@@ -43,7 +43,7 @@ def test_mocap_command_writes_the_results_folder(small_project, capsys):
     assert s["counts"] == {"frames": 120, "cameras": 6, "joints": 24,
                            "detections": s["counts"]["detections"], "runs": 2}
     assert s["accuracy"]["mpjpe"] < 0.03 and s["accuracy"]["knee_flexion_mae"] < 3.0
-    assert s["reconstruction"]["stages"][-1]["sigma2"] == 100.0
+    assert s["reconstruction"]["stages"][-1]["sigma2"] == 400.0   # the default (px^2)
     frames, X = read_joints(res / "joints3d.csv", SKI24)
     assert frames.tolist() == list(range(120))
     assert np.nanmax(np.abs(X - sim.joints)) < 0.3
@@ -117,8 +117,10 @@ def test_pose2sim_demo_main_person_and_reference():
     assert np.all(r.tracked[1].detected[:, 0] < 700)
     ref = r.reference
     assert ref["frames"] == 100 and len(ref["joints"]) == 21
+    # ours 8.8, 7.7, 6.6 px with the default sigma^2 = 400 px^2 (7.4, 6.8, 5.2
+    # with the paper's 100 px^2), Pose2Sim's 11.9, 8.1, 8.8 px (docs/mocap.md 10)
     for cam in ("cam_01", "cam_02", "cam_04"):
         v = ref["reprojection"][cam]
-        assert v["ours_median_px"] < 8 and v["reference_median_px"] > v["ours_median_px"]
+        assert v["ours_median_px"] < 10 and v["reference_median_px"] > v["ours_median_px"]
     assert ref["bone_cv_mean"]["ours"] < 0.10
     assert ref["mpjpe_to_reference"] < 0.05

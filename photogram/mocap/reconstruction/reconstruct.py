@@ -65,18 +65,27 @@ MAX_CONDITION = 100.0    # of the DCT basis on the frames a joint is detected in
 #: (:mod:`photogram.mocap.reconstruction.filtering`), which unlike a lower DCT cut-off
 #: keeps the fast translation of a skier at the ends of the windows (docs/mocap.md)
 DEFAULT_CUTOFF_HZ = 12.0
+#: default robust scale sigma^2 (px^2) of the Geman-McClure reprojection norm
+#: rho = e^2 / (e^2 + sigma^2) (docs/mocap.md section 6); the paper's is 100 px^2
+#: (``PAPER_SIGMA2``, still reachable: ``[mocap.reconstruction] sigma2 = 100``). 400 px^2
+#: fits Pose2Sim's real demo better (mean reprojection error, jerk, bone lengths), the
+#: simulated skiing about as well (mixed), but lets one camera with a static bias of
+#: 10-30 px into the joints more (benchmarks/mocap_smoothness.py, docs/mocap.md sections 6, 10)
+DEFAULT_SIGMA2 = 400.0
+PAPER_SIGMA2 = 100.0
 
 
 @dataclass
 class ReconstructionSettings:
-    """Settings of :func:`reconstruct` (defaults: the paper's values)."""
+    """Settings of :func:`reconstruct` (defaults: the paper's values, except the
+    DCT cut-off and ``sigma2``, see ``DEFAULT_CUTOFF_HZ`` and ``DEFAULT_SIGMA2``)."""
 
     n_dct: int | None = None        # explicit coefficients per window (wins over cutoff_hz)
     cutoff_hz: float | None = None  # DCT cut-off (Hz); None: DEFAULT_CUTOFF_HZ unless n_dct
     fps: float = 50.0               # frame rate of the observations (for cutoff_hz)
     window: int = 50
     overlap: int = 10
-    sigma2: float = 100.0
+    sigma2: float = DEFAULT_SIGMA2  # px^2; the paper's: PAPER_SIGMA2 = 100
     lambda_rep: float = 80.0
     lambda_limbs: float = 1.0
     limb_unit: float = 0.01         # limb residuals in this length (cm of a project in m)
