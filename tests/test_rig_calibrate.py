@@ -358,3 +358,22 @@ def test_a_board_pose_seen_only_in_views_left_out_of_the_start():
     assert f not in res.board_poses
     for c in cams:
         assert np.linalg.norm(res.cameras[c].centre - clean.cameras[c].centre) < 1e-9
+
+
+def test_views_that_would_cut_a_camera_off_are_kept():
+    """removable_views leaves out the worst views first but keeps a view
+    that is the last tie of a camera to the others, a camera's third view
+    and the floor pose's last view."""
+    from photogram.rig.calibrate import removable_views
+    v = (np.zeros(0, int), np.zeros((0, 2)))
+    dets = {"a": dict.fromkeys([0, 1, 2, 3], v), "b": dict.fromkeys([1, 2, 4, 5], v),
+            "c": dict.fromkeys([3, 6, 7, 8], v)}
+    # c is tied to the others by frame 3 only; b by frames 1 and 2
+    bad = {("c", 3): 50.0, ("a", 1): 40.0, ("a", 2): 30.0, ("b", 4): 20.0, ("a", 0): 10.0}
+    out = removable_views(dets, bad, keep_frame=0)
+    assert ("c", 3) not in out            # c's only tie
+    assert ("a", 1) in out and ("a", 2) not in out     # a-b keeps one shared frame
+    assert ("b", 4) in out                # b keeps 3 views
+    assert ("a", 0) not in out            # a would keep 2 views (and frame 0 is the floor)
+    assert removable_views(dets, {("a", 0): 9.0}, keep_frame=0) == {}
+X

@@ -135,9 +135,15 @@ class _Rig:
         from photogram.adjust.solver import Problem
         from photogram.adjust.state import Layout, State
         from photogram.geometry import camera_model
-        from photogram.rig.initial import _inv
+        from photogram.rig.initial import _inv, planar_view_ok
         self.names = names = list(dets)
-        self.frames = frames = [f for f in init["T_wb"] if any(f in d for d in dets.values())]
+        # a board pose is kept while one of its views alone determines it
+        # (corners not along one line): views or corners left out may leave
+        # a pose seen by 4 collinear corners, which would make the normal
+        # equations singular
+        self.frames = frames = [f for f in init["T_wb"]
+                                if any(f in d and planar_view_ok(board[d[f][0]], d[f][1])
+                                       for d in dets.values())]
         n_c, n_b = len(names), len(frames)
         self.n_c = n_c
         Winv = _inv(W)
@@ -221,12 +227,13 @@ class _Rig:
 
 
 def _solve(build, dets, max_iterations, reject_px, corner_sigma=5.0, min_corner_px=0.3,
-           max_rounds=4):
+           keep_frame=None, max_rounds=4):
     """Build the rig from the detections and solve; views (a camera's
     detection in a frame) whose RMS exceeds ``reject_px`` and 5 times the
     median view RMS are left out and the rig built and solved again (a
     wrongly numbered or mis-detected board; a board pose no camera sees
-    any more goes with them), at most ``max_rounds`` times. Returns the
+    any more goes with them; a view that would cut a camera off stays:
+    :func:`removable_views`), at most ``max_rounds`` times. Returns the
     rig, the solver summary and the views left out with their RMS."""
     from photogram.adjust.solver import SolverOptions, solve
     rejected, rejected_corners = {}, 0
@@ -236,7 +243,8 @@ def _solve(build, dets, max_iterations, reject_px, corner_sigma=5.0, min_corner_
     if reject_px > 0:           # gross errors at the start values (10 times looser)
         rms = build(dets).view_rms()
         med = float(np.median(list(rms.values())))
-        bad = {k: v for k, v in rms.items() if v > max(10 * reject_px, 10 * med)}
+        bad = removable_views(dets, {k: v for k, v in rms.items()
+                                     if v > max(10 * reject_px, 10 * med)}, keep_frame)
         rejected.update(bad)
         dets = without(dets, bad)
     for round_ in range(max_rounds + 1):
@@ -251,7 +259,8 @@ def _solve(build, dets, max_iterations, reject_px, corner_sigma=5.0, min_corner_
             break
         rms = rig.view_rms()
         med = float(np.median(list(rms.values())))
-        bad = {k: v for k, v in rms.items() if v > max(reject_px, 5 * med)}
+        bad = removable_views(dets, {k: v for k, v in rms.items() if v > max(reject_px, 5 * med)},
+                              keep_frame)
         if not bad and s.status == "converged":
             dets, n_out = _without_corners(rig, dets, corner_sigma, min_corner_px)
             if not n_out:
@@ -261,6 +270,40 @@ def _solve(build, dets, max_iterations, reject_px, corner_sigma=5.0, min_corner_
         rejected.update(bad)
         dets = without(dets, bad)
     return rig, s, rejected, rejected_corners
+
+
+def _cameras_connected(views: dict) -> bool:
+    """Whether the cameras form one group through shared frames (``views``:
+    camera -> set of frames)."""
+    names = list(views)
+    reached, todo = {names[0]}, [names[0]]
+    while todo:
+        c = todo.pop()
+        for d in names:
+            if d not in reached and views[c] & views[d]:
+                reached.add(d)
+                todo.append(d)
+    return len(reached) == len(names)
+
+
+def removable_views(dets: dict, candidates: dict, keep_frame=None) -> dict:
+    """The views of ``candidates`` ((camera, frame) -> RMS) that can be left
+    out, the largest RMS first, while every camera keeps 3 views, the
+    cameras stay tied together by shared frames and ``keep_frame`` (the
+    floor pose) stays seen: a view that would cut a camera off is kept
+    (seen on a rendered harsh set, where a poor start put all the views a
+    camera shared with the others over the start's threshold)."""
+    views = {c: set(fr) for c, fr in dets.items()}
+    out = {}
+    for (c, f), rms in sorted(candidates.items(), key=lambda kv: -kv[1]):
+        trial = dict(views)
+        trial[c] = views[c] - {f}
+        if len(trial[c]) < 3 or not _cameras_connected(trial):
+            continue
+        if keep_frame is not None and not any(keep_frame in v for v in trial.values()):
+            continue
+        views, out[(c, f)] = trial, rms
+    return out
 
 
 def _without_corners(rig, dets, k_sigma, min_px):
@@ -356,7 +399,7 @@ def calibrate_rig(detections: dict, image_sizes: dict, target, *, model: str = "
     def build(d):
         return _Rig(d, board, image_sizes, init, W, model, fix_k3, sigma_image, f0, scene)
     rig, s, rejected, n_corners = _solve(build, dets, max_iterations, reject_px,
-                                         corner_sigma, min_corner_px)
+                                         corner_sigma, min_corner_px, f0)
     result = _result(rig, s, rejected, image_sizes, init, f0, cofactors(rig.problem))
     result.summary["rejected_corners"] = n_corners
     return result

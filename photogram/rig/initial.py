@@ -92,21 +92,51 @@ def camera_intrinsics(frames: dict, board_points: np.ndarray, image_size, *,
     if fisheye:
         rms, K, dist, rvecs, tvecs = _fisheye_start(obj, img, size, name)
     else:
-        flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
-        # planar board: initCameraMatrix2D inside calibrateCamera
-        try:
-            rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, size, None, None,
-                                                             flags=flags)
-        except cv2.error as exc:
-            raise InputError(f"camera {name}: OpenCV's calibration gives no start "
-                             f"({str(exc).strip().splitlines()[-1]})",
-                             hint="more board views at several tilts, each with corners "
-                                  "over the whole board") from None
+        rms, K, dist, rvecs, tvecs = _pinhole_start(obj, img, size, name, fix_k3)
     poses = {}
     for f, r, t in zip(keys, rvecs, tvecs):
         poses[f] = _T(cv2.Rodrigues(np.asarray(r, float))[0], np.asarray(t, float))
     n = 4 if fisheye else 5
     return K, np.asarray(dist, float).ravel()[:n], poses, float(rms)
+
+
+#: Focal lengths (in image widths) from which :func:`_pinhole_start` also
+#: starts OpenCV's calibration, beside OpenCV's own start.
+FOCAL_STARTS = (0.5, 0.7, 1.0, 1.4, 2.0)
+
+
+def _pinhole_start(obj, img, size, name, fix_k3):
+    """``cv2.calibrateCamera`` from OpenCV's own start (``initCameraMatrix2D``
+    from the views' homographies) and from the focal lengths
+    :data:`FOCAL_STARTS` with the principal point at the centre; the
+    solution of least RMS. OpenCV's start alone can end in a local minimum
+    when the views are small and near fronto-parallel (seen on a rendered
+    harsh set at 1920 x 1080: a camera at 3.7 m got f 21 % off with 1.7 px
+    RMS, where a start at 0.7 image widths gives 0.13 px and 0.7 %)."""
+    import cv2
+    flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
+    w, h = size
+    best, last_error = None, None
+    for scale in (None,) + FOCAL_STARTS:
+        if scale is None:
+            K0, extra = None, 0
+        else:
+            K0 = np.array([[scale * w, 0.0, (w - 1) / 2], [0.0, scale * w, (h - 1) / 2],
+                           [0.0, 0.0, 1.0]])
+            extra = cv2.CALIB_USE_INTRINSIC_GUESS
+        try:
+            out = cv2.calibrateCamera(obj, img, size, K0, None, flags=flags | extra)
+        except cv2.error as exc:
+            last_error = exc
+            continue
+        if np.isfinite(out[0]) and (best is None or out[0] < best[0]):
+            best = out
+    if best is None:
+        raise InputError(f"camera {name}: OpenCV's calibration gives no start "
+                         f"({str(last_error).strip().splitlines()[-1]})",
+                         hint="more board views at several tilts, each with corners "
+                              "over the whole board")
+    return best
 
 
 def _fisheye_start(obj, img, size, name):
