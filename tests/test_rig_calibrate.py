@@ -376,4 +376,5 @@ def test_views_that_would_cut_a_camera_off_are_kept():
     assert ("b", 4) in out                # b keeps 3 views
     assert ("a", 0) not in out            # a would keep 2 views (and frame 0 is the floor)
     assert removable_views(dets, {("a", 0): 9.0}, keep_frame=0) == {}
-X
+    # alone, a keeps 3 views without frame 0: it goes unless it is the floor
+    assert removable_views(dets, {("a", 0): 9.0}) == {("a", 0): 9.0}
