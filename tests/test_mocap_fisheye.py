@@ -85,7 +85,8 @@ def test_fisheye_distortions_must_be_four(tmp_path):
     bad.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=r"\[k1, k2, k3, k4\]") as err:
         read_pose2sim(bad)
-    assert err.value.line == k + 1
+    assert err.value.line == next(i for i, s in enumerate(lines)
+                                  if s.startswith("fisheye")) + 1
 
 
 def test_skier_reconstructed_through_fisheye_cameras():

@@ -90,8 +90,10 @@ def read_pose2sim(path) -> list[View]:
         dist = _array(sec, "distortions", None, "a list of numbers [k1, k2, p1, p2]") \
             if "distortions" in sec else np.zeros(4)
         if fisheye and (dist.ndim != 1 or dist.size != 4):
-            raise sec.error("distortions", f"distortions in {sec.label} must be [k1, k2, k3, k4]"
-                                           f" (fisheye = true: OpenCV's fisheye model)")
+            raise sec.error("fisheye", f"fisheye = true in {sec.label} needs distortions = "
+                                       f"[k1, k2, k3, k4] (OpenCV's fisheye model), not "
+                                       f"{dist.size} values",
+                            hint="set fisheye = false for OpenCV's standard model")
         if dist.ndim != 1 or dist.size not in (4, 5):
             raise sec.error("distortions", f"distortions in {sec.label} must be [k1, k2, p1, p2]"
                                            f" or [k1, k2, p1, p2, k3]")

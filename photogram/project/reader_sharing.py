@@ -174,8 +174,12 @@ def check_groups(sec: Section, cameras: dict[str, Camera]) -> None:
 
 
 def _dims(camera: Camera, p: str):
-    from photogram.project.camera_schema import parameter_dims
-    dims = parameter_dims(camera.model)
+    """Power of the image length unit of parameter ``p`` (None: unknown),
+    from the camera model's registry (photogram.geometry; imported here so
+    that camera_schema, which imports this module, is not imported back)."""
+    from photogram.geometry import CAMERA_MODELS
+    model = CAMERA_MODELS.get(camera.model)
+    dims = getattr(model, "parameter_dims", None)
     return None if dims is None else dict(zip(camera.parameters, dims)).get(p)
 
 
