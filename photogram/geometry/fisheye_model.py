@@ -47,12 +47,6 @@ class OpenCVFisheyeModel(ForwardModel):
     parameter_names = ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4")
     parameter_dims = (1, 1, 1, 1, 0, 0, 0, 0)
 
-    def default_parameters(self, principal_distance, image_size):
-        w, h = image_size
-        p = np.zeros(self.n_params)
-        p[:4] = principal_distance, principal_distance, w / 2.0, h / 2.0
-        return p
-
     def distortion(self, xn, yn, io):
         """Displacement ``(x', y') - (a, b)`` of normalised coordinates and
         its partials (``"xy"`` (n,2,2), ``"io"`` (n,2,p))."""

@@ -24,6 +24,15 @@ class ForwardModel(CameraModel):
     def _forward(self, t, io):  # pragma: no cover - interface
         raise NotImplementedError
 
+    def default_parameters(self, principal_distance, image_size):
+        """fx = fy = principal_distance, (cx, cy) = image_size / 2, no
+        distortion (the layout fx fy cx cy ... of the OpenCV models; a model
+        with another layout overrides this)."""
+        w, h = image_size
+        p = np.zeros(self.n_params)
+        p[:4] = principal_distance, principal_distance, w / 2.0, h / 2.0
+        return p
+
     def project(self, X, angles, X0, io, jacobians=False):
         """Image coordinates (n, 2) [, Jacobian dict]."""
         X, angles, X0, io, Xc, R, d = self._prepare(X, angles, X0, io)

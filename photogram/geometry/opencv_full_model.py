@@ -104,14 +104,6 @@ class OpenCVFullModel(ForwardModel):
                        "s1", "s2", "s3", "s4", "tauX", "tauY")
     parameter_dims = (1, 1, 1, 1) + (0,) * 14
 
-    def default_parameters(self, principal_distance, image_size):
-        """fx = fy = principal_distance, (cx, cy) = image_size / 2, no
-        distortion."""
-        w, h = image_size
-        p = np.zeros(self.n_params)
-        p[:4] = principal_distance, principal_distance, w / 2.0, h / 2.0
-        return p
-
     # ------------------------------------------------------------------
     def _undistorted_to_sensor(self, t, io):
         """Step 2: ``(x0, y0)`` of normalised t (n,2), d/dt (n,2,2) and

@@ -39,14 +39,6 @@ class OpenCVModel(ForwardModel):
     parameter_names = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
     parameter_dims = (1, 1, 1, 1, 0, 0, 0, 0, 0)
 
-    def default_parameters(self, principal_distance, image_size):
-        """fx = fy = principal_distance, (cx, cy) = image_size / 2, no
-        distortion."""
-        w, h = image_size
-        p = np.zeros(self.n_params)
-        p[:4] = principal_distance, principal_distance, w / 2.0, h / 2.0
-        return p
-
     # ------------------------------------------------------------------
     def distortion(self, xn, yn, io):
         """Distortion displacement ``d = (x'', y'') - (x', y')`` of normalised
