@@ -299,3 +299,31 @@ def test_camcal_with_a_principal_point_per_image():
     assert res.summary["sigma0"] == pytest.approx(1.1130, abs=1e-4)
     x0 = [r for r in res.summary["interior"] if r["parameter"] == "x0"]
     assert len(x0) == 21 and max(r["sigma"] for r in x0) < 1.5
+
+
+def test_from_dbat_camera_takes_the_sharing_keys(tmp_path):
+    """``per_station`` on a ``from_dbat`` camera in the .prj (DBAT's
+    image-variant calibration): the same adjustment as setting it in code
+    (REAL CAMCAL data, read in place; the .prj written beside the example
+    with absolute paths)."""
+    from photogram.project import read_project
+    src = ROOT / "projects" / "camcal" / "camcal.prj"
+    data = (ROOT / "projects" / "camcal" / "../../../shared/data").resolve()
+    if not (data / "dbat" / "camcal" / "markpts.txt").is_file():
+        pytest.skip("DBAT's CAMCAL data not found")
+    text = src.read_text().replace("../../../shared/data", str(data)).replace(
+        'free = ["c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1"]',
+        'free = ["c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1"]\n'
+        'per_station = ["x0", "y0"]')
+    prj = tmp_path / "camcal.prj"
+    prj.write_text(text)
+    project = read_project(prj)
+    assert project.cameras["C4040Z"].per_station == ("x0", "y0")
+    res = adjust(project)
+    assert res.summary["sigma0"] == pytest.approx(1.1130, abs=1e-4)
+    bad = text.replace('per_station = ["x0", "y0"]', 'per_station = ["x9"]')
+    prj.write_text(bad)
+    from photogram.errors import InputError
+    with pytest.raises(InputError, match="x9") as err:
+        read_project(prj)
+    assert err.value.line == bad.splitlines().index('per_station = ["x9"]') + 1

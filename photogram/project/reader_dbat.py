@@ -29,7 +29,8 @@ from photogram.project.validate import check_single_rays, observation_rays, repe
 __all__ = ["DBAT_CONTROL_COLUMNS", "DBAT_IMAGE_COLUMNS"]
 
 OBSERVATION_ENTRY_KEYS = ("file", "format", "columns", "sxy")
-DBAT_CAMERA_KEYS = ("from_dbat", "camera", "free", "lens_model")
+DBAT_CAMERA_KEYS = ("from_dbat", "camera", "free", "lens_model", "per_station", "tie",
+                    "shared")
 #: DBAT control-point formats that photogram.io.dbat.read_control_points reads.
 DBAT_CONTROL_COLUMNS = ("id,label,x,y,z", "id,label,x,y,z,sxyz", "id,label,x,y,z,sx,sy,sz")
 DBAT_IMAGE_COLUMNS = "im,id,x,y,sxy"
@@ -296,7 +297,20 @@ def _camera_from_dbat(sec: Section, name: str, project: Project):
         for par, v in zip(camera.parameters.values(), values):
             par.value = float(v)
     project.warnings.extend(f"camera {name}: {note}" for note in cam.notes)
-    return camera
+    return _dbat_sharing(sec, camera)
+
+
+def _dbat_sharing(sec: Section, camera):
+    """The sharing keys (``per_station``, ``tie``, ``shared``;
+    docs/project-files.md, "Parameter sharing") of a ``from_dbat`` camera:
+    e.g. DBAT's image-variant calibration, a principal point per image."""
+    from photogram.project.camera_schema import parameter_dims
+    from photogram.project.reader_sharing import apply_sharing, read_sharing
+    if not any(k in sec.data for k in ("per_station", "tie", "shared")):
+        return camera
+    camera.per_station, camera.ties, camera.shared = read_sharing(
+        sec, camera.model, tuple(camera.parameters), parameter_dims(camera.model))
+    return apply_sharing(sec, camera, ())
 
 
 def _dbat_lens_camera(sec: Section, cam, name: str, ref: str, project: Project):
