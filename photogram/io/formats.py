@@ -176,7 +176,7 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
     obs, error = _observations(src)
     _check_tracks(src, obs)
     folder = write_colmap(to, views, project.points.ids, project.points.xyz, obs, error,
-                          force=force, binary_files=key == "colmap-bin")
+                          force=force, binary_files=key == "colmap-bin", project=project)
     return _targets(key, folder)
 
 
