@@ -67,7 +67,7 @@ class RigImagePointBlock(ResidualBlock):
     layout : Layout
     """
 
-    name = "rig image points"
+    name = "image points"           # residuals, reliability and reports take it as one
     group = "image points"
     dim = 2
     observed = "xy"
@@ -86,6 +86,7 @@ class RigImagePointBlock(ResidualBlock):
         self.slot_cols = [layout.point_cols[self.point], layout.station_cols[self.frame],
                           layout.station_cols[self.sensor], cam_cols[self.camera]]
         self.labels = labels
+        self.station = None             # the observing images' stations (set by the build)
 
     def rig_points(self, state) -> np.ndarray:
         """``X_r = R_f (X - X0_f)`` (N, 3)."""
