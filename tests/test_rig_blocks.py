@@ -12,7 +12,7 @@ from photogram.adjust.residual_blocks import ImagePointBlock
 from photogram.adjust.rig_blocks import RigImagePointBlock, composed_poses
 from photogram.adjust.solver import Problem, SolverOptions, solve
 from photogram.adjust.state import Layout, State
-from photogram.geometry import rodrigues_to_matrix
+from photogram.geometry import opk_to_matrix, rodrigues_to_matrix
 from photogram.simulation.network import observe, ring_stations
 
 IO = {"brown": np.array([1420.0, 320.0, 240.0, -5e-8, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
@@ -238,3 +238,147 @@ def test_composed_poses_are_at_least_as_precise_as_free_stations(adjusted):
     # and the composed poses agree with the free stations within their sigmas
     z = np.abs(centres(st) - free.state.X0) / np.hypot(sig_rig, sig_free)
     assert z.max() < 4.0
+
+
+def test_composition_jacobian_matches_central_differences():
+    from photogram.stats.rig_covariance import composition_jacobian
+    rng = np.random.default_rng(8)
+    n = 4
+    lay = Layout([], 2 * n + n, 0, np.zeros(0, bool),
+                 {"camera": [], "station": np.ones((3 * n, 6), bool),
+                  "point": np.zeros((0, 3), bool)})
+    R = np.stack([rodrigues_to_matrix(v) for v in rng.normal(0, 1, (3 * n, 3))])
+    state = State(np.zeros((0, 3)), R, rng.normal(0, 1, (3 * n, 3)), [])
+    d, f, s = np.arange(n), n + np.arange(n), 2 * n + np.arange(n)
+    lay.derived = (d, f, s)
+    state.compose(lay.derived)
+    T = composition_jacobian(state.R[f], state.X0[s], state.R[s])
+    h = 1e-6
+    for j, cols in enumerate(np.concatenate([lay.station_cols[f], lay.station_cols[s]], 1).T):
+        out = []
+        for sgn in (1, -1):
+            dx = np.zeros(lay.n_columns)
+            dx[cols] = sgn * h
+            st = state.updated(lay, dx)
+            # the derived station's increment: dX0 and the small rotation of
+            # R_new R_old^T
+            D = st.R[d] @ np.swapaxes(state.R[d], 1, 2)
+            rot = 0.5 * np.stack([D[:, 2, 1] - D[:, 1, 2], D[:, 0, 2] - D[:, 2, 0],
+                                  D[:, 1, 0] - D[:, 0, 1]], axis=1)
+            out.append(np.hstack([st.X0[d] - state.X0[d], rot]))
+        np.testing.assert_allclose(T[:, :, j], (out[0] - out[1]) / (2 * h), atol=1e-8)
+
+
+# --------------------------------------------------------------------------
+# a project with a rig ([rigs.NAME] and the stations' frame column)
+
+def _rig_project(rigs=True, seed=0):
+    from photogram.project.model import Rig
+    from photogram.simulation.network import to_project
+    net, truth, frame, sensor = _network(seed=seed)
+    prj = to_project(net, control=range(N_CONTROL), sigma_image=0.2, camera_names=["A", "B", "C"],
+                     perturb_points=0.005, perturb_stations=0.005,
+                     rng=np.random.default_rng(seed + 3), name="rig")
+    prj.adjustment.datum = "control"
+    if rigs:
+        prj.rigs = {"head": Rig("head", "A", ["B", "C"])}
+        prj.stations.frame = [f"F{f + 1}" for f in frame]
+    return prj, truth, frame, sensor
+
+
+@pytest.fixture(scope="module")
+def rig_results():
+    from photogram.bundle.run import adjust
+    out = {}
+    for rigs in (True, False):
+        prj, truth, frame, sensor = _rig_project(rigs)
+        out[rigs] = adjust(prj)
+    return out, truth, frame, sensor
+
+
+def test_rig_project_has_six_unknowns_per_frame_and_per_other_camera(rig_results):
+    res, truth, frame, sensor = rig_results
+    F, S = len(truth[0]), len(truth[2])
+    assert res[True].summary["status"] == "converged"
+    assert res[True].summary["counts"]["exterior"] == 6 * F + 6 * (S - 1)
+    assert res[False].summary["counts"]["exterior"] == 6 * F * S
+    assert len(res[True].project.stations.position) == F * S
+    assert res[True].station_sigma.shape == (F * S, 6)
+
+
+def test_rig_project_recovers_the_sensor_poses_within_their_sigmas(rig_results):
+    res, (Rf, X0f, Rs, X0s), frame, sensor = rig_results
+    rows = res[True].summary["rigs"]
+    assert [(r["rig"], r["camera"], r["reference"]) for r in rows] == [("head", "B", "A"),
+                                                                       ("head", "C", "A")]
+    s0 = res[True].summary["sigma0"]
+    assert 0.85 < s0 < 1.15
+    for j, r in enumerate(rows):
+        z = np.abs(np.array(r["position"]) - X0s[j + 1]) / np.array(r["position_sigma"])
+        assert z.max() < 4.0, z
+        R = opk_to_matrix(np.array(r["angles_rad"]))
+        D = R @ Rs[j + 1].T
+        rot = 0.5 * np.array([D[2, 1] - D[1, 2], D[0, 2] - D[2, 0], D[1, 0] - D[0, 1]])
+        # angle sigmas are of omega phi kappa; the small rotation is close to them
+        assert np.linalg.norm(rot) < 4.0 * np.linalg.norm(r["angle_sigma_rad"])
+    # the results' [rigs] holds the adjusted poses
+    X0, _ = res[True].project.rigs["head"].sensors["B"]
+    np.testing.assert_array_equal(X0, rows[0]["position"])
+
+
+def test_rig_project_stations_are_the_composition_and_at_least_as_precise(rig_results):
+    from photogram.geometry import opk_to_matrix as opk
+    res, (Rf, X0f, Rs, X0s), frame, sensor = rig_results
+    st = res[True].project.stations
+    R = opk(st.angles)
+    ref = np.flatnonzero(sensor == 0)[frame]            # each image's frame station
+    rows = {r["camera"]: r for r in res[True].summary["rigs"]}
+    for i in np.flatnonzero(sensor > 0):
+        r = rows["BC"[sensor[i] - 1]]
+        Rc, X0c = composed_poses(R[ref[i]][None], st.position[ref[i]][None],
+                                 opk(np.array(r["angles_rad"]))[None],
+                                 np.array(r["position"])[None])
+        np.testing.assert_allclose(st.position[i], X0c[0], atol=1e-12)
+        np.testing.assert_allclose(R[i], Rc[0], atol=1e-12)
+    sig_rig, sig_free = res[True].station_sigma, res[False].station_sigma
+    assert np.all(sig_rig[:, :3] <= sig_free[:, :3] * 1.02)
+    assert np.median(sig_rig[:, :3] / sig_free[:, :3]) < 0.9
+    # and the composed poses agree with the truth within their sigmas
+    _, X0_true = composed_poses(Rf[frame], X0f[frame], Rs[sensor], X0s[sensor])
+    z = np.abs(st.position - X0_true) / sig_rig[:, :3]
+    assert z.max() < 4.5
+
+
+def test_rig_project_file_round_trip_and_errors(tmp_path):
+    from photogram.errors import InputError
+    from photogram.project import read_project
+    from photogram.project.writer import write_project
+    prj, *_ = _rig_project()
+    prj.rigs["head"].sensors["B"] = (np.array([0.15, 0.01, -0.02]), np.array([0.01, -0.06, 0.02]))
+    path = write_project(prj, tmp_path / "rig.prj")
+    back = read_project(path)
+    rig = back.rigs["head"]
+    assert (rig.reference, rig.cameras, rig.fixed) == ("A", ["B", "C"], False)
+    np.testing.assert_array_equal(rig.sensors["B"][0], [0.15, 0.01, -0.02])
+    np.testing.assert_allclose(rig.sensors["B"][1], [0.01, -0.06, 0.02], rtol=0, atol=1e-15)
+    assert back.stations.frame == prj.stations.frame
+    text = path.read_text()
+    stations = tmp_path / "rig_stations.csv"
+    table = stations.read_text()
+
+    def fails(prj_text, csv_text, match):
+        path.write_text(prj_text)
+        stations.write_text(csv_text)
+        with pytest.raises(InputError, match=match):
+            read_project(path)
+
+    fails(text.replace('cameras = ["B", "C"]', 'cameras = ["B", "D"]'), table,
+          "unknown camera 'D'")
+    fails(text.replace("fixed = false", "fixed = true"), table, "C has no pose in sensors")
+    lines = table.splitlines()
+    two_a = lines[:2] + [lines[2].replace(",B,", ",A,")] + lines[3:]
+    fails(text, "\n".join(two_a) + "\n", "frame F1 has two images of camera A")
+    no_frame = lines[:2] + [lines[2].rsplit(",", 1)[0] + ","] + lines[3:]
+    fails(text, "\n".join(no_frame) + "\n", "names no frame")
+    no_ref = [lines[0], lines[1].rsplit(",", 1)[0] + ",F9"] + lines[2:]
+    fails(text, "\n".join(no_ref) + "\n", "no image of its rig's reference camera A")
