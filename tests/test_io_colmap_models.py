@@ -648,3 +648,23 @@ def test_a_sensor_without_pose_round_trips_as_unknown(tmp_path):
     b, _ = read_records(tmp_path / "back")
     assert b.rigs[0].sensors[0][2:] == (None, None)
     _check_rigs_equal(a, b)
+
+
+def test_rigs_survive_an_adjustment_and_the_export_of_its_results(tmp_path):
+    """COLMAP rig -> project -> photogram's adjustment with the rig (6
+    unknowns per frame + 6 for the second camera) -> export of the results
+    folder: the same rigs and frames (noise-free: to 1e-12)."""
+    import json
+
+    from photogram_cli.main import main
+    write_bin(tmp_path / "m", *rig_scene())
+    prj = import_project("colmap", tmp_path / "m", tmp_path / "imp")
+    assert main(["calibrate", str(prj)]) == 0
+    res = prj.parent / "results"
+    summary = json.loads((res / "summary.json").read_text())
+    assert summary["counts"]["exterior"] == 6 * 3 + 6
+    written = export_results("colmap-bin", res, tmp_path / "back")
+    assert {p.name for p in written} >= {"rigs.bin", "frames.bin"}
+    a, _ = read_records(tmp_path / "m")
+    b, _ = read_records(tmp_path / "back")
+    _check_rigs_equal(a, b)
