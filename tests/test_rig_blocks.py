@@ -382,3 +382,24 @@ def test_rig_project_file_round_trip_and_errors(tmp_path):
     fails(text, "\n".join(no_frame) + "\n", "names no frame")
     no_ref = [lines[0], lines[1].rsplit(",", 1)[0] + ",F9"] + lines[2:]
     fails(text, "\n".join(no_ref) + "\n", "no image of its rig's reference camera A")
+
+
+def test_rig_images_cannot_carry_a_dependent_datum():
+    from photogram.adjust.build import build_problem
+    from photogram.errors import InputError
+    prj, *_ = _rig_project()
+    prj.adjustment.datum = "dependent"
+    prj.adjustment.dependent_station = "S2"            # camera B of frame 1
+    with pytest.raises(InputError, match="fixes station.*S2"):
+        build_problem(prj)
+
+
+def test_a_project_without_rigs_builds_the_same_blocks():
+    """No rigs: plain image blocks only, no derived stations (the default
+    projects' numbers are unchanged: tests/test_examples_unchanged.py)."""
+    from photogram.adjust.build import build_problem
+    prj, *_ = _rig_project(rigs=False)
+    built = build_problem(prj)
+    assert built.rigs is None and built.problem.layout.derived is None
+    assert all(type(b) is ImagePointBlock for b in built.problem.blocks)
+    assert len(built.problem.state.X0) == len(prj.stations)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from photogram.adjust.build_rigs import rig_plan
+from photogram.adjust.build_rigs import check_dependent_datum, rig_plan, rig_warnings
 from photogram.adjust.datum import dependent_orientation, inner_constraints
 from photogram.adjust.eccentric_blocks import with_ellipse_centres
 from photogram.adjust.interior_map import interior_map
@@ -209,6 +209,7 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
         free_st[j, k] = False
     n_state = n_s
     if plan is not None:
+        check_dependent_datum(project, plan, dependent)
         free_st[plan.derived] = False
         free_st = np.vstack([free_st, np.repeat(~plan.fixed[:, None], 6, axis=1)])
         n_state = n_s + plan.n_sensors
@@ -252,12 +253,13 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
             labels = np.char.add(np.char.add(st_names[obs.station[rows]], "/"),
                                  pt_ids[obs.point[rows]])
             io_blocks, io_block = _io_blocks(imap, k, obs.station[rows])
-            on_rig = derived_frame[obs.station[rows]] >= 0
-            for part in (~on_rig, on_rig) if on_rig.any() else (on_rig == on_rig,):
+            on_rig = derived_frame[obs.station[rows]] >= 0   # images of rig sensors
+            for rig_rows in (False, True):
+                part = on_rig == rig_rows
                 if not part.any():
                     continue
                 r = rows[part]
-                if part is on_rig:
+                if rig_rows:
                     blk = RigImagePointBlock(models[k], io_blocks, io_block[part],
                                              derived_frame[obs.station[r]],
                                              derived_sensor[obs.station[r]], obs.point[r],
@@ -331,19 +333,8 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
                       point_labels=[pts.ids[i] for i in np.flatnonzero(~coupled)])
     return Built(problem, cam_names, present, control, check,
                  warnings=_ignored_control_sigmas(project, control)
-                 + _dependent_control(project, control) + _rig_warnings(project, plan),
-                 interior=imap, rigs=plan)
-
-
-def _rig_warnings(project, plan):
-    """Station priors of rig images (not used: their pose is composed)."""
-    if plan is None:
-        return []
-    sig = _station_sigmas(project)[plan.derived]
-    n = int(np.any(np.isfinite(sig) & (sig > 0), axis=1).sum())
-    return [f"{n} station(s) of rig cameras other than the reference have a-priori sigmas, "
-            f"which are not used: their pose is their frame's and their camera's in the rig"] \
-        if n else []
+                 + _dependent_control(project, control)
+                 + rig_warnings(plan, station_sigma), interior=imap, rigs=plan)
 
 
 def _dependent_fixed(project):

@@ -21,9 +21,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from photogram.errors import InputError
 from photogram.geometry import opk_to_matrix
 
-__all__ = ["RigPlan", "rig_plan"]
+__all__ = ["RigPlan", "rig_plan", "rig_warnings", "check_dependent_datum"]
 
 
 @dataclass
@@ -103,3 +104,31 @@ def rig_plan(project, R, X0) -> RigPlan | None:
     return RigPlan(len(st), np.array(derived, int), np.array(frame, int), np.array(sensor, int),
                    sensors, np.array(R_s).reshape(-1, 3, 3), np.array(X0_s).reshape(-1, 3),
                    np.array(fixed, bool))
+
+
+def rig_warnings(plan, station_sigma) -> list[str]:
+    """A-priori sigmas of rig images' stations other than the reference
+    (not used: their pose is composed); 0 or 1 warning."""
+    if plan is None:
+        return []
+    sig = station_sigma[plan.derived]
+    n = int(np.any(np.isfinite(sig) & (sig > 0), axis=1).sum())
+    return [f"{n} station(s) of rig cameras other than the reference have a-priori sigmas, "
+            f"which are not used: their pose is their frame's and their camera's in the rig"] \
+        if n else []
+
+
+def check_dependent_datum(project, plan, dependent) -> None:
+    """``datum = "dependent"`` holds parameters of stations fixed: they
+    must be free stations (a rig image's pose is composed, its own
+    parameters are no unknowns)."""
+    derived = set(plan.derived.tolist())
+    bad = sorted({project.stations.names[j] for j, _ in dependent if j in derived})
+    if bad:
+        names = ", ".join(bad)
+        raise InputError(f'datum = "dependent" fixes station(s) {names}, images of rig '
+                         "cameras whose pose is their frame's and camera's in the rig",
+                         file=project.path,
+                         hint="as dependent_station (and with dependent_coordinate for the "
+                              "other fixed coordinate) choose stations of a rig's reference "
+                              "camera or of a camera in no rig")
