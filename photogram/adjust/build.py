@@ -334,7 +334,8 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
     return Built(problem, cam_names, present, control, check,
                  warnings=_ignored_control_sigmas(project, control)
                  + _dependent_control(project, control)
-                 + rig_warnings(plan, station_sigma), interior=imap, rigs=plan)
+                 + rig_warnings(plan, station_sigma, bool(targets and targets.eccentricity)),
+                 interior=imap, rigs=plan)
 
 
 def _dependent_fixed(project):

@@ -106,16 +106,24 @@ def rig_plan(project, R, X0) -> RigPlan | None:
                    np.array(fixed, bool))
 
 
-def rig_warnings(plan, station_sigma) -> list[str]:
-    """A-priori sigmas of rig images' stations other than the reference
-    (not used: their pose is composed); 0 or 1 warning."""
+def rig_warnings(plan, station_sigma, eccentricity=False) -> list[str]:
+    """What the rigs leave out: a-priori sigmas of rig images' stations
+    other than the reference (their pose is composed) and the ellipse-centre
+    correction of their image points (not implemented); 0-2 warnings."""
     if plan is None:
         return []
+    out = []
     sig = station_sigma[plan.derived]
     n = int(np.any(np.isfinite(sig) & (sig > 0), axis=1).sum())
-    return [f"{n} station(s) of rig cameras other than the reference have a-priori sigmas, "
-            f"which are not used: their pose is their frame's and their camera's in the rig"] \
-        if n else []
+    if n:
+        out.append(f"{n} station(s) of rig cameras other than the reference have a-priori "
+                   f"sigmas, which are not used: their pose is their frame's and their "
+                   f"camera's in the rig")
+    if eccentricity:
+        out.append(f"[targets] eccentricity is not applied to the image points of the "
+                   f"{len(plan.derived)} image(s) of rig cameras other than the reference "
+                   f"(not implemented with rigs)")
+    return out
 
 
 def check_dependent_datum(project, plan, dependent) -> None:
