@@ -663,6 +663,7 @@ def test_rigs_survive_an_adjustment_and_the_export_of_its_results(tmp_path):
     res = prj.parent / "results"
     summary = json.loads((res / "summary.json").read_text())
     assert summary["counts"]["exterior"] == 6 * 3 + 6
+    assert (res / "rigs.csv").is_file()
     written = export_results("colmap-bin", res, tmp_path / "back")
     assert {p.name for p in written} >= {"rigs.bin", "frames.bin"}
     a, _ = read_records(tmp_path / "m")

@@ -403,3 +403,24 @@ def test_a_project_without_rigs_builds_the_same_blocks():
     assert built.rigs is None and built.problem.layout.derived is None
     assert all(type(b) is ImagePointBlock for b in built.problem.blocks)
     assert len(built.problem.state.X0) == len(prj.stations)
+
+
+def test_rigs_csv_holds_the_rig_cameras_with_their_sigmas(rig_results, tmp_path):
+    import pandas as pd
+
+    from photogram.project.results import write_results
+    res, *_ = rig_results
+    r = res[True]
+    write_results(tmp_path / "res", r.project, r.summary, station_sigma=r.station_sigma,
+                  station_covariance=r.covariances["stations"])
+    table = pd.read_csv(tmp_path / "res" / "rigs.csv", comment="#", dtype={"camera": str})
+    rows = r.summary["rigs"]
+    assert list(table["camera"]) == ["B", "C"] and list(table["reference"]) == ["A", "A"]
+    np.testing.assert_array_equal(table[["X0", "Y0", "Z0"]].to_numpy(),
+                                  [row["position"] for row in rows])
+    np.testing.assert_array_equal(table[["est_sX0", "est_sY0", "est_sZ0"]].to_numpy(),
+                                  [row["position_sigma"] for row in rows])
+    # angles in the project's unit (degrees)
+    np.testing.assert_allclose(np.radians(table[["omega", "phi", "kappa"]].to_numpy()),
+                               [row["angles_rad"] for row in rows], rtol=1e-15, atol=1e-17)
+    assert not (tmp_path / "res" / "interior.csv").exists()

@@ -181,5 +181,6 @@ def _rig_sensors(out, plan, state, S):
         sig = np.sqrt(np.clip(np.diag(S[j]), 0, None))
         rows.append({"rig": rig, "camera": cam, "reference": out.rigs[rig].reference,
                      "position": state.X0[k].tolist(), "angles_rad": angles.tolist(),
-                     "position_sigma": sig[:3].tolist(), "angle_sigma_rad": sig[3:].tolist()})
+                     "position_sigma": sig[:3].tolist(), "angle_sigma_rad": sig[3:].tolist(),
+                     "angle_covariance_rad": S[j][3:, 3:].tolist()})
     return rows
