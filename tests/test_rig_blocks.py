@@ -424,3 +424,36 @@ def test_rigs_csv_holds_the_rig_cameras_with_their_sigmas(rig_results, tmp_path)
     np.testing.assert_allclose(np.radians(table[["omega", "phi", "kappa"]].to_numpy()),
                                [row["angles_rad"] for row in rows], rtol=1e-15, atol=1e-17)
     assert not (tmp_path / "res" / "interior.csv").exists()
+
+
+def test_a_fixed_rig_holds_the_camera_poses():
+    """fixed = true with the true poses: 6 unknowns per frame only; the
+    cameras' poses come back unchanged with sigma 0."""
+    from photogram.bundle.run import adjust
+    from photogram.geometry import matrix_to_opk
+    prj, (Rf, X0f, Rs, X0s), frame, sensor = _rig_project()
+    rig = prj.rigs["head"]
+    rig.fixed = True
+    rig.sensors = {c: (X0s[j + 1], matrix_to_opk(Rs[j + 1][None])[0]) for j, c in
+                   enumerate(rig.cameras)}
+    res = adjust(prj)
+    assert res.summary["counts"]["exterior"] == 6 * len(Rf)
+    for j, row in enumerate(res.summary["rigs"]):
+        np.testing.assert_allclose(row["position"], X0s[j + 1], rtol=0, atol=1e-15)
+        assert max(row["position_sigma"] + row["angle_sigma_rad"]) == 0.0
+
+
+def test_more_rig_errors(tmp_path):
+    from photogram.errors import InputError
+    from photogram.project import read_project
+    from photogram.project.writer import write_project
+    prj, *_ = _rig_project()
+    path = write_project(prj, tmp_path / "rig.prj")
+    text = path.read_text()
+    two_rigs = text + '\n[rigs.other]\nreference = "B"\ncameras = ["C"]\n'
+    path.write_text(two_rigs.replace('cameras = ["B", "C"]', 'cameras = ["B"]'))
+    with pytest.raises(InputError, match="camera B is in rigs head and other"):
+        read_project(path)
+    path.write_text(text.replace('cameras = ["B", "C"]', 'cameras = ["B"]'))
+    with pytest.raises(InputError, match="its camera C is in no rig"):
+        read_project(path)
