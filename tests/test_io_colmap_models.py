@@ -350,13 +350,16 @@ def rig_scene():
 def test_rig_frames_give_the_image_poses(tmp_path, caplog):
     """Image poses are sensor_from_rig * rig_from_world (the placeholder
     poses of images.bin are ignored, as COLMAP does); the import keeps every
-    image as a station reproducing COLMAP's pixels to 1e-9 px and says that
-    the rig constraint is not kept."""
+    image as a station reproducing COLMAP's pixels to 1e-9 px, and the rig
+    as a project rig with the stations' frames."""
     write_bin(tmp_path / "m", *rig_scene())
     with caplog.at_level(logging.WARNING, logger="photogram"):
         prj = colmap_project(tmp_path / "m")
-    assert "not kept" in caplog.text and "1 COLMAP rig(s) with 2 cameras" in caplog.text
+    assert "rig" not in caplog.text
     assert len(prj.stations) == 6 and set(prj.cameras) == {"1", "2"}
+    rig = prj.rigs["1"]
+    assert (rig.reference, rig.cameras, rig.fixed) == ("1", ["2"], False)
+    assert prj.stations.frame == ["1", "1", "2", "2", "3", "3"]
     assert np.abs(residuals(prj)).max() < 1e-9
     model = read_colmap(tmp_path / "m")
     assert [(v.extra["rig"], v.extra["frame"]) for v in model.views[:2]] == [(1, 1), (1, 1)]
@@ -574,3 +577,95 @@ def test_sparse_folder_names_its_models(tmp_path):
     with pytest.raises(InputError, match="no cameras.txt here") as err:
         read_colmap(tmp_path / "sparse")
     assert "give one of: 0" in str(err.value)
+
+
+def _same_pose(q, t, q2, t2):
+    """Two COLMAP poses agree to 1e-12 (a quaternion and its negative are
+    one rotation)."""
+    q, q2 = np.asarray(q, float), np.asarray(q2, float)
+    q2 = q2 if q @ q2 >= 0 else -q2
+    return np.allclose(q, q2, rtol=0, atol=1e-12) and np.allclose(t, t2, rtol=0, atol=1e-12)
+
+
+def _rig_records_by_name(rec):
+    """Rigs as {rig_id: (ref camera, [(camera, q, t)])} and frames as
+    {frame_id: (rig_id, q, t, sorted image NAMEs)}."""
+    names = {im.image_id: im.name for im in rec.images}
+    rigs = {r.rig_id: (r.ref, [(s[1], s[2], s[3]) for s in r.sensors]) for r in rec.rigs}
+    frames = {f.frame_id: (f.rig_id, f.q, f.t, sorted(names[d] for _, _, d in f.data))
+              for f in rec.frames}
+    return rigs, frames
+
+
+def _check_rigs_equal(a, b):
+    ra, fa = _rig_records_by_name(a)
+    rb, fb = _rig_records_by_name(b)
+    assert ra.keys() == rb.keys() and fa.keys() == fb.keys()
+    for k in ra:
+        assert ra[k][0] == rb[k][0]
+        for (ca, qa, ta), (cb, qb, tb) in zip(ra[k][1], rb[k][1]):
+            assert ca == cb and (qa is None) == (qb is None)
+            assert qa is None or _same_pose(qa, ta, qb, tb)
+    for k in fa:
+        assert fa[k][0] == fb[k][0] and fa[k][3] == fb[k][3]
+        assert _same_pose(fa[k][1], fa[k][2], fb[k][1], fb[k][2])
+
+
+@pytest.mark.parametrize("src", ["bin", "txt"])
+@pytest.mark.parametrize("out", ["colmap", "colmap-bin"])
+def test_rigs_and_frames_round_trip_exactly(tmp_path, out, src):
+    """COLMAP (rigs, frames) -> photogram project (.prj with [rigs.1] and
+    the stations' frame column) -> COLMAP: the same rigs, sensor poses,
+    frames, frame poses (1e-12) and image poses."""
+    (write_bin if src == "bin" else write_txt)(tmp_path / "m", *rig_scene())
+    prj = import_project("colmap", tmp_path / "m", tmp_path / "imp")
+    from photogram.project import read_project
+    project = read_project(prj)
+    assert list(project.rigs) == ["1"] and project.stations.frames()[:2] == ["1", "1"]
+    export_results(out, prj, tmp_path / "back")
+    a, _ = read_records(tmp_path / "m")
+    b, is_bin = read_records(tmp_path / "back")
+    assert is_bin == (out == "colmap-bin") and len(b.rigs) == 1 and len(b.frames) == 3
+    _check_rigs_equal(a, b)
+    for u, v in zip(read_colmap(tmp_path / "m").views, read_colmap(tmp_path / "back").views):
+        assert u.name == v.name
+        assert np.allclose(u.R_cv, v.R_cv, rtol=0, atol=1e-14)
+        assert np.allclose(u.t_cv, v.t_cv, rtol=0, atol=1e-13)
+
+
+def test_a_sensor_without_pose_round_trips_as_unknown(tmp_path):
+    """HAS_POSE 0 (a sensor to be calibrated): the image poses come from
+    images.*, the project rig has no pose for the camera, and the export
+    writes HAS_POSE 0 again."""
+    cams, images, points, rigs, frames = rig_scene()
+    rigs = [(1, ("CAMERA", 1), [("CAMERA", 2, None, None)])]
+    write_txt(tmp_path / "m", cams, images, points, rigs, frames)
+    prj = import_project("colmap", tmp_path / "m", tmp_path / "imp")
+    from photogram.project import read_project
+    assert read_project(prj).rigs["1"].sensors == {}
+    export_results("colmap", prj, tmp_path / "back")
+    a, _ = read_records(tmp_path / "m")
+    b, _ = read_records(tmp_path / "back")
+    assert b.rigs[0].sensors[0][2:] == (None, None)
+    _check_rigs_equal(a, b)
+
+
+def test_rigs_survive_an_adjustment_and_the_export_of_its_results(tmp_path):
+    """COLMAP rig -> project -> photogram's adjustment with the rig (6
+    unknowns per frame + 6 for the second camera) -> export of the results
+    folder: the same rigs and frames (noise-free: to 1e-12)."""
+    import json
+
+    from photogram_cli.main import main
+    write_bin(tmp_path / "m", *rig_scene())
+    prj = import_project("colmap", tmp_path / "m", tmp_path / "imp")
+    assert main(["calibrate", str(prj)]) == 0
+    res = prj.parent / "results"
+    summary = json.loads((res / "summary.json").read_text())
+    assert summary["counts"]["exterior"] == 6 * 3 + 6
+    assert (res / "rigs.csv").is_file()
+    written = export_results("colmap-bin", res, tmp_path / "back")
+    assert {p.name for p in written} >= {"rigs.bin", "frames.bin"}
+    a, _ = read_records(tmp_path / "m")
+    b, _ = read_records(tmp_path / "back")
+    _check_rigs_equal(a, b)

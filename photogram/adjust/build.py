@@ -25,12 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from photogram.adjust.build_rigs import check_dependent_datum, rig_plan, rig_warnings
 from photogram.adjust.datum import dependent_orientation, inner_constraints
 from photogram.adjust.eccentric_blocks import with_ellipse_centres
 from photogram.adjust.interior_map import interior_map
 from photogram.adjust.residual_blocks import (
     DistanceBlock, ImagePointBlock, InteriorPriorBlock, PointPriorBlock,
     StationPriorBlock, VerticalBlock)
+from photogram.adjust.rig_blocks import RigImagePointBlock
 from photogram.adjust.solver import Problem
 from photogram.adjust.state import Layout, State
 from photogram.errors import GeometryError, InputError
@@ -46,6 +48,7 @@ class Built:
     check: np.ndarray        # indices of check points
     warnings: list = None    # what the configuration silently ignores
     interior: object = None  # InteriorMap when cameras share parameters (else None)
+    rigs: object = None      # RigPlan when stations are tied by rigs (else None)
 
 
 def _missing_approximations(project):
@@ -195,11 +198,21 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
         seen[control] = True
     free_pt[~(seen | coupled)] = False
     station_sigma = _station_sigmas(project)
+    # rigs (photogram.adjust.build_rigs): with the stations held fixed
+    # (intersect) they change nothing
+    R_start = opk_to_matrix(st.angles)
+    plan = None if fix_stations else rig_plan(project, R_start, st.position)
     free_st = np.full((n_s, 6), not fix_stations)
     free_st &= station_sigma != 0               # a sigma of 0 fixes the parameter
     dependent = _dependent_fixed(project) if adj.datum == "dependent" else []
     for j, k in dependent:
         free_st[j, k] = False
+    n_state = n_s
+    if plan is not None:
+        check_dependent_datum(project, plan, dependent)
+        free_st[plan.derived] = False
+        free_st = np.vstack([free_st, np.repeat(~plan.fixed[:, None], 6, axis=1)])
+        n_state = n_s + plan.n_sensors
     free = {"camera": [np.zeros(len(c.parameters), bool) if fix_interior else c.free_mask()
                        for c in cams],
             "station": free_st,
@@ -208,15 +221,25 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
     # fix_interior every parameter is held at its value and nothing is shared
     imap = None if fix_interior else interior_map(cams, cam_names, st.names, station_cam)
     if imap is None:
-        layout = Layout([len(c.parameters) for c in cams], n_s, n_p, coupled, free)
+        layout = Layout([len(c.parameters) for c in cams], n_state, n_p, coupled, free)
         io_start = [c.values() for c in cams]
     else:
         free["camera"] = [imap.free[c] for c in imap.columns]
-        layout = Layout([], n_s, n_p, coupled, free, camera_columns=imap.columns,
+        layout = Layout([], n_state, n_p, coupled, free, camera_columns=imap.columns,
                         n_camera_columns=imap.n_io)
         io_start = imap.instance_values()
-    state = State(pts.xyz.astype(float).copy(), opk_to_matrix(st.angles), st.position.astype(float).copy(),
+    state = State(pts.xyz.astype(float).copy(), R_start, st.position.astype(float).copy(),
                   io_start)
+    if plan is not None:
+        state.R = np.concatenate([state.R, plan.R])
+        state.X0 = np.concatenate([state.X0, plan.X0])
+        layout.derived = (plan.derived, plan.frame, plan.sensor_station())
+        state.compose(layout.derived)
+    derived_frame = np.full(n_s, -1)
+    derived_sensor = np.full(n_s, -1)
+    if plan is not None:
+        derived_frame[plan.derived] = plan.frame
+        derived_sensor[plan.derived] = plan.sensor_station()
 
     blocks = []
     st_names, pt_ids = np.array(st.names, dtype=str), np.array(pts.ids, dtype=str)
@@ -230,11 +253,25 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
             labels = np.char.add(np.char.add(st_names[obs.station[rows]], "/"),
                                  pt_ids[obs.point[rows]])
             io_blocks, io_block = _io_blocks(imap, k, obs.station[rows])
-            blk = ImagePointBlock(models[k], io_blocks, io_block, obs.station[rows],
-                                  obs.point[rows], obs.xy[rows], sig, layout, labels=labels)
-            blk.group = f"image {group}" if group else f"image {name}"
-            blk.rows = rows
-            blocks.append(blk)
+            on_rig = derived_frame[obs.station[rows]] >= 0   # images of rig sensors
+            for rig_rows in (False, True):
+                part = on_rig == rig_rows
+                if not part.any():
+                    continue
+                r = rows[part]
+                if rig_rows:
+                    blk = RigImagePointBlock(models[k], io_blocks, io_block[part],
+                                             derived_frame[obs.station[r]],
+                                             derived_sensor[obs.station[r]], obs.point[r],
+                                             obs.xy[r], sig[part], layout, labels=labels[part])
+                    blk.station = obs.station[r]
+                else:
+                    blk = ImagePointBlock(models[k], io_blocks, io_block[part], obs.station[r],
+                                          obs.point[r], obs.xy[r], sig[part], layout,
+                                          labels=labels[part])
+                blk.group = f"image {group}" if group else f"image {name}"
+                blk.rows = r
+                blocks.append(blk)
     targets = getattr(project, "targets", None)
     if targets is not None and targets.eccentricity:       # ellipse centres (eq. (1) of
         blocks = with_ellipse_centres(blocks, *targets.for_points(pts.ids), layout)  # geometry.circle)
@@ -247,6 +284,8 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
         blocks.append(blk)
 
     has_prior = np.any(np.isfinite(station_sigma) & (station_sigma > 0), axis=1)
+    if plan is not None:                # a rig image's pose is its frame's and sensor's
+        has_prior[plan.derived] = False
     if has_prior.any() and not fix_stations:
         i = np.flatnonzero(has_prior)
         sig = station_sigma[i]
@@ -294,7 +333,9 @@ def build_problem(project, fix_interior=False, fix_stations=False) -> Built:
                       point_labels=[pts.ids[i] for i in np.flatnonzero(~coupled)])
     return Built(problem, cam_names, present, control, check,
                  warnings=_ignored_control_sigmas(project, control)
-                 + _dependent_control(project, control), interior=imap)
+                 + _dependent_control(project, control)
+                 + rig_warnings(plan, station_sigma, bool(targets and targets.eccentricity)),
+                 interior=imap, rigs=plan)
 
 
 def _dependent_fixed(project):

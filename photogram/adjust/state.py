@@ -47,7 +47,21 @@ class State:
             R = self.R.copy()
             if len(turned):
                 R[turned] = small_rotation(st[turned, 3:]) @ self.R[turned]
-        return State(self.points + dx[layout.point_cols], R, self.X0 + st[:, :3], io)
+        out = State(self.points + dx[layout.point_cols], R, self.X0 + st[:, :3], io)
+        if layout.derived is not None:
+            out.compose(layout.derived)
+        return out
+
+    def compose(self, derived) -> None:
+        """Set the derived stations (a rig's images, ``derived = (station,
+        frame, sensor)`` index arrays) to the composition of their frame's
+        and their sensor's pose (:mod:`photogram.adjust.rig_blocks` eq. (1):
+        ``R = R_s R_f``, ``X0 = X0_f + R_f^T X0_s``)."""
+        d, f, s = derived
+        Rf = self.R[f]
+        X0 = self.X0[f] + np.einsum("nji,nj->ni", Rf, self.X0[s])
+        self.R[d] = self.R[s] @ Rf
+        self.X0[d] = X0
 
 
 class Layout:
@@ -71,6 +85,10 @@ class Layout:
         camera's stations, tied cameras, ``fy = fx``) name the same column.
         Default: every camera its own consecutive columns (``camera_sizes``).
     """
+
+    #: rig images whose stations are composed, ``(station, frame, sensor)``
+    #: index arrays (:mod:`photogram.adjust.build_rigs`), or None
+    derived = None
 
     def __init__(self, camera_sizes, n_stations, n_points, reduced_points, free,
                  camera_columns=None, n_camera_columns=None):

@@ -17,6 +17,7 @@ from photogram.bundle.statistics import (
     apriori_image_sigma, collect, flag_weak_points, with_calibration_covariance)
 from photogram.errors import GeometryError
 from photogram.stats.covariance import cofactors
+from photogram.stats.rig_covariance import with_rig_cofactors
 from photogram.stats.reliability import data_snooping, redundancy_numbers
 from photogram.stats.robust import robust_reweighting
 from photogram.stats.variance import estimate_variance_components
@@ -114,6 +115,8 @@ def _adjust(project, fix_interior):
     t_solve = time.perf_counter()
 
     cof = cofactors(problem)
+    if built.rigs is not None:         # the composed stations of rig images
+        with_rig_cofactors(cof, problem)
     s0sq = s.sigma0 ** 2 if np.isfinite(s.sigma0) else 1.0
     result = collect(project, built, cof, s0sq, summary)
     if fix_interior:

@@ -49,6 +49,11 @@ def with_calibration_covariance(result, built, s0sq, summary):
     found = calibration_covariance(result.project)
     if found is None or built is None:
         return
+    if getattr(built, "rigs", None) is not None:
+        summary["warnings"].append(
+            "the covariance of the fixed interior orientation is not propagated to the "
+            "stations of a project with rigs (not implemented): station sigmas without it")
+        return
     labels, Sio, folder = found
     D, cof = interior_sensitivity(built.problem, built.camera_names, result.project, labels)
     T = station_rotation_to_angles(built.problem)
@@ -75,9 +80,10 @@ def collect(project, built, cof, s0sq, summary):
     problem = built.problem
     st = problem.state
     out = copy.deepcopy(project)
+    n_s = len(project.stations)         # rigs add their sensor poses after the stations
     out.points.xyz = st.points.copy()
-    out.stations.position = st.X0.copy()
-    out.stations.angles = matrix_to_opk(st.R)
+    out.stations.position = st.X0[:n_s].copy()
+    out.stations.angles = matrix_to_opk(st.R[:n_s])
     interior = None
     if getattr(built, "interior", None) is not None:     # shared interior parameters
         from photogram.bundle.shared_interior import collect_shared_cameras
@@ -86,6 +92,9 @@ def collect(project, built, cof, s0sq, summary):
         camera_sigma, cams = _collect_cameras(out, built, cof, s0sq, summary)
     P = point_covariances(cof, s0sq)
     S = station_covariances(cof, st.R, s0sq)
+    if getattr(built, "rigs", None) is not None:
+        summary["rigs"] = _rig_sensors(out, built.rigs, st, S[n_s:])
+    S = S[:n_s]
     point_sigma = np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0, None))
     station_sigma = np.sqrt(np.clip(np.diagonal(S, axis1=1, axis2=2), 0, None))
     if len(built.check):
@@ -143,12 +152,13 @@ def orientation_covariance(cof, problem, project, camera_names, s0sq, interior=N
         io_cols = np.concatenate([c for c in lay.camera_cols]) if lay.camera_cols else \
             np.zeros(0, dtype=int)
         io_labels = [f"{n}.{p}" for n in camera_names for p in project.cameras[n].parameters]
-    cols = np.concatenate([io_cols, lay.station_cols.ravel()])
+    n_s = len(project.stations)         # rigs add their sensor poses after the stations
+    cols = np.concatenate([io_cols, lay.station_cols[:n_s].ravel()])
     Q = cof.Qcc[np.ix_(cols, cols)]
     n_io = len(io_cols)
     T = np.eye(len(cols))
     from photogram.geometry import angle_increment_map
-    _, E = angle_increment_map(problem.state.R)
+    _, E = angle_increment_map(problem.state.R[:n_s])
     for s in range(len(E)):
         i = n_io + 6 * s + 3
         T[i:i + 3, i:i + 3] = E[s]
@@ -156,3 +166,21 @@ def orientation_covariance(cof, problem, project, camera_names, s0sq, interior=N
     labels += [f"{st}.{p}" for st in project.stations.names
                for p in ("X0", "Y0", "Z0", "omega", "phi", "kappa")]
     return labels, s0sq * T @ Q @ T.T
+
+
+def _rig_sensors(out, plan, state, S):
+    """The adjusted pose of every rig camera in its rig into ``out.rigs``
+    and as rows for summary.json: rig, camera, X0 Y0 Z0 (length unit),
+    omega phi kappa (radians) and their a-posteriori sigmas (0: fixed).
+    The frames' poses are their reference images' stations."""
+    rows = []
+    for j, (rig, cam) in enumerate(plan.sensors):
+        k = plan.n_stations + j
+        angles = matrix_to_opk(state.R[k][None])[0]
+        out.rigs[rig].sensors[cam] = (state.X0[k].copy(), angles)
+        sig = np.sqrt(np.clip(np.diag(S[j]), 0, None))
+        rows.append({"rig": rig, "camera": cam, "reference": out.rigs[rig].reference,
+                     "position": state.X0[k].tolist(), "angles_rad": angles.tolist(),
+                     "position_sigma": sig[:3].tolist(), "angle_sigma_rad": sig[3:].tolist(),
+                     "angle_covariance_rad": S[j][3:, 3:].tolist()})
+    return rows

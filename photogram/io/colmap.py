@@ -21,10 +21,12 @@ SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV -> ``opencv`` / ``opencv_full``;
 OPENCV_FISHEYE, SIMPLE_RADIAL_FISHEYE, RADIAL_FISHEYE -> ``opencv_fisheye``;
 exact both ways; export writes the smallest model that holds the camera).
 Rigs: :mod:`photogram.io.colmap_rigs` (image poses composed from the
-frames; the rig constraint itself is not kept by the import).
+frames; multi-camera rigs become project rigs, ``[rigs.NAME]``, and the
+frames the stations' ``frame`` column; the export writes rigs and frames
+back).
 
 Lost on import: 2D points without a 3D point (unmatched features), the
-colours and the ERROR column of points3D, the rig constraint.
+colours and the ERROR column of points3D, non-camera sensors (IMU) of rigs.
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from photogram.io import colmap_text as text
 from photogram.io.colmap_cameras import (colmap_ties, colmap_to_model, intrinsics_model,
                                          model_camera, model_to_colmap, view_intrinsics)
 from photogram.io.colmap_records import CameraRecord, ImageRecord, PointRecords, Records
-from photogram.io.colmap_rigs import frame_poses, rig_summary
+from photogram.io.colmap_rigs import frame_poses, project_rigs, rig_records, rig_summary
 from photogram.io.exchange import View, build_project, cv_to_station
 
 __all__ = ["ColmapModel", "read_colmap", "read_records", "colmap_project", "format_colmap",
@@ -208,10 +210,12 @@ def colmap_project(folder, name: str | None = None, pixel_shift: float = PIXEL_S
     one station per image (named by NAME), the 3D points as tie points with
     COLMAP's coordinates as approximations, the 2D points that have a 3D
     point as observations; free datum (COLMAP's model has no control).
-    Images of multi-camera rigs become independent stations (logged)."""
+    Multi-camera rigs become project rigs and their frames the stations'
+    frames (:func:`photogram.io.colmap_rigs.project_rigs`)."""
     folder = _folder(folder)
     model = read_colmap(folder, pixel_shift)
-    lost = rig_summary(model.records)
+    rigs, frames = project_rigs(model.records, model.image_ids)
+    lost = rig_summary(model.records, kept=rigs)
     if lost:
         log.warning(lost)
     cameras = {}
@@ -222,12 +226,17 @@ def colmap_project(folder, name: str | None = None, pixel_shift: float = PIXEL_S
                                              source=str(model.records.files["cameras"]),
                                              ties=colmap_ties(v.extra["colmap_model"]))
     poses = [cv_to_station(v.R_cv, v.t_cv) for v in model.views]
-    return build_project(name or folder.name, cameras, stations=[v.name for v in model.views],
-                         station_camera=[v.camera for v in model.views],
-                         angles=np.array([p[0] for p in poses]),
-                         X0=np.array([p[1] for p in poses]), point_ids=model.point_ids,
-                         xyz=model.xyz, obs_station=model.obs_image, obs_point=model.obs_point,
-                         obs_xy=model.obs_xy, length_unit="m", datum="free")
+    project = build_project(name or folder.name, cameras,
+                            stations=[v.name for v in model.views],
+                            station_camera=[v.camera for v in model.views],
+                            angles=np.array([p[0] for p in poses]),
+                            X0=np.array([p[1] for p in poses]), point_ids=model.point_ids,
+                            xyz=model.xyz, obs_station=model.obs_image,
+                            obs_point=model.obs_point, obs_xy=model.obs_xy, length_unit="m",
+                            datum="free")
+    if rigs:
+        project.rigs, project.stations.frame = rigs, frames
+    return project
 
 
 # --------------------------------------------------------------------------
@@ -328,10 +337,14 @@ def write_records(folder, rec: Records, *, binary_files: bool = False,
 
 def write_colmap(folder, views, point_ids=(), xyz=None, obs=(), error=None, *,
                  force: bool = False, pixel_shift: float = PIXEL_SHIFT,
-                 binary_files: bool = False) -> Path:
+                 binary_files: bool = False, project=None) -> Path:
     """Write a COLMAP model (text, or binary with ``binary_files``) into
-    ``folder``; see :func:`colmap_records` and :func:`write_records`."""
+    ``folder``; see :func:`colmap_records` and :func:`write_records`. With
+    ``project`` (whose stations are the views), its rigs and frames too
+    (:func:`photogram.io.colmap_rigs.rig_records`)."""
     rec = colmap_records(views, point_ids, xyz, obs, error, pixel_shift)
+    if project is not None:
+        rig_records(project, rec)
     write_records(folder, rec, binary_files=binary_files, force=force)
     return Path(folder)
 

@@ -153,8 +153,25 @@ def _from_results(folder: Path) -> ExportSource:
                             length_unit=length, angle_unit=angle, image_unit=res.image_unit)
     if info.get("path"):
         project.path = Path(info["path"])
+    _rigs_from_results(project, res)
     return ExportSource(project=project, point_sigma=psig, station_sigma=ssig, folder=folder,
                         summary=res.summary, results=res)
+
+
+def _rigs_from_results(project: Project, res) -> None:
+    """The rigs of an adjustment with rigs: the adjusted camera poses in
+    their rigs (summary.json ``rigs``) and the stations' ``frame`` column."""
+    from photogram.project.model import Rig
+    rows = res.summary.get("rigs") or []
+    if not rows or "frame" not in res.stations.columns:
+        return
+    for r in rows:
+        rig = project.rigs.setdefault(str(r["rig"]), Rig(str(r["rig"]), str(r["reference"])))
+        rig.cameras.append(str(r["camera"]))
+        rig.sensors[str(r["camera"])] = (np.asarray(r["position"], float),
+                                         np.asarray(r["angles_rad"], float))
+    project.stations.frame = ["" if f != f else str(int(f)) if isinstance(f, float) else str(f)
+                              for f in res.stations["frame"]]
 
 
 def views_of(project: Project, *, stations=None, tolerance: float = 0.01) -> list[View]:

@@ -176,8 +176,10 @@ def export_results(fmt: str, source, to, *, force: bool = False) -> list[Path]:
     obs, error = _observations(src)
     _check_tracks(src, obs)
     folder = write_colmap(to, views, project.points.ids, project.points.xyz, obs, error,
-                          force=force, binary_files=key == "colmap-bin")
-    return _targets(key, folder)
+                          force=force, binary_files=key == "colmap-bin", project=project)
+    ext = ".bin" if key == "colmap-bin" else ".txt"
+    return _targets(key, folder) + ([folder / ("rigs" + ext), folder / ("frames" + ext)]
+                                    if project.rigs else [])
 
 
 #: files of a results folder (or calibration folder) that the exporters read

@@ -105,6 +105,10 @@ class EngineBundle:
                              "parameters (per_station, tie, shared) yet", file=project.path,
                              hint="remove per_station, tie and shared from the cameras of the "
                                   "calibrate step, or use orient (interior fixed)")
+        if built.rigs is not None:
+            raise InputError("photogram montecarlo does not support rigs ([rigs.NAME]) yet",
+                             file=project.path,
+                             hint="remove the [rigs] sections (the stations then are free)")
         self.built = built
         # one image block per camera model: the same residuals and weights
         pb = self.problem = merged_image_blocks(built.problem)

@@ -112,12 +112,38 @@ class Stations:
     position_sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     angle_sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     record: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    # the rig frame (exposure) of each station ("" none); empty list: no frames
+    frame: list[str] = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.names)
 
     def index(self) -> dict[str, int]:
         return {n: i for i, n in enumerate(self.names)}
+
+    def frames(self) -> list[str]:
+        """The frame of every station ("" where none)."""
+        return list(self.frame) if len(self.frame) == len(self.names) else [""] * len(self.names)
+
+
+@dataclass
+class Rig:
+    """Cameras rigidly mounted together (COLMAP's rig, ``[rigs.NAME]``).
+
+    ``reference`` is the camera whose frame is the rig's (its pose in the
+    rig is the identity); ``cameras`` the others. ``sensors`` holds the
+    pose of each other camera in the rig (``sensor_from_rig``) as the
+    (position (3,), angles (3,) radians world-to-camera sense) of a
+    station whose "world" is the rig frame; a camera without one has an
+    unknown pose. ``fixed``: the sensor poses are held at their values.
+    """
+
+    name: str
+    reference: str
+    cameras: list[str] = field(default_factory=list)
+    fixed: bool = False
+    sensors: dict = field(default_factory=dict)     # camera -> (position, angles)
+    line: int | None = None
 
 
 @dataclass
@@ -337,6 +363,7 @@ class Project:
     mocap: object | None = None        # MocapSettings (photogram.project.reader_mocap)
     track: object | None = None        # TrackSettings (photogram.project.reader_track)
     board: object | None = None        # BoardSettings (photogram.project.reader_board)
+    rigs: dict[str, Rig] = field(default_factory=dict)   # [rigs.NAME]
     sources: dict[str, Path] = field(default_factory=dict)  # table -> file
     warnings: list[str] = field(default_factory=list)  # found by the reader
 

@@ -29,6 +29,7 @@ from photogram.project.reader_sharing import check_groups
 from photogram.project.reader_sections import PROJECT_KEYS, _read_output, _read_project_section  # noqa: F401
 from photogram.project.reader_tables import (_read_observations, _read_points, _read_stations,
                                              _source_table)
+from photogram.project.reader_rigs import check_frames, read_rigs
 from photogram.project.reader_track import read_track_section
 from photogram.project.tables import Table, read_table  # noqa: F401
 from photogram.project.validate import DOCS, Section, TomlSource, suggest, validate_project
@@ -47,7 +48,7 @@ __all__ = ["read_project", "SECTIONS", "STATION_COLUMNS", "POINT_COLUMNS"]
 
 SECTIONS = ("project", "cameras", "stations", "points", "observations",
             "constraints", "adjustment", "output", "intersect", "montecarlo", "mocap", "targets",
-            "track", "board")
+            "track", "board", "rigs")
 REQUIRED_SECTIONS = ("project", "cameras", "stations", "observations")
 INTERSECT_KEYS = ("fps", "points", "skis", "ski_length", "binding_fraction", "orientation",
                   "swap_skis")
@@ -156,6 +157,8 @@ def read_project(path: str | Path) -> Project:
         project.points = Points() if no_points else _read_points(tables[1], project)
         _read_observations(tables[2], project)
     _read_constraints(root.table("constraints", required=False), project)
+    read_rigs(root.table("rigs", required=False), project)
+    check_frames(project)
     read_targets(root.table("targets", required=False), project)
     _check_dependent(root, project)
     project.warnings = project.warnings + validate_project(project, src)

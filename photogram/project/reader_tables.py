@@ -132,7 +132,7 @@ def _read_stations(sec: Section, project: Project) -> Stations:
                                   "from_observations = true",
                         hint="the stations table names the camera of each station")
     table = _source_table(sec, "file", "stations table", "stations", project,
-                          required=STATION_COLUMNS[:2], optional=STATION_COLUMNS[2:])
+                          required=STATION_COLUMNS[:2], optional=STATION_COLUMNS[2:] + ("frame",))
     names = _ids(table, "station", "station")
     cameras = table.text("camera")
     for i, cam in enumerate(cameras):
@@ -147,7 +147,8 @@ def _read_stations(sec: Section, project: Project) -> Stations:
     return Stations(names=names, camera=cameras, position=position, angles=angles,
                     position_sigma=_sigmas(table, ["s" + c for c in POSITION], position),
                     angle_sigma=_sigmas(table, ["s" + c for c in ANGLES], angles, unit),
-                    record=table.records)
+                    record=table.records,
+                    frame=table.text("frame", required=False) if table.has("frame") else [])
 
 
 def _read_points(sec: Section, project: Project) -> Points:

@@ -278,6 +278,10 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
         from photogram.project.results_interior import INTERIOR_FILE, interior_table
         check_targets([folder / INTERIOR_FILE], project, overwrite=True)
         files[INTERIOR_FILE] = interior_table(summary["interior"])
+    if summary.get("rigs"):            # an adjustment with rigs
+        from photogram.project.results_rigs import RIGS_FILE, rigs_table
+        check_targets([folder / RIGS_FILE], project, overwrite=True)
+        files[RIGS_FILE] = rigs_table(project, summary["rigs"], file_angle_sigmas)
     for name, content in files.items():
         atomic_write_text(folder / name, content)
     return folder

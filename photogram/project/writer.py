@@ -21,7 +21,7 @@ from photogram.project.atomic import atomic_write_text, same_file
 from photogram.project.camera_schema import camera_to_toml, invert_opk
 from photogram.project.model import Project
 from photogram.project.tables import format_angle, format_table
-from photogram.project.toml_writer import comment_string, dumps
+from photogram.project.toml_writer import Inline, comment_string, dumps
 
 __all__ = ["write_project", "project_to_toml", "station_columns", "point_columns",
            "input_files", "check_targets"]
@@ -154,7 +154,25 @@ def station_columns(project: Project, *, include_sigma: bool | None = None) -> d
             cols["s" + c] = st.position_sigma[:, j]
         for j, c in enumerate(_ANGLES):
             cols["s" + c] = [format_angle(a, unit) for a in st.angle_sigma[:, j]]
+    if any(st.frames()):
+        cols["frame"] = st.frames()
     return cols
+
+
+def rigs_section(project: Project) -> dict:
+    """The ``[rigs.NAME]`` tables (photogram.project.reader_rigs)."""
+    out = {}
+    for name, rig in project.rigs.items():
+        doc = {"reference": rig.reference, "cameras": list(rig.cameras), "fixed": rig.fixed}
+        sensors = Inline()
+        for cam, (position, angles) in rig.sensors.items():
+            a = _angles_for_file(project, np.asarray(angles, float)[None])[0]
+            sensors[cam] = [float(v) for v in position] + [
+                float(format_angle(v, project.units.angle)) for v in a]
+        if sensors:
+            doc["sensors"] = sensors
+        out[name] = doc
+    return out
 
 
 def point_columns(project: Project, *, include_sigma: bool | None = None) -> dict:
@@ -243,6 +261,8 @@ def project_to_toml(project: Project, tables: dict[str, str]) -> str:
     if constraints:
         doc["constraints"] = constraints
     doc["adjustment"] = _settings(project)
+    if project.rigs:
+        doc["rigs"] = rigs_section(project)
     if getattr(project, "targets", None) is not None:
         doc["targets"] = {"eccentricity": bool(project.targets.eccentricity)}
     doc["output"] = {"folder": project.output.folder}
