@@ -302,7 +302,7 @@ def test_candidates_renumbered_by_whole_frames():
     """The multi-view choice sees a synchronised camera's candidates
     renumbered like its detections: frame f + k becomes frame f."""
     from photogram.mocap.body.skeleton import get_skeleton
-    from photogram.mocap.pipeline import _shift_candidates
+    from photogram.mocap.stages import shift_candidates as _shift_candidates
     from photogram.mocap.tracking.detections import CameraDetections
     sk = get_skeleton("coco17")
     frames = np.array([0, 1, 1, 2, 4])

@@ -1,0 +1,148 @@
+"""Stages of ``photogram mocap`` between the detections and the
+reconstruction (docs/mocap.md): the synchronisation of the cameras
+(``offsets``), the multi-view choice of the athlete among the candidates
+of every camera, and the zero-lag post-filter of the joints."""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from photogram.mocap.reconstruction.cameras import MocapCameras
+from photogram.mocap.reconstruction.reconstruct import Reconstruction
+from photogram.mocap.tracking.athlete import TrackingSettings
+
+__all__ = ["shift_candidates", "choose_people", "post_filter", "synchronise"]
+
+log = logging.getLogger(__name__)
+
+
+def shift_candidates(det, rows, k: int):
+    """A camera's candidates and its per-frame choice ``rows`` renumbered
+    as if the camera had started ``k`` frames later (its frame f + k is
+    frame f; the synchronisation offset's whole frames)."""
+    from dataclasses import replace as _replace
+    frames = det.frames - k
+    keep = (frames >= 0) & (frames < det.n_frames)
+    new_index = np.cumsum(keep) - 1
+    det = _replace(det, frames=frames[keep], joints=det.joints[keep], boxes=det.boxes[keep],
+                   person=det.person[keep])
+    out = np.full(len(rows), -1)
+    src = np.arange(len(rows)) + k
+    ok = (src >= 0) & (src < len(rows))
+    old = np.where(ok, rows[np.clip(src, 0, len(rows) - 1)], -1)
+    take = ok & (old >= 0)
+    take[take] &= keep[old[take]]
+    out[take] = new_index[old[take]]
+    return det, out
+
+
+def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: TrackingSettings,
+                   first: int = 0, runs=(), offsets=None):
+    """The athlete's joints chosen by multi-view consistency (docs/mocap.md
+    section 5; :mod:`photogram.mocap.tracking.multiview`): the observations
+    and the per-camera report (None: not run). ``offsets`` (camera ->
+    frames, applied to ``obs`` already): the candidates are renumbered by
+    the whole frames, the chosen joints shifted by the rest."""
+    if not tracking.multiview or sum(t is not None for t in tracked) < 2:
+        return obs, None
+    from photogram.mocap.tracking.athlete import select_person
+    from photogram.mocap.tracking.multiview import (associate, describe,
+                                                    settings_from_tracking,
+                                                    tracked_candidates)
+    candidates, per_camera = [], []
+    for name, t in zip(cameras.names, tracked):
+        if t is None:
+            candidates.append(None)
+            per_camera.append(None)
+            continue
+        try:
+            det = source.detections(name)
+            rows = select_person(det, tracking.min_confidence)
+        except NotImplementedError:                 # image detectors: the tracked person
+            det, rows = tracked_candidates(t, source.skeleton)
+        k = int(np.floor((offsets or {}).get(name, 0.0)))
+        if k:
+            det, rows = shift_candidates(det, np.asarray(rows), k)
+        candidates.append(det)
+        per_camera.append(rows[:obs.shape[0]])
+    assoc = associate(candidates, cameras, obs.shape[0], settings_from_tracking(tracking),
+                      breaks=[r - first for r in runs])
+    report = assoc.report(cameras.names, per_camera)
+    for line in describe(report):
+        log.info("%s", line)
+    chosen = assoc.joints(candidates)
+    for name, o in (offsets or {}).items():           # the fraction of a frame
+        if o - np.floor(o) > 1e-9:
+            from photogram.mocap.evaluation.sync_shift import shift_observations
+            c = cameras.index(name)
+            chosen[:, c] = shift_observations(chosen[:, c], o - np.floor(o))
+    for lo, hi in assoc.undecided_runs:     # mostly inconsistent: the cameras are wrong,
+        chosen[lo:hi] = obs[lo:hi]          # the per-camera choice is kept
+        log.info("frames %d..%d: the cameras are mostly inconsistent with each other (%g px); "
+                 "the per-camera choice of the athlete is kept", first + lo, first + hi - 1,
+                 tracking.association_px)
+    people = {"cameras": report,
+              "undecided_runs": [[first + lo, first + hi - 1] for lo, hi in assoc.undecided_runs],
+              "seed_frames": [first + f for f in assoc.seeds], "sizes": assoc.sizes,
+              "settings": vars(assoc.settings).copy()}
+    return chosen, people
+
+
+def post_filter(rec: Reconstruction, ms, breaks, warnings: list):
+    """The zero-lag filter of ``[mocap.filter]`` (default Butterworth, order
+    4, 6 Hz: :mod:`photogram.mocap.reconstruction.filtering`) on the joints,
+    before any metric; the unfiltered joints stay in ``rec.unfiltered``."""
+    from photogram.mocap.reconstruction.filtering import FilterSettings, filter_joints
+    X, report = filter_joints(rec.joints, ms.fps, FilterSettings(**ms.filter), breaks)
+    if report.get("note"):
+        log.warning("warning: filter: %s", report["note"])
+        warnings.append("filter: " + report["note"])
+    if report["type"] == "none":
+        return rec, report
+    return replace(rec, joints=X, unfiltered=rec.joints), report
+
+
+def synchronise(obs, cameras: MocapCameras, ms):
+    """``offsets`` of [mocap] (docs/mocap.md, "Synchronisation"): estimate
+    ("estimate", "report") and apply ("estimate", a table) the cameras'
+    frame offsets; returns the detections, cameras and summary entry."""
+    from photogram.mocap.evaluation.sync import apply_offsets, estimate_offsets
+    F = obs.shape[0]
+    info = {"mode": ms.offsets if isinstance(ms.offsets, str) else "given"}
+    if isinstance(ms.offsets, dict):
+        applied = {}
+        for name, o in ms.offsets.items():
+            if name not in cameras.names:
+                raise ms.error(("offsets", name), f"offsets names camera {name!r}, which the "
+                               f"project does not have",
+                               hint="cameras: " + ", ".join(cameras.names))
+            if abs(o) >= F:
+                raise ms.error(("offsets", name), f"offset {o:g} of camera {name} is not "
+                               f"shorter than the sequence ({F} frames)",
+                               hint=f"give an offset between -{F - 1} and {F - 1} frames")
+            applied[name] = o
+    else:
+        t0 = time.perf_counter()
+        est = estimate_offsets(obs, cameras, ms.fps)
+        for line in est.lines():
+            log.info(line)
+        info["estimate"] = est.as_dict()
+        info["seconds"] = time.perf_counter() - t0
+        applied = {}
+        if ms.offsets == "estimate":
+            for n, o, s in zip(est.names, est.offsets, est.sigma):
+                if np.isfinite(o):     # within max(2 sigma, 0.1) of an integer: that integer
+                    o = float(np.rint(o)) if abs(o - np.rint(o)) <= max(2 * s, 0.1) else float(o)
+                    if o != 0:
+                        applied[n] = o
+    if applied:
+        obs, cameras = apply_offsets(obs, cameras,
+                                     {cameras.index(n): o for n, o in applied.items()})
+        log.info("synchronisation: offsets applied (frames): " + ", ".join(
+            f"{n} {o:+.3g}" for n, o in applied.items()))
+    info["applied"] = applied
+    return obs, cameras, info
