@@ -208,3 +208,11 @@ def test_undetermined_joint_frames():
 def test_settings_change_the_data():
     a = simulate_harsh(replace(HarshSettings(), outlier_fraction=0.0), seed=22)
     assert a.outlier.sum() == 0
+
+
+def test_used_people_counts_athlete_frames_missed(sim):
+    obs = np.round(sim.observations, 1)
+    seen = np.any(obs[..., 2] > 0, axis=-1)
+    obs[:100, 0] = (np.nan, np.nan, 0.0)                      # camera C1 dropped for 100 frames
+    u = used_people(obs, np.arange(len(obs)), sim.cameras.names, sim)
+    assert u["athlete_frames_missed"] == int(seen[:100, 0].sum())

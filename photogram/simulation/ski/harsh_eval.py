@@ -38,7 +38,9 @@ def used_people(observations, frames, camera_names, sim, decimals: int = 1) -> d
         person: moved by the pipeline, e.g. a sub-frame shift),
         ``bystander_frames`` (camera frames with at least one bystander
         joint used), ``camera_frames`` (camera frames with a joint used) and
-        ``bystander_frames_per_camera``.
+        ``bystander_frames_per_camera``; ``athlete_frames_missed``: camera
+        frames in which the athlete was detected but none of its joints used
+        (lost by the tracking or the choice of the athlete).
     """
     people = people_of(sim)
     names = list(sim.cameras.names)
@@ -47,11 +49,13 @@ def used_people(observations, frames, camera_names, sim, decimals: int = 1) -> d
     used = np.nan_to_num(obs[..., 2]) > 0
     f = np.asarray(frames, int)
     owner = np.full(used.shape, -1)
+    athlete_seen = np.zeros(used.shape[:2], bool)
     for c, name in enumerate(camera_names):
         mine = people[:, :, names.index(name)][:, f]                       # (P, F', J, 3)
         cand = np.round(mine[..., :2], decimals)
         same = np.all(np.abs(cand - obs[None, :, c, :, :2]) <= tol, axis=-1)
         same &= np.nan_to_num(mine[..., 2]) > 0
+        athlete_seen[:, c] = np.any(np.nan_to_num(mine[0, ..., 2]) > 0, axis=-1)
         first = np.argmax(same, axis=0)
         owner[:, c] = np.where(same.any(0), first, -1)
     owner = np.where(used, owner, -2)
@@ -60,6 +64,7 @@ def used_people(observations, frames, camera_names, sim, decimals: int = 1) -> d
     return {"joints_used": int(used.sum()), "athlete_joints": int(np.sum(owner == 0)),
             "bystander_joints": int(by.sum()), "unmatched_joints": int(np.sum(owner == -1)),
             "bystander_frames": int(by.any(-1).sum()), "camera_frames": int(used.any(-1).sum()),
+            "athlete_frames_missed": int(np.sum(athlete_seen & ~np.any(owner == 0, axis=-1))),
             "bystander_frames_per_camera": {n: int(v) for n, v in zip(camera_names, per_cam)}}
 
 
