@@ -16,14 +16,14 @@ leaves unchanged):
   at the bottom), rolls ``0.6 sin(2 pi p / 45 m)``, a cross slope of
   ``0.05 q`` and a **kicker** at 62 % of the run: a ramp 0.5 m high and
   5 m long (lip slope 0.2) that throws the skier into a ballistic flight
-  of about 0.7 s (gravity 9.81 cos 20 deg along the normal) until the
+  of about 0.8 s (gravity 9.81 cos 20 deg along the normal) until the
   trajectory meets the snow again; the body's up direction follows the
   terrain normal (smoothed over 3 frames).
 * **cameras** (1920 x 1080 px, OpenCV k1 = -0.01): ``C1`` at the finish,
   25 m below the end of the run, looking up the course; ``C2``-``C6``
   along the sides at 12, 32, 52, 72, 92 % of the run, alternately left and
   right, 18-26 m outside the turns' amplitude; 1.6 m above the snow. Every
-  camera *lags* the athlete (first-order lag 0.08-0.2 s; ``C6`` 0.35 s, so
+  camera *lags* the athlete (first-order lag 0.08-0.2 s; ``C6`` 0.28 s, so
   that the athlete drifts off centre and leaves its image at times), has a
   slow aiming error (0.6 m, smoothed over 12 frames) and a jitter (0.04 deg
   per axis and frame, smoothed over 1 frame); its base is **mis-levelled**
@@ -38,7 +38,7 @@ leaves unchanged):
   0.03 deg of noise per axis, 2 % failed pairs (empty, ``ok`` 0) in runs
   of 1-8, and 1 % wrong but accepted pairs (0.5-3 deg off).
 
-Two cameras (``n_cameras=2`` of :func:`two_cameras`): ``C3`` and ``C5``.
+Two cameras (:func:`two_cameras`, the projects' ``two-cameras/``): ``C3`` and ``C5``.
 """
 
 from __future__ import annotations

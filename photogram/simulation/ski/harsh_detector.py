@@ -4,7 +4,7 @@ harsh ski setting (:mod:`photogram.simulation.ski.harsh`). SIMULATED.
 Numbers are the defaults of :class:`photogram.simulation.ski.harsh.HarshSettings`.
 
 * **noise**: Student-t with 3 degrees of freedom (heavy tails), scaled to a
-  standard deviation per axis of ``0.030 h (300 px / h)^0.5 (0.5 + u)``
+  standard deviation per axis of ``0.024 h (300 px / h)^0.5 (0.5 + u)``
   for a person ``h`` px tall in the image (the relative error grows as the
   person gets small), times 1.7 for poles and skis, ``u ~ U(0, 1)`` a
   difficulty per detection; half of the variance temporally correlated
