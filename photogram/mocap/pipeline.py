@@ -191,10 +191,12 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
                  + check_bias(result.reprojection)):
         log.warning("warning: %s", note)
         project.warnings.append(note)
+    true_cameras = None if estimate else cameras       # the truth's 2D projections
     if estimate and ms.truth_rotations is not None:
         from photogram.mocap.motion.unknown_rotations import rotation_errors
         truth = read_camera_frames(ms.truth_rotations, cameras, project, first,
                                    lo + len(frames)).select_frames(np.arange(lo, hi))
+        true_cameras = replace(cameras, R=truth.rotations(len(frames)))
         result.info["rotation_errors"] = rotation_errors(rec.R, truth.rotations(len(frames)),
                                                          cameras.names)
         result.info["rotation_errors_bootstrap"] = rotation_errors(
@@ -205,7 +207,7 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
             name: rotation_difference_errors(rd.dR, Rt[:, cameras.index(name)])
             for name, rd in rotation_info["differences"].items()}
     if ms.truth is not None:
-        compare_truth(result, ms)
+        compare_truth(result, ms, true_cameras)
     if ms.reference_trc is not None:
         compare_reference(result, ms)
     return result
