@@ -175,11 +175,14 @@ def test_estimated_offsets_need_known_rotations(simulated, capsys, mode):
                         'rotation = "estimate"', "offsets = {")
 
 
-def test_offsets_table_with_estimated_rotations_is_accepted(simulated, capsys):
+def test_offsets_table_with_estimated_rotations_is_accepted_with_a_warning(simulated):
     folder, _ = simulated
-    prj = _variant(folder, "offsets-table", edits=[(
-        'rotation = "estimate"', 'rotation = "estimate"\noffsets = { C2 = 0 }')])
-    assert main(["check", str(prj)]) == 0
+    out = _run(folder, "offsets-table", edits=[(
+        'rotation = "estimate"', 'rotation = "estimate"\noffsets = { C2 = 1 }')])
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["synchronisation"]["applied"] == {"C2": 1.0}
+    assert any(w.startswith("offsets applied to the detections and the zoom only")
+               for w in summary["warnings"]), summary["warnings"]
 
 
 def test_a_station_without_its_centre_is_one_line(simulated, capsys):

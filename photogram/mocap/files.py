@@ -114,8 +114,8 @@ def cameras_from_project(project) -> MocapCameras:
         if not estimate and not np.all(np.isfinite(st.angles[i])):
             raise InputError(f"station {station} needs its position and angles",
                              file=project.sources.get("stations"), line=line,
-                             hint="give omega, phi, kappa, or rotation = \"estimate\" in "
-                                  "[mocap] to estimate the rotations from the centres")
+                             hint="give omega, phi, kappa, or set rotation = \"estimate\" "
+                                  "in [mocap] (centres only)")
         names.append(cam)
         models.append(camera.model)
         io.append(camera.values())

@@ -114,6 +114,12 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     sync_info = None
     if ms.offsets is not None:
         obs, cameras, sync_info = synchronise(obs, cameras, ms)
+        if estimate and sync_info["applied"]:
+            note = ("offsets applied to the detections and the zoom only: the rotation "
+                    "differences, the athlete boxes they are measured outside and "
+                    "truth_rotations keep every camera's own frame numbers")
+            log.warning("warning: %s", note)
+            project.warnings.append(note)
     obs, people = (obs, None) if estimate else choose_people(
         source, cameras, tracked, obs, TrackingSettings(**ms.tracking), first, ms.runs,
         (sync_info or {}).get("applied"))
