@@ -59,7 +59,22 @@ def _aligned(frames_ref, X_ref, frames):
     return out
 
 
-def compare_truth(result, ms) -> None:
+def compare_truth(result, ms, true_cameras: MocapCameras | None) -> None:
+    """Accuracy against ``truth`` (a joints table): 3D errors, errors of the
+    biomechanical quantities, and 2D errors (docs/mocap.md section 7).
+
+    The 2D metrics: ``*_detections`` compare the detections with the truth
+    projected through ``true_cameras`` (the cameras that took the images:
+    with known rotations the project's cameras; with ``rotation =
+    "estimate"`` the project's centres and zoom with the rotations of
+    ``truth_rotations``); ``true_cameras`` None (rotations estimated, no
+    ``truth_rotations``) leaves them out rather than compare the detections
+    with the truth seen through estimated cameras. ``*_reprojected`` compare
+    the reconstruction with the truth, both projected through
+    ``result.cameras`` (the estimated rotations when estimated: the 3D error
+    as the reconstruction's cameras see it). With estimated rotations
+    ``accuracy["cameras_2d"]`` says which cameras each used.
+    """
     sk = result.skeleton
     frames_t, T = read_joints(ms.truth, sk)
     T = _aligned(frames_t, T, result.frames)
@@ -75,16 +90,25 @@ def compare_truth(result, ms) -> None:
     knees = np.concatenate([np.abs(result.biomechanics[k] - tb[k]) for k in
                             ("knee_flexion_r", "knee_flexion_l")])
     acc["knee_flexion_mae"] = float(np.nanmean(knees))
-    truth_2d = result.cameras.project(T)
     width = np.where(np.isfinite(result.cameras.image_size[:, 0]),
                      result.cameras.image_size[:, 0], 1.0)
     det = np.where((np.nan_to_num(result.observations[..., 2]) > 0)[..., None],
                    result.observations[..., :2], np.nan)
-    reproj = result.cameras.project(X)
-    for tag, pred in (("detections", det), ("reprojected", reproj)):
+    pairs = [("reprojected", result.cameras.project(X), result.cameras.project(T))]
+    if true_cameras is not None:
+        pairs.insert(0, ("detections", det, true_cameras.project(T)))
+    for tag, pred, truth_2d in pairs:
         acc[f"pck_{tag}"] = pck(pred, truth_2d, sk)
         for k, v in mpjpe_2d(pred, truth_2d, width).items():
             acc[f"{k}_{tag}"] = v
+    if ms.rotation == "estimate":
+        acc["cameras_2d"] = {
+            "detections": "not computed: no truth_rotations (the detections are compared "
+                          "with the truth seen through the true cameras only)"
+            if true_cameras is None else
+            "true: the project's centres and zoom with the rotations of truth_rotations",
+            "reprojected": "estimated: the reconstruction and the truth both projected "
+                           "through the estimated cameras"}
     result.truth, result.truth_biomechanics, result.accuracy = T, tb, acc
 
 

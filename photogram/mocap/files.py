@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import csv
 import logging
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -68,26 +69,53 @@ def cameras_from_views(views) -> MocapCameras:
 
 def cameras_from_project(project) -> MocapCameras:
     """The cameras of a mocap project: ``calibration`` (Pose2Sim) or one
-    station per camera of ``[cameras]``/``[stations]``."""
+    station per camera of ``[cameras]``/``[stations]``.
+
+    With ``rotation = "known"`` every station needs its position and angles
+    (``camera_frames``, when given, replaces the rotations per frame). With
+    ``rotation = "estimate"`` only the projection centres are read (docs/
+    mocap.md, "Unknown camera rotations"): the angles may be left empty;
+    where given they are not used, not even as start values (one info line
+    says so), and the rotations are identity placeholders until the
+    estimate replaces them.
+
+    Raises
+    ------
+    InputError
+        A camera with two stations or none; a station without its position
+        (or, rotations known, without its angles); ``file:line``.
+    """
     mocap = project.mocap
+    estimate = mocap.rotation == "estimate"
     if mocap.calibration is not None:
         from photogram.io.pose2sim import read_pose2sim
-        return cameras_from_views(read_pose2sim(mocap.calibration))
+        cameras = cameras_from_views(read_pose2sim(mocap.calibration))
+        if estimate:
+            log.info("rotation = \"estimate\": the rotations of the calibration are not used "
+                     "(only its projection centres and interior orientation)")
+            cameras = replace(cameras, R=_placeholder_rotations(cameras.n_cameras))
+        return cameras
     st = project.stations
     names, models, io, X0, angles, size = [], [], [], [], [], []
     seen = {}
     for i, (station, cam) in enumerate(zip(st.names, st.camera)):
+        line = int(st.record[i]) if len(st.record) > i else None
         if cam in seen:
             raise InputError(f"camera {cam} has two stations ({seen[cam]} and {station}); a "
                              f"motion-capture camera has one position",
-                             file=project.sources.get("stations"),
-                             line=int(st.record[i]) if len(st.record) > i else None)
+                             file=project.sources.get("stations"), line=line)
         seen[cam] = station
         camera = project.cameras[cam]
-        if not np.all(np.isfinite(st.position[i])) or not np.all(np.isfinite(st.angles[i])):
+        if not np.all(np.isfinite(st.position[i])):
+            raise InputError(f"station {station} needs its position (X0, Y0, Z0)",
+                             file=project.sources.get("stations"), line=line,
+                             hint="give the projection centre of every camera"
+                                  + ("" if estimate else " and its angles"))
+        if not estimate and not np.all(np.isfinite(st.angles[i])):
             raise InputError(f"station {station} needs its position and angles",
-                             file=project.sources.get("stations"),
-                             line=int(st.record[i]) if len(st.record) > i else None)
+                             file=project.sources.get("stations"), line=line,
+                             hint="give omega, phi, kappa, or set rotation = \"estimate\" "
+                                  "in [mocap] (centres only)")
         names.append(cam)
         models.append(camera.model)
         io.append(camera.values())
@@ -98,7 +126,16 @@ def cameras_from_project(project) -> MocapCameras:
     if missing:
         raise InputError(f"camera(s) without a station: {', '.join(missing)}",
                          file=project.sources.get("stations"),
-                         hint="give every camera one station (its position and angles)")
+                         hint="give every camera one station (its position" +
+                              (")" if estimate else " and angles)"))
+    if estimate:
+        given = [s for s, a in zip(st.names, angles) if np.any(np.isfinite(a))]
+        if given:
+            log.info("rotation = \"estimate\": the angles of station(s) %s are not used (the "
+                     "rotations are estimated from the detections and the rotation "
+                     "differences; only the projection centres are read)", ", ".join(given))
+        return MocapCameras(names, models, io, np.array(X0),
+                            _placeholder_rotations(len(names)), np.array(size, float))
     from photogram.geometry.rotations import from_radians
     from photogram.mocap.evaluation.checks import check_angle_unit
     note = check_angle_unit(from_radians(np.array(angles).reshape(-1, 3), project.units.angle),
@@ -109,6 +146,12 @@ def cameras_from_project(project) -> MocapCameras:
         project.warnings.append(note)
     return MocapCameras(names, models, io, np.array(X0), opk_to_matrix(np.array(angles)),
                         np.array(size, float))
+
+
+def _placeholder_rotations(n_cameras: int) -> np.ndarray:
+    """(1, C, 3, 3) identities: the rotations of ``rotation = "estimate"``
+    before they are estimated (never used as values)."""
+    return np.broadcast_to(np.eye(3), (1, n_cameras, 3, 3)).copy()
 
 
 def read_camera_frames(path: Path, cameras: MocapCameras, project, first_frame: int,

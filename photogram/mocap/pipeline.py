@@ -114,6 +114,12 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     sync_info = None
     if ms.offsets is not None:
         obs, cameras, sync_info = synchronise(obs, cameras, ms)
+        if estimate and sync_info["applied"]:
+            note = ("offsets applied to the detections and the zoom only: the rotation "
+                    "differences, the athlete boxes they are measured outside and "
+                    "truth_rotations keep every camera's own frame numbers")
+            log.warning("warning: %s", note)
+            project.warnings.append(note)
     obs, people = (obs, None) if estimate else choose_people(
         source, cameras, tracked, obs, TrackingSettings(**ms.tracking), first, ms.runs,
         (sync_info or {}).get("applied"))
@@ -191,10 +197,12 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
                  + check_bias(result.reprojection)):
         log.warning("warning: %s", note)
         project.warnings.append(note)
+    true_cameras = None if estimate else cameras       # the truth's 2D projections
     if estimate and ms.truth_rotations is not None:
         from photogram.mocap.motion.unknown_rotations import rotation_errors
         truth = read_camera_frames(ms.truth_rotations, cameras, project, first,
                                    lo + len(frames)).select_frames(np.arange(lo, hi))
+        true_cameras = replace(cameras, R=truth.rotations(len(frames)))
         result.info["rotation_errors"] = rotation_errors(rec.R, truth.rotations(len(frames)),
                                                          cameras.names)
         result.info["rotation_errors_bootstrap"] = rotation_errors(
@@ -205,7 +213,7 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
             name: rotation_difference_errors(rd.dR, Rt[:, cameras.index(name)])
             for name, rd in rotation_info["differences"].items()}
     if ms.truth is not None:
-        compare_truth(result, ms)
+        compare_truth(result, ms, true_cameras)
     if ms.reference_trc is not None:
         compare_reference(result, ms)
     return result

@@ -252,8 +252,17 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
                                     f"camera images or measured rotation differences",
                         hint='add [mocap.images] (camera = "video.mp4" or a folder) or '
                              'rotation_differences = "file.csv"')
+    offsets = _read_offsets(sec)
+    if rotation == "estimate" and isinstance(offsets, str):
+        # the offsets are estimated from the cameras' rays, which need the
+        # rotations that rotation = "estimate" has not estimated yet
+        raise sec.error("offsets", f"offsets = \"{offsets}\" in {sec.label} cannot be used with "
+                                   f"rotation = \"estimate\": the offsets are estimated from "
+                                   f"the cameras' rays, which need known rotations",
+                        hint="give them as a table, e.g. offsets = { C2 = 1 } from a run with "
+                             "known rotations, or leave offsets out")
     return MocapSettings(
-        offsets=_read_offsets(sec), rotation=rotation, rotation_differences=rot_diff,
+        offsets=offsets, rotation=rotation, rotation_differences=rot_diff,
         images=images,
         homography=subs["homography"], truth_rotations=_path(sec, "truth_rotations", folder),
         source=source, fps=fps, filter=_read_filter(sec.table("filter", required=False), fps),

@@ -1,4 +1,4 @@
-"""Coarse, integer camera offsets (docs/mocap.md, section 12; step 1 of
+"""Coarse, integer camera offsets (docs/mocap.md, section 13; step 1 of
 :mod:`photogram.mocap.evaluation.sync`): the median distance between two
 cameras' rays of the same joints over integer lags (used), and Pose2Sim's
 time-lagged correlation of keypoint speed profiles (reported)."""

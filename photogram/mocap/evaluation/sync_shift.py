@@ -1,5 +1,5 @@
 """Applying frame offsets to a camera's detections and per-frame
-parameters (docs/mocap.md, section 12; the convention in
+parameters (docs/mocap.md, section 13; the convention in
 :mod:`photogram.mocap.evaluation.sync`): ``b[f] = a[f + offset]``, linear
 interpolation for a fractional offset."""
 
