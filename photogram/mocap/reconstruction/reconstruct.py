@@ -32,9 +32,10 @@ first 20): the trajectory in the gap is an extrapolation that the energy
 hardly constrains, and the solvers creep along it for ever. Such a joint
 uses the most leading coefficients for which that condition number stays
 below 100 (scattered single missing frames keep all 25); the others stay
-zero. A joint without detections in a window keeps its start and is
-reported as missing (NaN), as is any joint at a frame with fewer than two
-detections within ``support_frames`` frames.
+zero. A joint-frame that fewer than two cameras observe is a gap
+(:mod:`photogram.mocap.reconstruction.observability`): NaN in the joints,
+its reason in ``Reconstruction.gaps`` (``support_frames`` may bridge short
+runs; default 0, none).
 """
 
 from __future__ import annotations
@@ -52,6 +53,8 @@ from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.dct import (blend_weights, coefficients_for_cutoff, dct_basis,
                                                 plan_windows)
 from photogram.mocap.reconstruction.energy import WindowBatch
+from photogram.mocap.reconstruction.observability import (Gaps, bridge_short_runs, find_gaps,
+                                                          observing_cameras)
 from photogram.mocap.reconstruction.solvers import solve_gauss_newton, solve_lbfgs
 
 __all__ = ["ReconstructionSettings", "Reconstruction", "reconstruct", "limb_lengths",
@@ -96,7 +99,7 @@ class ReconstructionSettings:
     limb_lengths: dict | None = None   # {(a, b): length}; None: estimate
     symmetric_limbs: bool = True
     min_confidence: float = 0.0
-    support_frames: int = 5         # report a joint only with 2 detections within +-5 frames
+    support_frames: int = 0         # bridge gaps (< 2 cameras) of at most this many frames
     step_tol: float = 1e-5          # converged when no determined position moves more (m)
     # unknown camera rotations (photogram.mocap.reconstruction.estimate; estimate_settings())
     rotation: str = "known"         # or "estimate"
@@ -143,10 +146,11 @@ class ReconstructionSettings:
 
 @dataclass
 class Reconstruction:
-    """Result of :func:`reconstruct`: joints (F, J, 3), NaN where a joint has
-    fewer than two detections (any cameras) within ``support_frames`` frames
-    of the frame (the trajectory there is an extrapolation); ``n_views``
-    (F, J) detections per frame."""
+    """Result of :func:`reconstruct`: joints (F, J, 3), NaN at the gaps
+    (joint-frames fewer than two cameras observe, unless ``support_frames``
+    bridges them: the trajectory there is an extrapolation), ``gaps`` their
+    reasons (:class:`~photogram.mocap.reconstruction.observability.Gaps`);
+    ``n_views`` (F, J) detections per frame."""
 
     joints: np.ndarray
     n_views: np.ndarray
@@ -158,6 +162,7 @@ class Reconstruction:
     n_windows: int
     stages: list = field(default_factory=list)
     unfiltered: np.ndarray | None = None    # the joints before a post-filter (pipeline)
+    gaps: Gaps | None = None                # the undetermined joint-frames and why
 
 
 # --------------------------------------------------------------------------
@@ -204,6 +209,10 @@ def _batches(obs, cameras: MocapCameras, skeleton: Skeleton, settings, breaks):
     RX0 = np.einsum("cabf,cb->caf", R, cameras.X0)
     windows = plan_windows(F, settings.window, settings.overlap, settings.coefficients,
                            breaks)
+    # the positions two cameras determine (the convergence test watches only these)
+    determined = bridge_short_runs(
+        np.count_nonzero(observing_cameras(obs, settings.min_confidence), axis=1) >= 2,
+        settings.support_frames, breaks)
     limbs = skeleton.limb_indices()
     groups: dict[tuple, list] = {}
     for w in windows:
@@ -214,8 +223,7 @@ def _batches(obs, cameras: MocapCameras, skeleton: Skeleton, settings, breaks):
         c = np.ascontiguousarray(conf[:, :, idx].transpose(2, 0, 1, 3))   # (nw, C, J, T)
         B = dct_basis(T, K)
         n_coef = _coefficients(np.any(c > 0, axis=1), B)              # (nw, J)
-        nv = np.sum(c > 0, axis=1).transpose(0, 2, 1)                  # (nw, T, J)
-        support = np.stack([_support(v, settings.support_frames) >= 2 for v in nv])
+        support = determined[idx]                                      # (nw, T, J)
         observed = n_coef > 0
         mask = observed[:, limbs[:, 0]] & observed[:, limbs[:, 1]] if len(limbs) \
             else np.zeros((len(ws), 0), bool)
@@ -334,15 +342,20 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
     X, views = _blend(batches, coeffs, F, J, s.overlap)
     n_views = np.sum(np.isfinite(obs[..., 0]) & (np.nan_to_num(obs[..., 2]) >
                                                   s.min_confidence), axis=1)
-    X[(views == 0) | (_support(n_views, s.support_frames) < 2)] = np.nan
+    X[views == 0] = np.nan
+    gaps = find_gaps(obs, s.min_confidence, s.support_frames, breaks, cameras, X)
+    X[gaps.mask] = np.nan
     return Reconstruction(joints=X, n_views=n_views, limb_lengths=lengths,
                           energy=stages[-1]["energy"], iterations=iterations,
                           seconds=time.perf_counter() - t0, solver=s.solver,
-                          n_windows=len(windows), stages=stages)
+                          n_windows=len(windows), stages=stages, gaps=gaps)
 
 
 def _support(n_views: np.ndarray, h: int) -> np.ndarray:
-    """Detections of every joint within +-h frames (F, J)."""
+    """Detections of every joint within +-h frames (F, J) (the rule of
+    :mod:`photogram.mocap.reconstruction.estimate`'s own mask; the pipeline
+    applies :func:`~photogram.mocap.reconstruction.observability.find_gaps`
+    after it)."""
     c = np.concatenate([np.zeros((1, n_views.shape[1])), np.cumsum(n_views, axis=0)])
     F = len(n_views)
     lo = np.clip(np.arange(F) - h, 0, F)
