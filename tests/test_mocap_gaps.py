@@ -22,9 +22,10 @@ from photogram.mocap.body.skeleton import SKI24
 from photogram.mocap.evaluation.metrics import COM_JOINTS, biomechanics
 from photogram.mocap.files import read_joints
 from photogram.mocap.reconstruction.filtering import FilterSettings, filter_joints
-from photogram.mocap.reconstruction.observability import (BEHIND, NO_CAMERA, NOT_SOLVED,
-                                                          ONE_CAMERA, bridge_short_runs,
-                                                          find_gaps, observing_cameras)
+from photogram.mocap.reconstruction.observability import (BEHIND, DISAGREE, NO_CAMERA,
+                                                          NOT_SOLVED, ONE_CAMERA,
+                                                          bridge_short_runs, find_gaps,
+                                                          observing_cameras)
 from photogram.simulation.ski.simproject import write_simulated_project
 from photogram.simulation.ski.simulate import simulate_session
 from photogram_cli.main import main
@@ -79,23 +80,32 @@ def run(request, tmp_path_factory):
                                  request.param))
 
 
+def _written_gaps(res: Path) -> np.ndarray:
+    _, X = read_joints(res / "joints3d.csv", SKI24)
+    return np.isnan(X).any(-1)
+
+
 @pytest.mark.filterwarnings("ignore:No analog data")
-def test_exactly_the_joint_frames_under_two_cameras_are_gaps_in_every_output(run):
+def test_joint_frames_under_two_cameras_are_gaps_in_every_output(run):
+    """Every joint-frame fewer than two cameras detect is empty in joints3d.csv,
+    NaN in the TRC, invalid in the C3D and counted by reason in summary.json."""
     n_cameras, sim, one, none, res = run
     F = sim.joints.shape[0]
     views = _views_written(res, F)
-    gap = views < 2
-    # the blanked joint-frames are among them, with their reasons
+    # the blanked joint-frames have the views intended
     assert all(views[f, j] == 1 for f, j in one) and all(views[f, j] == 0 for f, j in none)
-    assert all(gap[f, j] for f, j in one | none)
-    if n_cameras > 2:
-        assert not gap[10:20, J("l_ankle")].any()
     frames, X = read_joints(res / "joints3d.csv", SKI24)
     assert frames.tolist() == list(range(F))
-    assert np.array_equal(np.isnan(X).any(-1), gap) and np.array_equal(np.isnan(X).all(-1), gap)
+    gap = np.isnan(X).any(-1)
+    assert np.array_equal(np.isnan(X).all(-1), gap)
+    # every joint-frame fewer than two cameras see is a gap; the others that are
+    # gaps are those the reconstruction fits in one camera only (summary.json)
+    assert np.all(gap[views < 2])
+    if n_cameras > 2:
+        assert not gap[10:20, J("l_ankle")].any()
     trc = read_trc(res / "joints3d.trc", rotate_to_z_up=True)
     T = np.stack([trc.markers[n] for n in SKI24.joints], axis=1)
-    assert np.array_equal(np.isnan(T).all(-1), gap)
+    assert np.array_equal(np.isnan(T).all(-1), gap) and np.array_equal(np.isnan(T).any(-1), gap)
     assert np.allclose(T[~gap], X[~gap], atol=1e-5)
     assert "NaN" in (res / "joints3d.trc").read_text()
     import c3d
@@ -115,8 +125,12 @@ def test_exactly_the_joint_frames_under_two_cameras_are_gaps_in_every_output(run
     assert g["total"] == int(gap.sum()) and g["joint_frames"] == gap.size
     assert g["by_reason"]["one camera"] == int(np.sum(views == 1))
     assert g["by_reason"]["no camera"] == int(np.sum(views == 0))
+    assert g["by_reason"]["cameras disagree"] == int(np.sum(gap & (views >= 2)))
+    # ... each of which has a simulated outlier (moved 50-150 px) or swap in a camera
+    corrupted = sim.outlier.any(1) | sim.swapped.any(1)[:, None]
+    assert np.all(corrupted[gap & (views >= 2)])
     assert g["by_reason"]["not solved"] == g["by_reason"]["behind the cameras"] == 0
-    assert g["bridged"] == 0
+    assert g["bridged"] == 0 and g["max_error_px"] == 60.0
     assert g["per_joint"] == {n: int(c) for n, c in zip(SKI24.joints, gap.sum(0)) if c}
     assert any("are gaps" in w and f"{int(gap.sum())} of" in w for w in s["warnings"])
     assert "are gaps" in (res / "log.txt").read_text()
@@ -124,8 +138,7 @@ def test_exactly_the_joint_frames_under_two_cameras_are_gaps_in_every_output(run
 
 def test_metrics_are_empty_where_a_joint_they_need_is_a_gap_and_flagged(run):
     _, sim, one, none, res = run
-    F = sim.joints.shape[0]
-    gap = _views_written(res, F) < 2
+    gap = _written_gaps(res)
     with open(res / "metrics.csv") as handle:
         rows = [r for r in csv.reader(handle) if r and not r[0].startswith("#")]
     head, body = rows[0], rows[1:]
@@ -209,6 +222,16 @@ def test_find_gaps_reasons_and_support_frames():
     g = find_gaps(obs, X=X, cameras=c)
     assert g.reason[7, J("neck")] == BEHIND and g.views[7, J("neck")] == 1
     assert g.summary(SKI24.joints)["by_reason"]["behind the cameras"] == 1
+    # a detection 80 px off the true joint: the other camera alone fits it
+    T = sim.joints
+    moved = obs.copy()
+    moved[12, 0, J("r_elbow"), :2] = c.project(T)[12, 0, J("r_elbow")] + [80.0, 0.0]
+    moved[12, 1, J("r_elbow"), :2] = c.project(T)[12, 1, J("r_elbow")]
+    moved[12, :, J("r_elbow"), 2] = 0.9
+    assert find_gaps(moved, X=T, cameras=c).reason[12, J("r_elbow")] == 0
+    g = find_gaps(moved, X=T, cameras=c, max_error_px=60.0)
+    assert g.reason[12, J("r_elbow")] == DISAGREE and g.views[12, J("r_elbow")] == 1
+    assert find_gaps(moved, X=T, cameras=c, max_error_px=90.0).reason[12, J("r_elbow")] == 0
 
 
 def test_the_post_filter_filters_the_runs_between_gaps_on_their_own():

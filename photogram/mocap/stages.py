@@ -97,14 +97,15 @@ def mark_gaps(rec: Reconstruction, obs, cameras: MocapCameras, skeleton, setting
               warnings: list) -> Reconstruction:
     """The reconstruction with its gaps NaN and described
     (:mod:`photogram.mocap.reconstruction.observability`; ``settings``: the
-    reconstruction's ``min_confidence`` and ``support_frames``). The known-
+    reconstruction's ``min_confidence``, ``support_frames`` and
+    ``inlier_px``). The known-
     rotation solve marks them itself; the estimated rotations' are found
     here with the estimated cameras. A warning (log and ``warnings``) says
     how many joint-frames are gaps and why."""
     if rec.gaps is None:
         from photogram.mocap.reconstruction.observability import find_gaps
         gaps = find_gaps(obs, settings.min_confidence, settings.support_frames, breaks,
-                         cameras, rec.joints)
+                         cameras, rec.joints, max_error_px=settings.inlier_px)
         X = np.array(rec.joints, dtype=float)
         X[gaps.mask] = np.nan
         rec = replace(rec, joints=X, gaps=gaps)

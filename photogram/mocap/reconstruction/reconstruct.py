@@ -21,8 +21,9 @@ function would treat all of them as outliers, so the robust scale starts at
 the paper's 100 px^2. The stages with sigma^2 >= 1e4 px^2 only place the
 athlete roughly and use at most 10 coefficients and every third frame. The
 limb lengths, when not given, are estimated before the last stage as the
-medians of the reconstructed lengths (left and right averaged), and the
-limb prior (given or estimated lengths) is active in the last stage only.
+medians of the reconstructed lengths over the joint-frames two cameras
+detect (left and right averaged), and the limb prior (given or estimated
+lengths) is active in the last stage only.
 The energy reported is that of the last stage: the paper's energy.
 
 Partly observed joints: restricted to the frames a joint is detected in, the
@@ -32,7 +33,8 @@ first 20): the trajectory in the gap is an extrapolation that the energy
 hardly constrains, and the solvers creep along it for ever. Such a joint
 uses the most leading coefficients for which that condition number stays
 below 100 (scattered single missing frames keep all 25); the others stay
-zero. A joint-frame that fewer than two cameras observe is a gap
+zero. A joint-frame that fewer than two cameras observe (detected, in
+front, fitted within ``inlier_sigmas`` sqrt(sigma2) px) is a gap
 (:mod:`photogram.mocap.reconstruction.observability`): NaN in the joints,
 its reason in ``Reconstruction.gaps`` (``support_frames`` may bridge short
 runs; default 0, none).
@@ -100,6 +102,7 @@ class ReconstructionSettings:
     symmetric_limbs: bool = True
     min_confidence: float = 0.0
     support_frames: int = 0         # bridge gaps (< 2 cameras) of at most this many frames
+    inlier_sigmas: float = 3.0      # a camera counts where its error <= this x sqrt(sigma2)
     step_tol: float = 1e-5          # converged when no determined position moves more (m)
     # unknown camera rotations (photogram.mocap.reconstruction.estimate; estimate_settings())
     rotation: str = "known"         # or "estimate"
@@ -120,6 +123,13 @@ class ReconstructionSettings:
         if self.cutoff_hz is not None and not 0 < self.cutoff_hz < self.fps / 2:
             raise InputError(f"cutoff_hz must be in (0, fps/2 = {self.fps / 2:g}) Hz, not "
                              f"{self.cutoff_hz}")
+
+    @property
+    def inlier_px(self) -> float | None:
+        """Largest reprojection error (px) of a detection that counts for
+        a joint-frame's determination (None: any; ``inlier_sigmas`` 0)."""
+        return float(self.inlier_sigmas) * float(np.sqrt(self.sigma2)) \
+            if self.inlier_sigmas > 0 else None
 
     @property
     def cutoff(self) -> float | None:
@@ -209,10 +219,7 @@ def _batches(obs, cameras: MocapCameras, skeleton: Skeleton, settings, breaks):
     RX0 = np.einsum("cabf,cb->caf", R, cameras.X0)
     windows = plan_windows(F, settings.window, settings.overlap, settings.coefficients,
                            breaks)
-    # the positions two cameras determine (the convergence test watches only these)
-    determined = bridge_short_runs(
-        np.count_nonzero(observing_cameras(obs, settings.min_confidence), axis=1) >= 2,
-        settings.support_frames, breaks)
+    determined = _determined(obs, settings, breaks)   # the convergence test watches these
     limbs = skeleton.limb_indices()
     groups: dict[tuple, list] = {}
     for w in windows:
@@ -238,6 +245,13 @@ def _batches(obs, cameras: MocapCameras, skeleton: Skeleton, settings, breaks):
             support=np.ascontiguousarray(support.transpose(0, 2, 1)))
         out.append((ws, idx, batch))
     return windows, out
+
+
+def _determined(obs, settings, breaks) -> np.ndarray:
+    """(F, J) the joint-frames two cameras detect (short runs bridged by
+    ``support_frames``), before any reconstruction."""
+    views = np.count_nonzero(observing_cameras(obs, settings.min_confidence), axis=1)
+    return bridge_short_runs(views >= 2, settings.support_frames, breaks)
 
 
 def _coefficients(seen: np.ndarray, B: np.ndarray, max_cond: float | None = None):
@@ -300,6 +314,7 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
     t0 = time.perf_counter()
     F, J = obs.shape[0], skeleton.n_joints
     windows, batches = _batches(obs, cameras, skeleton, s, breaks)
+    determined = _determined(obs, s, breaks)
     given = _given_lengths(skeleton, s.limb_lengths) if s.limb_lengths else None
     centre = cameras.centre()
     coeffs = []
@@ -317,6 +332,7 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
         last = n == len(plan) - 1
         if last and given is None and len(skeleton.limbs):
             X, _ = _blend(batches, coeffs, F, J, s.overlap)
+            X[~determined] = np.nan               # lengths from what two cameras see
             lengths = limb_lengths(X, skeleton, s.symmetric_limbs)
         lam = s.lambda_limbs / s.limb_unit ** 2 if last else 0.0
         L = np.nan_to_num(lengths)
@@ -343,7 +359,8 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
     n_views = np.sum(np.isfinite(obs[..., 0]) & (np.nan_to_num(obs[..., 2]) >
                                                   s.min_confidence), axis=1)
     X[views == 0] = np.nan
-    gaps = find_gaps(obs, s.min_confidence, s.support_frames, breaks, cameras, X)
+    gaps = find_gaps(obs, s.min_confidence, s.support_frames, breaks, cameras, X,
+                     max_error_px=s.inlier_px)
     X[gaps.mask] = np.nan
     return Reconstruction(joints=X, n_views=n_views, limb_lengths=lengths,
                           energy=stages[-1]["energy"], iterations=iterations,
