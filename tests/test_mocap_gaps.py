@@ -151,6 +151,12 @@ def test_metrics_are_empty_where_a_joint_they_need_is_a_gap_and_flagged(run):
     knee = gap[:, [J("r_hip"), J("r_knee"), J("r_ankle")]].any(1)
     assert [v == "" for v in col["knee_flexion_r"]] == knee.tolist()
     assert knee[20:30].all() and com_gap[35:41].all() and com_gap[45:48].all()
+    # the results folder still loads for the exports (photogram export)
+    from photogram.io.trajectories import load_trajectories
+    traj = load_trajectories(res)
+    M = np.stack([traj.markers[n] for n in SKI24.joints], axis=1)
+    assert np.array_equal(np.isnan(M).any(-1), gap)
+    assert np.array_equal(np.isnan(traj.mot["knee_flexion_r"]), knee)
 
 
 def _nan_energy(monkeypatch):
@@ -269,3 +275,25 @@ def test_biomechanics_with_gaps():
     assert np.allclose(b["com_x"][ok], full["com_x"][ok])
     # without the mask a missing segment is left out (the skeleton lacks it)
     assert np.isfinite(biomechanics(X, SKI24, sim.fps)["com_x"][10])
+
+
+def test_mark_gaps_finds_the_gaps_of_a_solve_that_did_not_mark_them():
+    """The estimated-rotation solve leaves its gaps to the pipeline."""
+    from photogram.mocap.reconstruction.reconstruct import (Reconstruction,
+                                                            ReconstructionSettings)
+    from photogram.mocap.stages import mark_gaps
+    sim, one, none = _blanked(2)
+    rec = Reconstruction(joints=sim.joints.copy(), n_views=None, limb_lengths=None,
+                         energy=1.0, iterations=1, seconds=0.0, solver="test", n_windows=1)
+    warnings = []
+    out = mark_gaps(rec, sim.observations, sim.cameras, SKI24, ReconstructionSettings(), [],
+                    warnings)
+    views = np.sum(np.isfinite(sim.observations[..., 0])
+                   & (np.nan_to_num(sim.observations[..., 2]) > 0), axis=1)
+    gap = np.isnan(out.joints).any(-1)
+    assert np.array_equal(out.gaps.mask, gap) and np.all(gap[views < 2])
+    # with the true joints only the simulated outliers and swaps disagree
+    corrupted = sim.outlier.any(1) | sim.swapped.any(1)[:, None]
+    assert np.all(corrupted[gap & (views >= 2)])
+    assert len(warnings) == 1 and f"{out.gaps.total} of 1440" in warnings[0]
+    assert not np.isnan(rec.joints).any()                  # the input is not changed
