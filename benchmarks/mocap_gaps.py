@@ -189,9 +189,10 @@ def main_(argv=None):
     parts = []
     for name, r in key.items():
         tag = name.replace("-", "")
+        old = r["old_rule_one_camera_valid"] + r["old_rule_no_camera_valid"]
         parts += [f"one_camera_valid_{tag}={r['one_camera_valid']}",
                   f"no_camera_valid_{tag}={r['no_camera_valid']}",
-                  f"old_rule_valid_{tag}={r['old_rule_one_camera_valid'] + r['old_rule_no_camera_valid']}",
+                  f"old_rule_valid_{tag}={old}",
                   f"mpjpe_cm_{tag}={r['mpjpe_cm']:.2f}", f"median_cm_{tag}={r['median_cm']:.2f}",
                   f"reported_{tag}={r['reported_share']:.3f}",
                   f"consistent_{tag}={int(r['gaps_consistent'])}"]

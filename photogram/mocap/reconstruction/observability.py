@@ -1,17 +1,18 @@
 """Which joint-frames the detections determine, and why the others are gaps
 (docs/mocap.md section 6, "Gaps").
 
-A joint is located in 3D at a frame by the rays of at least two cameras.
-A camera observes joint j at frame f when its detection there has finite
+A joint is located in 3D at a frame by the rays of at least two cameras. A
+camera observes joint j at frame f when its detection there has finite
 coordinates and a confidence above the reconstruction's ``min_confidence``
 (and above 0) and, once the joints are reconstructed, the joint lies in
 front of that camera (a ray does not meet a point behind its camera) and,
 with ``max_error_px`` (``inlier_sigmas`` x sqrt(sigma2) of
-``[mocap.reconstruction]``, 3 x 20 = 60 px by default), the joint projects
-within that distance of the detection: two cameras whose detections the
-solve cannot both fit (one camera's depth left free beside a long
-occlusion, an outlier the robust norm all but ignores) do not determine
-the joint. A joint-frame observed by fewer than two cameras is a **gap**: the
+``[mocap.reconstruction]``, 3 x 20 = 60 px by default), projects within
+that distance of the detection: two cameras whose detections the solve
+cannot both fit (one camera's depth left free beside a long occlusion, an
+outlier the robust norm all but ignores) do not determine the joint.
+
+A joint-frame observed by fewer than two cameras is a **gap**: the
 reconstruction there is an extrapolation of the DCT trajectory (one camera
 constrains two of the three coordinates; with a moving skier the
 unconstrained depth was 35-56 m wrong in issue 22) and is never reported as
@@ -47,7 +48,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["REASONS", "GAP_REASONS", "DETERMINED", "NO_CAMERA", "ONE_CAMERA", "BEHIND",
-           "DISAGREE", "NOT_SOLVED", "Gaps", "observing_cameras", "bridge_short_runs", "find_gaps"]
+           "DISAGREE", "NOT_SOLVED", "Gaps", "observing_cameras", "bridge_short_runs",
+           "find_gaps"]
 
 DETERMINED, NO_CAMERA, ONE_CAMERA, BEHIND, DISAGREE, NOT_SOLVED = 0, 1, 2, 3, 4, 5
 #: reason code -> name (summary.json ``gaps.by_reason``)
@@ -121,8 +123,8 @@ class Gaps:
     ``reason`` (F, J) int: 0 determined (or bridged), 1 no camera, 2 one
     camera, 3 behind the cameras, 4 cameras disagree, 5 not solved;
     ``views`` (F, J) the cameras observing each joint-frame (in front of
-    them and fitted);
-    ``bridged`` (F, J) True where ``support_frames`` bridged a short run.
+    them and fitted); ``bridged`` (F, J) True where ``support_frames``
+    bridged a short run.
     """
 
     reason: np.ndarray
