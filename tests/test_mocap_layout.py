@@ -20,8 +20,10 @@ ALLOWED = {
     "evaluation": {"body"},
     "files": {"body", "tracking", "sources", "motion", "reconstruction", "evaluation"},
     "outputs": {"body", "tracking", "sources", "motion", "reconstruction", "evaluation", "files"},
+    "comparisons": {"body", "reconstruction", "evaluation", "files"},
+    "stages": {"body", "tracking", "sources", "motion", "reconstruction", "evaluation", "files"},
     "pipeline": {"body", "tracking", "sources", "motion", "reconstruction", "evaluation", "files",
-                 "outputs"},
+                 "outputs", "comparisons", "stages"},
 }
 ABOVE = ("photogram.simulation", "photogram.commands", "photogram.report", "photogram.montecarlo",
          "photogram.jump", "photogram.measure", "photogram.demo", "photogram_cli")

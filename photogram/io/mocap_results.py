@@ -142,7 +142,7 @@ def _mot_columns(path: Path, times, to_m: float, read_csv):
     """``{column: values}`` for the .mot file (degrees, m, m/s), or None."""
     if not path.is_file():
         return None
-    table = read_csv(path, ("time",), ("outside",))
+    table = read_csv(path, ("time",), ("outside", "gap_joints"))
     t = table["time"].to_numpy(float)
     if len(t) != len(times) or not np.allclose(t, times, rtol=0, atol=1e-5):
         raise InputError("metrics.csv and joints3d.csv have different frames or times",

@@ -4,13 +4,14 @@
 file                     content
 =======================  ==========================================================
 ``joints3d.csv``         frame, time, ``<joint>_X/_Y/_Z`` (project length unit, world
-                         axes, Z up; empty: not reconstructed)
+                         axes, Z up; empty: a gap, fewer than two cameras)
 ``joints3d.trc``         the same for OpenSim (Y up: ``(X, Y, Z)`` is written as
-                         ``(Y, Z, X)``, photogram.io.trc)
-``joints3d.c3d``         the same as C3D points (world axes, Z up, mm; needs the
-                         ``c3d`` package, skipped without it)
+                         ``(Y, Z, X)``, photogram.io.trc; gaps ``NaN``)
+``joints3d.c3d``         the same as C3D points (world axes, Z up, mm; gaps invalid,
+                         residual -1; needs the ``c3d`` package, skipped without it)
 ``metrics.csv``          per frame: CoM, speed, knee and hip flexion, lean,
-                         outside leg, fore/aft angle and distance
+                         outside leg, fore/aft angle and distance (empty where
+                         a joint they need is a gap), ``gap_joints``
 ``angles.mot``           the angles of metrics.csv for OpenSim (degrees, NaN gaps)
 ``camera_rotations.mot`` pan-tilt cameras: pan, tilt, roll per camera and frame
                          (degrees about the world's up axis; mocap/files.py)
@@ -18,8 +19,9 @@ file                     content
 ``reprojection.csv``     per camera: median, median residual vector (x, y), mean,
                          90th percentile (px), count
 ``bones.csv``            per limb: mean length, standard deviation, CV
-``summary.json``         settings, counts, solver, timings, accuracy (truth),
-                         comparison with the reference
+``summary.json``         settings, counts, solver, timings, ``gaps`` (how many
+                         joint-frames and why), accuracy (truth), comparison
+                         with the reference
 ``*.png``                trajectory, angles, speed, reprojection errors, skeletons
 ``log.txt``              the log of the run
 =======================  ==========================================================
@@ -86,6 +88,8 @@ def summary(result, project) -> dict:
         "timings": result.info.get("timings", {}),
         "warnings": list(project.warnings),
     }
+    if rec.gaps is not None:                    # joint-frames fewer than 2 cameras see
+        out["gaps"] = rec.gaps.summary(result.skeleton.joints)
     if "people" in result.info:                 # the multi-view choice (section 5)
         out["people"] = result.info["people"]
     if result.info.get("rotation") == "estimate":
@@ -148,6 +152,7 @@ def write_outputs(result, project, folder: Path, log_text: str = "") -> list[Pat
     b = result.biomechanics
     cols = {"frame": result.frames, "time": np.round(result.times, 6)}
     cols.update({k: (v if k == "outside" else np.round(v, 6)) for k, v in b.items()})
+    cols["gap_joints"] = _gap_joints(result)
     written.append(atomic_write_text(folder / "metrics.csv", format_table(
         cols, comment="per-frame quantities of photogram mocap (docs/mocap.md, Metrics)")))
     from photogram.mocap.files import write_angles_mot, write_camera_rotations_mot
@@ -185,6 +190,15 @@ def write_outputs(result, project, folder: Path, log_text: str = "") -> list[Pat
         summary(result, project), indent=2, allow_nan=False) + "\n"))
     written.append(atomic_write_text(folder / "log.txt", log_text))
     return written
+
+
+def _gap_joints(result) -> list[str]:
+    """Per frame the joints that are gaps (space separated; empty: none)."""
+    gaps = result.reconstruction.gaps
+    if gaps is None:
+        return [""] * len(result.frames)
+    names = np.array(result.skeleton.joints)
+    return [" ".join(names[row]) for row in gaps.mask]
 
 
 def _write_c3d(path: Path, X, sk, fps, unit):

@@ -7,7 +7,9 @@ Pose2Sim calibration; rotations per frame from ``camera_frames``); open the
 source and track the athlete in every camera; map the detections onto the
 reconstruction skeleton (``skeleton`` of ``[mocap]``; default: the source's,
 a generic skeleton); cut the frame range; reconstruct
-(:mod:`photogram.mocap.reconstruction.reconstruct`); post-filter the joints
+(:mod:`photogram.mocap.reconstruction.reconstruct`; a non-finite energy is
+an error); mark the joint-frames fewer than two cameras observe as gaps
+(:mod:`photogram.mocap.reconstruction.observability`); post-filter the joints
 (``[mocap.filter]``, :mod:`photogram.mocap.reconstruction.filtering`);
 compute the per-frame quantities (:mod:`photogram.mocap.evaluation.metrics`),
 the reprojection errors per camera and the bone-length variation; compare
@@ -34,7 +36,7 @@ from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.reconstruct import (Reconstruction, ReconstructionSettings,
                                                         reconstruct)
 from photogram.mocap.sources import open_source
-from photogram.mocap.stages import choose_people, post_filter, synchronise
+from photogram.mocap.stages import choose_people, mark_gaps, post_filter, synchronise
 from photogram.mocap.tracking.athlete import TrackingSettings
 
 __all__ = ["MocapResult", "run_mocap", "reprojection_errors", "REFERENCE_CONFIDENCE"]
@@ -171,17 +173,23 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
             ms, cameras, tracked, (lo, hi), first, project.warnings, breaks,
             cache=project.output_folder() / PARTIAL / "rotation_differences")
         timings["rotation_differences_s"] = time.perf_counter() - t1
-        rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights,
-                                           estimate_settings(**rs), breaks)
+        settings = estimate_settings(**rs)
+        rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights, settings,
+                                           breaks)
         cameras = replace(cameras, R=rec.R)
         rotation_info = {"differences": per_camera, "weights": weights}
     else:
-        rec = reconstruct(obs, cameras, skeleton, ReconstructionSettings(**rs), breaks)
+        settings = ReconstructionSettings(**rs)
+        rec = reconstruct(obs, cameras, skeleton, settings, breaks)
     log.info("reconstruction: %d frames, %d windows, %s, energy %.6g, %d iterations, %.1f s",
              len(frames), rec.n_windows, rec.solver, rec.energy, rec.iterations, rec.seconds)
+    from photogram.mocap.evaluation.checks import check_energy
+    check_energy(rec.stages, rec.energy, file=project.path)
     timings["reconstruction_s"] = rec.seconds
+    rec = mark_gaps(rec, obs, cameras, skeleton, settings, breaks, project.warnings)
     rec, filter_report = post_filter(rec, ms, breaks, project.warnings)
-    bio = biomechanics(rec.joints, skeleton, ms.fps, breaks, ms.up, ms.outside_leg)
+    bio = biomechanics(rec.joints, skeleton, ms.fps, breaks, ms.up, ms.outside_leg,
+                       gaps=rec.gaps.mask)
     result = MocapResult(
         skeleton=skeleton, fps=ms.fps, frames=frames, cameras=cameras, observations=obs,
         tracked=tracked, reconstruction=rec, biomechanics=bio,

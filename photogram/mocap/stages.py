@@ -1,7 +1,8 @@
 """Stages of ``photogram mocap`` between the detections and the
 reconstruction (docs/mocap.md): the synchronisation of the cameras
 (``offsets``), the multi-view choice of the athlete among the candidates
-of every camera, and the zero-lag post-filter of the joints."""
+of every camera, the gaps (joint-frames fewer than two cameras observe)
+and the zero-lag post-filter of the joints."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.reconstruct import Reconstruction
 from photogram.mocap.tracking.athlete import TrackingSettings
 
-__all__ = ["shift_candidates", "choose_people", "post_filter", "synchronise"]
+__all__ = ["shift_candidates", "choose_people", "mark_gaps", "post_filter", "synchronise"]
 
 log = logging.getLogger(__name__)
 
@@ -92,10 +93,38 @@ def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: Trackin
     return chosen, people
 
 
+def mark_gaps(rec: Reconstruction, obs, cameras: MocapCameras, skeleton, settings, breaks,
+              warnings: list) -> Reconstruction:
+    """The reconstruction with its gaps NaN and described
+    (:mod:`photogram.mocap.reconstruction.observability`; ``settings``: the
+    reconstruction's ``min_confidence``, ``support_frames`` and
+    ``inlier_px``). The known-
+    rotation solve marks them itself; the estimated rotations' are found
+    here with the estimated cameras. A warning (log and ``warnings``) says
+    how many joint-frames are gaps and why."""
+    if rec.gaps is None:
+        from photogram.mocap.reconstruction.observability import find_gaps
+        gaps = find_gaps(obs, settings.min_confidence, settings.support_frames, breaks,
+                         cameras, rec.joints, max_error_px=settings.inlier_px)
+        X = np.array(rec.joints, dtype=float)
+        X[gaps.mask] = np.nan
+        rec = replace(rec, joints=X, gaps=gaps)
+    note = rec.gaps.describe()
+    if note:
+        per_joint = rec.gaps.summary(skeleton.joints)["per_joint"]
+        worst = sorted(per_joint.items(), key=lambda kv: -kv[1])[:5]
+        log.warning("warning: %s", note)
+        log.info("gaps per joint (most): %s", ", ".join(f"{n} {c}" for n, c in worst))
+        warnings.append(note)
+    return rec
+
+
 def post_filter(rec: Reconstruction, ms, breaks, warnings: list):
     """The zero-lag filter of ``[mocap.filter]`` (default Butterworth, order
     4, 6 Hz: :mod:`photogram.mocap.reconstruction.filtering`) on the joints,
-    before any metric; the unfiltered joints stay in ``rec.unfiltered``."""
+    before any metric, over every contiguous run of finite values on its own:
+    gaps stay NaN and are never bridged; the unfiltered joints stay in
+    ``rec.unfiltered``."""
     from photogram.mocap.reconstruction.filtering import FilterSettings, filter_joints
     X, report = filter_joints(rec.joints, ms.fps, FilterSettings(**ms.filter), breaks)
     if report.get("note"):

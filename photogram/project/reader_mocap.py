@@ -40,7 +40,8 @@ RECONSTRUCTION_KEYS = ("solver", "n_dct", "window", "overlap", "sigma2", "lambda
                        "lambda_limbs", "gnc_start", "max_iterations", "tolerance",
                        "symmetric_limbs", "min_confidence", "support_frames", "limb_unit",
                        "step_tol", "n_rotation_dct", "lambda_rot", "bootstrap_iterations",
-                       "pose_basis", "rotation_basis", "rotation_prior", "cutoff_hz")
+                       "pose_basis", "rotation_basis", "rotation_prior", "cutoff_hz",
+                       "inlier_sigmas")
 FILTER_KEYS = ("type", "order", "cutoff_hz")
 FILTER_TYPES = ("butterworth", "none")
 _FORBIDDEN = ("points", "observations", "constraints", "intersect", "montecarlo",
@@ -236,7 +237,7 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
                 else:
                     zero_ok = key in ("lambda_limbs", "min_confidence", "lambda_rot",
                                       "box_margin", "max_failed", "sigma",
-                                      "association_confidence")
+                                      "association_confidence", "inlier_sigmas")
                     values[key] = sub.number(key, nonnegative=zero_ok, positive=not zero_ok)
         subs[name] = values
     images = None

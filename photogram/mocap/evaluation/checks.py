@@ -15,6 +15,9 @@ that look like the wrong unit (issue 16, item 10).
   refused; ``deg`` or ``gon`` with every angle within 2 pi (typically
   radians) is a warning: cameras whose axes all lie within 6 deg of the
   vertical are possible, if unusual for motion capture.
+* :func:`check_energy`: a reconstruction whose energy is not finite (NaN
+  or infinite) in any stage has no result to write: refused
+  (:class:`~photogram.errors.GeometryError`, exit 2, no results folder).
 * :func:`check_fit`: after the reconstruction, a camera whose median
   reprojection error exceeds 5 % of its image width (96 px of 1920) does not
   fit the joints: a warning naming it (wrong angles, unit, position, or
@@ -32,9 +35,10 @@ import math
 
 import numpy as np
 
-from photogram.errors import InputError
+from photogram.errors import GeometryError, InputError
 
-__all__ = ["check_coverage", "check_angle_unit", "check_fit", "check_bias", "TWO_PI",
+__all__ = ["check_coverage", "check_angle_unit", "check_energy", "check_fit", "check_bias",
+           "TWO_PI",
            "POOR_FIT", "BIAS_SHARE"]
 
 TWO_PI = 2 * math.pi
@@ -160,6 +164,40 @@ def check_angle_unit(values, unit: str, what: str, file=None, records=None) -> s
                 f"angle_unit is {unit}: they look like radians (if so, set angle_unit = "
                 f"\"rad\" in [project]; omega and phi that small mean cameras looking "
                 f"straight down, unusual for motion capture)")
+    return None
+
+
+def check_energy(stages, energy, file=None) -> None:
+    """Refuse a reconstruction whose energy is not finite.
+
+    Parameters
+    ----------
+    stages : list of dict
+        The stages of the reconstruction (``Reconstruction.stages``); those
+        with an ``energy`` are checked, in order.
+    energy : float
+        The energy reported (the last stage's).
+    file : str or Path, optional
+        The project (for the error).
+
+    Raises
+    ------
+    GeometryError
+        An energy is NaN or infinite: the solve diverged or was given
+        non-finite input, and its joints are no result.
+    """
+    checked = [(k, st) for k, st in enumerate(stages) if "energy" in st]
+    for k, st in checked + [(None, {"energy": energy})]:
+        e = st.get("energy")
+        if e is not None and not math.isfinite(float(e)):
+            where = "the reconstruction" if k is None else (
+                f"stage {k + 1} of {len(stages)} of the reconstruction"
+                + (f" (sigma2 {st['sigma2']:g} px^2)" if "sigma2" in st else ""))
+            raise GeometryError(
+                f"the energy of {where} is {float(e)} (not finite): the solve diverged and "
+                f"its joints are no result; nothing was written", file=file,
+                hint="check the cameras (positions, rotations, interior orientation) and the "
+                     "detections for non-finite or absurd values")
     return None
 
 

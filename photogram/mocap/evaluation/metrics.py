@@ -18,7 +18,8 @@ from photogram.mocap.body.skeleton import BODY14, SKI24, Skeleton, mapping_to
 
 __all__ = ["ski_joints", "centre_of_mass", "speed", "knee_flexion", "hip_flexion",
            "lean_angle", "fore_aft", "biomechanics", "mpjpe", "pck", "mpjpe_2d",
-           "accuracy_3d", "bone_lengths", "segments", "median_residual"]
+           "accuracy_3d", "bone_lengths", "segments", "median_residual", "gap_joints",
+           "COM_JOINTS"]
 
 
 def ski_joints(X: np.ndarray, skeleton: Skeleton) -> dict[str, np.ndarray]:
@@ -158,18 +159,66 @@ def fore_aft(J: dict, com: np.ndarray, outside_leg: str = "extended"):
     return out_a, out_d, side
 
 
+#: the SKI24 joints of the centre of mass (de Leva's segments, section 3)
+COM_JOINTS = ("head", "neck", "r_shoulder", "l_shoulder", "r_elbow", "l_elbow", "r_hand",
+              "l_hand", "r_hip", "l_hip", "r_knee", "l_knee", "r_ankle", "l_ankle", "r_heel",
+              "l_heel", "r_toes", "l_toes")
+#: the joints (besides the CoM's) each quantity depends on
+_DEPENDS = {"knee_flexion_r": ("r_hip", "r_knee", "r_ankle"),
+            "knee_flexion_l": ("l_hip", "l_knee", "l_ankle"),
+            "hip_flexion_r": ("r_shoulder", "l_shoulder", "r_hip", "l_hip", "r_knee"),
+            "hip_flexion_l": ("r_shoulder", "l_shoulder", "r_hip", "l_hip", "l_knee"),
+            "fore_aft": ("r_hip", "l_hip", "r_knee", "l_knee", "r_ankle", "l_ankle",
+                         "r_ski_tip", "l_ski_tip", "r_ski_tail", "l_ski_tail")}
+
+
+def gap_joints(gaps: np.ndarray, skeleton: Skeleton) -> dict[str, np.ndarray]:
+    """SKI24 name -> (F,) True where a joint of ``skeleton`` that it is
+    mapped from is a gap (``gaps`` (F, J) of ``skeleton``); joints the
+    skeleton does not have are never gaps (they are missing throughout)."""
+    gaps = np.asarray(gaps, bool)
+    out = {n: np.zeros(len(gaps), bool) for n in SKI24.joints}
+    try:
+        mapping = mapping_to(SKI24, skeleton)
+    except Exception:
+        return out
+    for name, srcs in mapping.items():
+        out[name] = np.any(gaps[:, skeleton.indices(srcs)], axis=1)
+    return out
+
+
 def biomechanics(X: np.ndarray, skeleton: Skeleton, fps: float, breaks=(),
-                 up=(0.0, 0.0, 1.0), outside_leg: str = "extended") -> dict[str, np.ndarray]:
-    """All per-frame quantities as columns (name -> (F,) array)."""
+                 up=(0.0, 0.0, 1.0), outside_leg: str = "extended",
+                 gaps: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """All per-frame quantities as columns (name -> (F,) array).
+
+    ``gaps`` (F, J), optional: the joint-frames the data do not determine
+    (:mod:`photogram.mocap.reconstruction.observability`). A quantity is
+    NaN at a frame where a joint it depends on is a gap: the CoM (and the
+    speed, lean and fore/aft position from it) where any joint of
+    :data:`COM_JOINTS` is, rather than leaving that segment out as for a
+    joint the skeleton does not have.
+    """
     J = ski_joints(X, skeleton)
     com = centre_of_mass(J)
+    hole = None
+    if gaps is not None:
+        hole = gap_joints(gaps, skeleton)
+        com[np.any([hole[n] for n in COM_JOINTS], axis=0)] = np.nan
     vel, spd = speed(com, fps, breaks)
     ang, dist, side = fore_aft(J, com, outside_leg)
-    return {"com_x": com[:, 0], "com_y": com[:, 1], "com_z": com[:, 2], "speed": spd,
-            "knee_flexion_r": knee_flexion(J, "r"), "knee_flexion_l": knee_flexion(J, "l"),
-            "hip_flexion_r": hip_flexion(J, "r"), "hip_flexion_l": hip_flexion(J, "l"),
-            "lean": lean_angle(J, com, vel, up), "outside": side,
-            "fore_aft_angle": ang, "fore_aft_distance": dist}
+    out = {"com_x": com[:, 0], "com_y": com[:, 1], "com_z": com[:, 2], "speed": spd,
+           "knee_flexion_r": knee_flexion(J, "r"), "knee_flexion_l": knee_flexion(J, "l"),
+           "hip_flexion_r": hip_flexion(J, "r"), "hip_flexion_l": hip_flexion(J, "l"),
+           "lean": lean_angle(J, com, vel, up), "outside": side,
+           "fore_aft_angle": ang, "fore_aft_distance": dist}
+    if hole is not None:
+        for key, names in _DEPENDS.items():
+            bad = np.any([hole[n] for n in names], axis=0)
+            for k in ((key,) if key in out else ("fore_aft_angle", "fore_aft_distance",
+                                                   "outside")):
+                out[k] = np.where(bad, "" if k == "outside" else np.nan, out[k])
+    return out
 
 
 # --------------------------------------------------------------------------

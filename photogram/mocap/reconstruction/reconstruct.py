@@ -21,8 +21,9 @@ function would treat all of them as outliers, so the robust scale starts at
 the paper's 100 px^2. The stages with sigma^2 >= 1e4 px^2 only place the
 athlete roughly and use at most 10 coefficients and every third frame. The
 limb lengths, when not given, are estimated before the last stage as the
-medians of the reconstructed lengths (left and right averaged), and the
-limb prior (given or estimated lengths) is active in the last stage only.
+medians of the reconstructed lengths over the joint-frames two cameras
+detect (left and right averaged), and the limb prior (given or estimated
+lengths) is active in the last stage only.
 The energy reported is that of the last stage: the paper's energy.
 
 Partly observed joints: restricted to the frames a joint is detected in, the
@@ -32,9 +33,11 @@ first 20): the trajectory in the gap is an extrapolation that the energy
 hardly constrains, and the solvers creep along it for ever. Such a joint
 uses the most leading coefficients for which that condition number stays
 below 100 (scattered single missing frames keep all 25); the others stay
-zero. A joint without detections in a window keeps its start and is
-reported as missing (NaN), as is any joint at a frame with fewer than two
-detections within ``support_frames`` frames.
+zero. A joint-frame that fewer than two cameras observe (detected, in
+front, fitted within ``inlier_sigmas`` sqrt(sigma2) px) is a gap
+(:mod:`photogram.mocap.reconstruction.observability`): NaN in the joints,
+its reason in ``Reconstruction.gaps`` (``support_frames`` may bridge short
+runs; default 0, none).
 """
 
 from __future__ import annotations
@@ -52,6 +55,8 @@ from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.dct import (blend_weights, coefficients_for_cutoff, dct_basis,
                                                 plan_windows)
 from photogram.mocap.reconstruction.energy import WindowBatch
+from photogram.mocap.reconstruction.observability import (Gaps, bridge_short_runs, find_gaps,
+                                                          observing_cameras)
 from photogram.mocap.reconstruction.solvers import solve_gauss_newton, solve_lbfgs
 
 __all__ = ["ReconstructionSettings", "Reconstruction", "reconstruct", "limb_lengths",
@@ -96,7 +101,8 @@ class ReconstructionSettings:
     limb_lengths: dict | None = None   # {(a, b): length}; None: estimate
     symmetric_limbs: bool = True
     min_confidence: float = 0.0
-    support_frames: int = 5         # report a joint only with 2 detections within +-5 frames
+    support_frames: int = 0         # bridge gaps (< 2 cameras) of at most this many frames
+    inlier_sigmas: float = 3.0      # a camera counts where its error <= this x sqrt(sigma2)
     step_tol: float = 1e-5          # converged when no determined position moves more (m)
     # unknown camera rotations (photogram.mocap.reconstruction.estimate; estimate_settings())
     rotation: str = "known"         # or "estimate"
@@ -117,6 +123,13 @@ class ReconstructionSettings:
         if self.cutoff_hz is not None and not 0 < self.cutoff_hz < self.fps / 2:
             raise InputError(f"cutoff_hz must be in (0, fps/2 = {self.fps / 2:g}) Hz, not "
                              f"{self.cutoff_hz}")
+
+    @property
+    def inlier_px(self) -> float | None:
+        """Largest reprojection error (px) of a detection that counts for
+        a joint-frame's determination (None: any; ``inlier_sigmas`` 0)."""
+        return float(self.inlier_sigmas) * float(np.sqrt(self.sigma2)) \
+            if self.inlier_sigmas > 0 else None
 
     @property
     def cutoff(self) -> float | None:
@@ -143,10 +156,11 @@ class ReconstructionSettings:
 
 @dataclass
 class Reconstruction:
-    """Result of :func:`reconstruct`: joints (F, J, 3), NaN where a joint has
-    fewer than two detections (any cameras) within ``support_frames`` frames
-    of the frame (the trajectory there is an extrapolation); ``n_views``
-    (F, J) detections per frame."""
+    """Result of :func:`reconstruct`: joints (F, J, 3), NaN at the gaps
+    (joint-frames fewer than two cameras observe, unless ``support_frames``
+    bridges them: the trajectory there is an extrapolation), ``gaps`` their
+    reasons (:class:`~photogram.mocap.reconstruction.observability.Gaps`);
+    ``n_views`` (F, J) detections per frame."""
 
     joints: np.ndarray
     n_views: np.ndarray
@@ -158,6 +172,7 @@ class Reconstruction:
     n_windows: int
     stages: list = field(default_factory=list)
     unfiltered: np.ndarray | None = None    # the joints before a post-filter (pipeline)
+    gaps: Gaps | None = None                # the undetermined joint-frames and why
 
 
 # --------------------------------------------------------------------------
@@ -204,6 +219,7 @@ def _batches(obs, cameras: MocapCameras, skeleton: Skeleton, settings, breaks):
     RX0 = np.einsum("cabf,cb->caf", R, cameras.X0)
     windows = plan_windows(F, settings.window, settings.overlap, settings.coefficients,
                            breaks)
+    determined = _determined(obs, settings, breaks)   # the convergence test watches these
     limbs = skeleton.limb_indices()
     groups: dict[tuple, list] = {}
     for w in windows:
@@ -214,8 +230,7 @@ def _batches(obs, cameras: MocapCameras, skeleton: Skeleton, settings, breaks):
         c = np.ascontiguousarray(conf[:, :, idx].transpose(2, 0, 1, 3))   # (nw, C, J, T)
         B = dct_basis(T, K)
         n_coef = _coefficients(np.any(c > 0, axis=1), B)              # (nw, J)
-        nv = np.sum(c > 0, axis=1).transpose(0, 2, 1)                  # (nw, T, J)
-        support = np.stack([_support(v, settings.support_frames) >= 2 for v in nv])
+        support = determined[idx]                                      # (nw, T, J)
         observed = n_coef > 0
         mask = observed[:, limbs[:, 0]] & observed[:, limbs[:, 1]] if len(limbs) \
             else np.zeros((len(ws), 0), bool)
@@ -230,6 +245,13 @@ def _batches(obs, cameras: MocapCameras, skeleton: Skeleton, settings, breaks):
             support=np.ascontiguousarray(support.transpose(0, 2, 1)))
         out.append((ws, idx, batch))
     return windows, out
+
+
+def _determined(obs, settings, breaks) -> np.ndarray:
+    """(F, J) the joint-frames two cameras detect (short runs bridged by
+    ``support_frames``), before any reconstruction."""
+    views = np.count_nonzero(observing_cameras(obs, settings.min_confidence), axis=1)
+    return bridge_short_runs(views >= 2, settings.support_frames, breaks)
 
 
 def _coefficients(seen: np.ndarray, B: np.ndarray, max_cond: float | None = None):
@@ -292,6 +314,7 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
     t0 = time.perf_counter()
     F, J = obs.shape[0], skeleton.n_joints
     windows, batches = _batches(obs, cameras, skeleton, s, breaks)
+    determined = _determined(obs, s, breaks)
     given = _given_lengths(skeleton, s.limb_lengths) if s.limb_lengths else None
     centre = cameras.centre()
     coeffs = []
@@ -309,6 +332,7 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
         last = n == len(plan) - 1
         if last and given is None and len(skeleton.limbs):
             X, _ = _blend(batches, coeffs, F, J, s.overlap)
+            X[~determined] = np.nan               # lengths from what two cameras see
             lengths = limb_lengths(X, skeleton, s.symmetric_limbs)
         lam = s.lambda_limbs / s.limb_unit ** 2 if last else 0.0
         L = np.nan_to_num(lengths)
@@ -334,15 +358,21 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
     X, views = _blend(batches, coeffs, F, J, s.overlap)
     n_views = np.sum(np.isfinite(obs[..., 0]) & (np.nan_to_num(obs[..., 2]) >
                                                   s.min_confidence), axis=1)
-    X[(views == 0) | (_support(n_views, s.support_frames) < 2)] = np.nan
+    X[views == 0] = np.nan
+    gaps = find_gaps(obs, s.min_confidence, s.support_frames, breaks, cameras, X,
+                     max_error_px=s.inlier_px)
+    X[gaps.mask] = np.nan
     return Reconstruction(joints=X, n_views=n_views, limb_lengths=lengths,
                           energy=stages[-1]["energy"], iterations=iterations,
                           seconds=time.perf_counter() - t0, solver=s.solver,
-                          n_windows=len(windows), stages=stages)
+                          n_windows=len(windows), stages=stages, gaps=gaps)
 
 
 def _support(n_views: np.ndarray, h: int) -> np.ndarray:
-    """Detections of every joint within +-h frames (F, J)."""
+    """Detections of every joint within +-h frames (F, J) (the rule of
+    :mod:`photogram.mocap.reconstruction.estimate`'s own mask; the pipeline
+    applies :func:`~photogram.mocap.reconstruction.observability.find_gaps`
+    after it)."""
     c = np.concatenate([np.zeros((1, n_views.shape[1])), np.cumsum(n_views, axis=0)])
     F = len(n_views)
     lo = np.clip(np.arange(F) - h, 0, F)

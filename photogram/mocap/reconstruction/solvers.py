@@ -40,7 +40,11 @@ __all__ = ["solve_gauss_newton", "solve_lbfgs", "damping_update", "moved_positio
 
 
 def _inv3(A):
-    """Inverses of 3x3 matrices stored as A[..., i, j, k] (k: batch, last)."""
+    """Inverses of 3x3 matrices stored as A[..., i, j, k] (k: batch, last);
+    a singular block (a coefficient no term constrains: its determinant
+    underflows to 0) gets 0, so that the preconditioner leaves it alone
+    instead of filling the step with NaN (issue 22: NaN coefficients of an
+    unobserved joint were accepted, the energy became NaN later)."""
     a, b, c = A[..., 0, 0, :], A[..., 0, 1, :], A[..., 0, 2, :]
     d, e, f = A[..., 1, 0, :], A[..., 1, 1, :], A[..., 1, 2, :]
     g, h, i = A[..., 2, 0, :], A[..., 2, 1, :], A[..., 2, 2, :]
@@ -49,7 +53,10 @@ def _inv3(A):
     co[..., 1, 0, :], co[..., 1, 1, :], co[..., 1, 2, :] = f * g - d * i, a * i - c * g, c * d - a * f
     co[..., 2, 0, :], co[..., 2, 1, :], co[..., 2, 2, :] = d * h - e * g, b * g - a * h, a * e - b * d
     det = a * co[..., 0, 0, :] + b * co[..., 1, 0, :] + c * co[..., 2, 0, :]
-    return co / det[..., None, None, :]
+    ok = np.isfinite(det) & (det != 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(ok[..., None, None, :], co / np.where(ok, det, 1.0)[..., None, None, :],
+                        0.0)
 
 
 def _pcg(lin, damp, Pinv, rhs, tol=1e-3, max_iter=60):
