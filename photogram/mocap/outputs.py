@@ -86,6 +86,8 @@ def summary(result, project) -> dict:
         "timings": result.info.get("timings", {}),
         "warnings": list(project.warnings),
     }
+    if "tracking" in result.info:               # per camera: tracked, lost, re-acquired
+        out["tracking"] = result.info["tracking"]
     if "people" in result.info:                 # the multi-view choice (section 5)
         out["people"] = result.info["people"]
     if result.info.get("rotation") == "estimate":

@@ -71,15 +71,20 @@ def _observations(project, cameras: MocapCameras, allow_plugin: bool = False):
     ms = project.mocap
     source = open_source(ms, cameras.names, project.folder, allow_plugin=allow_plugin)
     tracking = TrackingSettings(**ms.tracking)
+    # pan-tilt cameras (rotations per frame, known or estimated) follow the
+    # athlete: the per-camera choice prefers candidates near the image centre
+    pan_tilt = ms.camera_frames is not None or ms.rotation == "estimate"
     tracked = []
-    for name in cameras.names:
+    for c, name in enumerate(cameras.names):
         if name not in source.cameras:
             tracked.append(None)
             continue
         t0 = time.perf_counter()
-        tracked.append(source.track(name, tracking, wide=name in ms.source.wide))
-        log.debug("camera %s: %d frames tracked (%.1f s)", name, len(tracked[-1].joints),
-                 time.perf_counter() - t0)
+        st = replace(tracking, image_centre=tuple(0.5 * cameras.image_size[c])) if (
+            pan_tilt) else tracking
+        tracked.append(source.track(name, st, wide=name in ms.source.wide))
+        log.debug("camera %s: %d frames (%.1f s)", name, len(tracked[-1].joints),
+                  time.perf_counter() - t0)
     F = max((len(t.joints) for t in tracked if t is not None), default=0)
     if F == 0:
         raise InputError("the source has no detections", file=project.path)
@@ -114,9 +119,14 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     sync_info = None
     if ms.offsets is not None:
         obs, cameras, sync_info = synchronise(obs, cameras, ms)
-    obs, people = (obs, None) if estimate else choose_people(
+    obs, people, person = (obs, None, None) if estimate else choose_people(
         source, cameras, tracked, obs, TrackingSettings(**ms.tracking), first, ms.runs,
         (sync_info or {}).get("applied"))
+    if person is None:          # the per-camera track gives the observations
+        person = np.full((F, len(tracked)), -2)
+        for c, t in enumerate(tracked):
+            if t is not None:
+                person[:len(t.person), c] = np.asarray(t.person)[:F]
     skeleton = source.skeleton
     if ms.skeleton is not None:
         try:
@@ -138,9 +148,14 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
                            f"{first}..{first + F - 1}")
     obs, frames = obs[lo:hi], frames[lo:hi]
     cameras = cameras.select_frames(np.arange(lo, hi)) if cameras.n_frames else cameras
-    tracked = [None if t is None else type(t)(t.camera, t.joints[lo:hi], t.detected[lo:hi],
-                                                t.boxes[lo:hi], t.person[lo:hi])
-               for t in tracked]
+    tracked = [None if t is None else type(t)(
+        t.camera, t.joints[lo:hi], t.detected[lo:hi], t.boxes[lo:hi], t.person[lo:hi],
+        None if t.status is None else t.status[lo:hi]) for t in tracked]
+    from photogram.mocap.tracking.report import describe_tracking, tracking_report
+    tracking_info = tracking_report(tracked, frames, cameras.names, person[lo:hi],
+                                    (people or {}).get("cameras"))
+    for line in describe_tracking(tracking_info):
+        log.info("%s", line)
     breaks = [r - frames[0] for r in ms.runs if frames[0] < r <= frames[-1]]
     rs = dict(ms.reconstruction)
     from photogram.mocap.evaluation.checks import check_coverage
@@ -182,7 +197,7 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
         reprojection=reprojection_errors(rec.joints, cameras, obs),
         bones=bone_lengths(rec.joints, skeleton), breaks=breaks,
         info={"source": source.describe(), "timings": timings, "rotation": ms.rotation,
-              "filter": filter_report, **rotation_info,
+              "filter": filter_report, "tracking": tracking_info, **rotation_info,
               **({"sync": sync_info} if sync_info else {}),
               **({"people": people} if people else {})})
     from photogram.mocap.evaluation.checks import check_fit

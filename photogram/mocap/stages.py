@@ -61,7 +61,9 @@ def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: Trackin
             continue
         try:
             det = source.detections(name)
-            rows = select_person(det, tracking.min_confidence)
+            c = cameras.index(name)     # pan-tilt cameras: as the per-camera track
+            rows = select_person(det, tracking.min_confidence, tracking.gate,
+                                 0.5 * cameras.image_size[c] if cameras.n_frames else None)
         except NotImplementedError:                 # image detectors: the tracked person
             det, rows = tracked_candidates(t, source.skeleton)
         k = int(np.floor((offsets or {}).get(name, 0.0)))
@@ -80,8 +82,15 @@ def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: Trackin
             from photogram.mocap.evaluation.sync_shift import shift_observations
             c = cameras.index(name)
             chosen[:, c] = shift_observations(chosen[:, c], o - np.floor(o))
+    person = np.full(assoc.rows.shape, -2)
+    for c, det in enumerate(candidates):
+        take = assoc.rows[:, c] >= 0
+        if det is not None and take.any():
+            person[take, c] = det.person[assoc.rows[take, c]]
     for lo, hi in assoc.undecided_runs:     # mostly inconsistent: the cameras are wrong,
         chosen[lo:hi] = obs[lo:hi]          # the per-camera choice is kept
+        for c, t in enumerate(tracked):
+            person[lo:hi, c] = -2 if t is None else np.asarray(t.person)[lo:hi]
         log.info("frames %d..%d: the cameras are mostly inconsistent with each other (%g px); "
                  "the per-camera choice of the athlete is kept", first + lo, first + hi - 1,
                  tracking.association_px)
@@ -89,7 +98,7 @@ def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: Trackin
               "undecided_runs": [[first + lo, first + hi - 1] for lo, hi in assoc.undecided_runs],
               "seed_frames": [first + f for f in assoc.seeds], "sizes": assoc.sizes,
               "settings": vars(assoc.settings).copy()}
-    return chosen, people
+    return chosen, people, person
 
 
 def post_filter(rec: Reconstruction, ms, breaks, warnings: list):
