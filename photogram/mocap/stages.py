@@ -46,9 +46,11 @@ def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: Trackin
     section 5; :mod:`photogram.mocap.tracking.multiview`): the observations
     and the per-camera report (None: not run). ``offsets`` (camera ->
     frames, applied to ``obs`` already): the candidates are renumbered by
-    the whole frames, the chosen joints shifted by the rest."""
+    the whole frames, the chosen joints shifted by the rest. Also returns
+    the source's person id of every observation (F, C) (-2: none, -1:
+    unknown; None: not run)."""
     if not tracking.multiview or sum(t is not None for t in tracked) < 2:
-        return obs, None
+        return obs, None, None
     from photogram.mocap.tracking.athlete import select_person
     from photogram.mocap.tracking.multiview import (associate, describe,
                                                     settings_from_tracking,

@@ -11,26 +11,33 @@ of a frame:
    insensitive to a wild joint) and a quality ``q`` (the sum of the joint
    confidences over the joint count: mean confidence times the fraction
    seen). With ``image_centre`` given (a **pan-tilt** camera that follows
-   the athlete) ``q`` is multiplied by ``exp(-r^2 / (2 * 0.3^2))``, ``r``
-   the distance from the image centre over the half diagonal: the athlete
-   stays near the centre, a bystander drifts across the image as the camera
-   pans, a person beside the athlete stays beside it;
+   the athlete) ``q`` is multiplied by ``exp(-r^2 / (2 * 0.15^2))``, ``r``
+   the distance from the image centre over the half diagonal (scale
+   :data:`CENTRE_SCALE` = 0.15), and by a motion weight
+   ``exp(-m^2 / (2 * 0.05^2))``, ``m`` the image speed of the candidate's
+   tracklet over +-5 frames in sizes per frame: the athlete stays near the
+   centre and nearly still, a bystander standing still drifts across the
+   image as the camera pans, a person beside the athlete stays beside it;
 2. **tracklets**: candidates are linked frame to frame (gaps of up to
    :data:`LINK_GAP` frames) by an optimal assignment on the distance to the
    constant-velocity prediction and the size ratio; a link needs the centre
    within ``gate`` (0.5) sizes per frame of the prediction and a size ratio
    below :data:`SIZE_RATIO` (2);
-3. **chain**: one sequence of tracklets, disjoint in time, of the largest
-   total quality minus a cost per link (dynamic programming over the
-   tracklets ordered by their first frame): :data:`LINK_COST` for a link
-   whose start lies in the gate of the previous tracklet's end (a gate of
-   ``gate + GATE_GROWTH * (g - 1)`` sizes after ``g`` frames, a size
-   ratio limit that grows likewise: the longer the athlete was lost, the
-   farther it may be found) and :data:`REACQUIRE_COST` (in frames of full
-   quality) for a link anywhere else in the image (the full-image search:
-   only a tracklet worth more than that is taken). The track is therefore
-   re-acquired wherever it continues best after a loss, and its seed is the
-   best whole sequence, not the largest, surest detection of one frame.
+3. **chain**: every tracklet is cut where another one starts or ends; the
+   athlete is the sequence of such segments, disjoint in time, of the
+   largest total quality minus a cost per link (dynamic programming over
+   the segments ordered by their first frame): nothing to go on within a
+   tracklet; :data:`LINK_COST` (0.2) for a link whose start lies in the gate
+   of the previous segment's end (``gate + GATE_GROWTH * (g - 1)`` sizes
+   after ``g`` frames, GATE_GROWTH = 0.05, and a ratio of the median sizes
+   below :data:`CHAIN_SIZE_RATIO` (1.5) that grows likewise: the longer the
+   athlete was lost, the farther it may be found); :data:`REACQUIRE_COST`
+   (15 frames of full quality) for a link anywhere else in the image (the
+   full-image search: only a tracklet worth more than that is taken); and
+   :data:`SWITCH_COST` (50) for leaving a tracklet that goes on for another
+   one (an identity switch). The track is therefore re-acquired wherever it
+   continues best after a loss, and its seed is the best whole sequence,
+   not the largest, surest detection of one frame.
 
 Per frame the chain gives the chosen row (-1: none) and a status:
 :data:`TRACKED`, :data:`ACQUIRED` (the first frame of the track, the
@@ -48,7 +55,8 @@ from scipy.optimize import linear_sum_assignment
 from photogram.mocap.tracking.detections import CameraDetections
 
 __all__ = ["PersonTrack", "follow_person", "candidate_states", "TRACKED", "ACQUIRED", "LOST",
-           "LINK_GAP", "SIZE_RATIO", "GATE_GROWTH", "LINK_COST", "REACQUIRE_COST",
+           "LINK_GAP", "SIZE_RATIO", "CHAIN_SIZE_RATIO", "GATE_GROWTH", "LINK_COST",
+           "REACQUIRE_COST", "SWITCH_COST",
            "CENTRE_SCALE", "MOTION_FRAMES", "MOTION_SCALE"]
 
 #: per-frame status (the codes of :mod:`photogram.mocap.tracking.crop_tracking`)
@@ -57,10 +65,13 @@ TRACKED, ACQUIRED, LOST = 0, 1, 2
 LINK_GAP = 2
 #: largest size ratio between linked frames of a tracklet
 SIZE_RATIO = 2.0
+#: largest ratio of the median sizes (5 frames) at a link of the chain
+CHAIN_SIZE_RATIO = 1.5
 #: growth of the gate (sizes per frame lost) between tracklets of the chain
 GATE_GROWTH = 0.05
-#: cost of a link in the gate, and of one outside it (frames of quality 1)
-LINK_COST, REACQUIRE_COST = 0.2, 15.0
+#: cost of a link in the gate, of one outside it, and of leaving a tracklet
+#: that goes on for another one (frames of quality 1)
+LINK_COST, REACQUIRE_COST, SWITCH_COST = 0.2, 15.0, 50.0
 #: width of the image-centre weight (fraction of the half diagonal)
 CENTRE_SCALE = 0.15
 #: frames either side and scale (sizes per frame) of the motion weight
@@ -226,6 +237,7 @@ def follow_person(det: CameraDetections, min_confidence: float = 0.1, gate: floa
     start = np.array([frames[r[0]] for _, r in segs])
     end = np.array([frames[r[-1]] for _, r in segs])
     value = np.array([quality[r].sum() for _, r in segs])
+    last_frame = np.array([frames[t[-1]] for t in tracks])
     heads = [_end_state(r, frames, centre, size, False) for _, r in segs]
     tails = [_end_state(r, frames, centre, size, True) for _, r in segs]
     c_end = np.array([s[0] for s in tails])
@@ -242,8 +254,10 @@ def follow_person(det: CameraDetections, min_confidence: float = 0.1, gate: floa
         grow = gate + GATE_GROWTH * (g - 1.0)
         d = np.linalg.norm(heads[j][0] - pred, axis=-1) / (grow * s_end[before])
         r = np.abs(np.log(heads[j][1] / s_end[before])) / (
-            np.log(SIZE_RATIO) * (1.0 + GATE_GROWTH / gate * (g - 1.0)))
+            np.log(CHAIN_SIZE_RATIO) * (1.0 + GATE_GROWTH / gate * (g - 1.0)))
         cost = np.where((d <= 1.0) & (r <= 1.0), LINK_COST, REACQUIRE_COST)
+        # leaving a tracklet that goes on for another one: an identity switch
+        cost = np.where(last_frame[owner[before]] > end[before], SWITCH_COST, cost)
         cost = np.where(owner[before] == owner[j], 0.0, cost)   # the same tracklet goes on
         gain = best[before] - cost
         k = int(np.argmax(gain))
@@ -277,5 +291,6 @@ def _in_gate(tail, head, gate, g):
     pred = c + v * min(g, _MAX_EXTRAPOLATION)
     grow = gate + GATE_GROWTH * (g - 1.0)
     d = np.linalg.norm(head[0] - pred) / (grow * s)
-    r = abs(np.log(head[1] / s)) / (np.log(SIZE_RATIO) * (1.0 + GATE_GROWTH / gate * (g - 1.0)))
+    r = abs(np.log(head[1] / s)) / (np.log(CHAIN_SIZE_RATIO)
+                                    * (1.0 + GATE_GROWTH / gate * (g - 1.0)))
     return bool(d <= 1.0 and r <= 1.0)
