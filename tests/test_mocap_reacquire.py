@@ -243,11 +243,71 @@ def test_command_reports_tracking_truthfully(tmp_path, estimate):
         assert rep["frames"] == N and rep["tracked"] == int(truth.sum()), (name, rep)
         assert rep["lost"] == int((~truth).sum())
         assert list(rep["persons"]) == ["0"], (name, rep["persons"])   # no bystander frame
-        if not estimate:
-            assert rep["other_person"] == 0
+        # known rotations: the multi-view choice; estimated: its check with
+        # the estimated rotations after the reconstruction
+        assert rep["other_person"] == 0
+        assert rep["multiview_left_out"] <= (10 if estimate else 2), (name, rep)
     c1 = tracking["C1"]
     assert [CMD_LOSS[0], CMD_LOSS[1] - 1] in c1["lost_runs"]
     assert CMD_LOSS[1] in c1["reacquired_frames"]
+    if estimate:
+        assert summary["people"]["mode"] == "check with the estimated rotations"
     log = (out / "log.txt").read_text()
     assert "camera C1: athlete tracked in" in log and "re-acquired" in log
     assert summary["accuracy"]["mpjpe"] < (0.5 if estimate else 0.03)
+
+
+@pytest.mark.filterwarnings("ignore:No analog data")
+def test_estimate_mode_check_reports_a_per_camera_track_on_another_person(tmp_path):
+    """Estimated rotations: a surer person on top of the athlete in C3 (its
+    pose of 30 frames later, confidence 0.95) wins the per-camera track
+    there (nothing tells them apart in one view); the multi-view check with
+    the estimated rotations takes the athlete in some of those frames and
+    finds most of the others inconsistent: the poses and rotations are
+    estimated again from the multi-view choice, without the other person,
+    and the log and summary say so."""
+    from photogram.mocap.motion.homography import RotationDifferences
+    from photogram.mocap.motion.rotation_series import write_rotation_differences
+    from photogram.simulation.ski.simproject import (write_estimate_project,
+                                                      write_simulated_project)
+    from photogram_cli.main import main
+    n = 60
+    s = simulate_session(seed=8, frames_per_run=n)
+    write_simulated_project(s, tmp_path, name="ski")
+    obs = s.observations
+    dets = compose(obs, SKI24, s.cameras.names,
+                   [(2, copied_bystander(obs[:, 2], 30, 1.0, (0.0, 0.0)))])
+    lines = ["frame,camera,joint,x,y,confidence,person"]
+    for d in dets:
+        r, j = np.nonzero(np.nan_to_num(d.joints[..., 2]) > 0)
+        lines += [f"{d.frames[i]},{d.camera},{SKI24.joints[k]},{d.joints[i, k, 0]:.2f},"
+                  f"{d.joints[i, k, 1]:.2f},{d.joints[i, k, 2]:.3f},{d.person[i]}"
+                  for i, k in zip(r, j)]
+    (tmp_path / "detections.csv").write_text("\n".join(lines) + "\n")
+    R = s.cameras.rotations(n)
+    write_rotation_differences(tmp_path / "rotation_differences.csv", {
+        name: RotationDifferences(R[1:, c] @ np.swapaxes(R[:-1, c], -1, -2),
+                                  np.full(n - 1, 500), np.full(n - 1, 600),
+                                  np.ones(n - 1, bool), 0.0, n)
+        for c, name in enumerate(s.cameras.names)})
+    prj = write_estimate_project(s, tmp_path, name="ski")
+    assert main(["mocap", "-q", str(prj)]) == 0
+    summary = json.loads((tmp_path / "results-estimate" / "summary.json").read_text())
+    people = summary["people"]
+    assert people["mode"] == "chosen with the estimated rotations (second pass)"
+    first = people["first_pass"]["C3"]
+    assert first["other_person"] > 0
+    assert first["other_person"] + first["per_camera_left_out"] > n // 2
+    assert all(people["first_pass"][c]["other_person"] == 0 for c in ("C1", "C2", "C4", "C5"))
+    assert any("camera C3" in w and "estimated again" in w for w in summary["warnings"])
+    for name, rep in summary["tracking"].items():
+        if name != "C3":
+            assert list(rep["persons"]) == ["0"], (name, rep["persons"])
+    # C3: the other person in 49 frames of the per-camera track, 8 of the
+    # second pass (where its pose, near the athlete's, fits the other
+    # cameras within 40 px)
+    c3 = summary["tracking"]["C3"]
+    assert c3["persons_first_pass"]["1"] > n // 2
+    assert c3["persons"].get("1", 0) < c3["persons_first_pass"]["1"] / 4, c3
+    assert c3["persons"]["0"] > 20
+    assert summary["accuracy"]["mpjpe"] < 0.2

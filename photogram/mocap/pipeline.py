@@ -128,6 +128,7 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
             if t is not None:
                 person[:len(t.person), c] = np.asarray(t.person)[:F]
     skeleton = source.skeleton
+    obs_source = obs                    # in the source's skeleton
     if ms.skeleton is not None:
         try:
             target = get_skeleton(ms.skeleton)
@@ -180,8 +181,15 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
             ms, cameras, tracked, (lo, hi), first, project.warnings, breaks,
             cache=project.output_folder() / PARTIAL / "rotation_differences")
         timings["rotation_differences_s"] = time.perf_counter() - t1
-        rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights,
-                                           estimate_settings(**rs), breaks)
+        est = estimate_settings(**rs)
+        rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights, est, breaks)
+        from photogram.mocap.people_check import check_estimated
+        checked, rec, people = check_estimated(           # the multi-view check
+            project, source, cameras, tracked, obs_source[lo:hi], skeleton, rec, frames, lo,
+            breaks, sync_info, tracking_info,
+            lambda o: estimate_poses_and_rotations(o, cameras, skeleton, dR, weights, est,
+                                                   breaks))
+        obs = obs if checked is None else checked
         cameras = replace(cameras, R=rec.R)
         rotation_info = {"differences": per_camera, "weights": weights}
     else:

@@ -15,7 +15,8 @@ from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.reconstruct import Reconstruction
 from photogram.mocap.tracking.athlete import TrackingSettings
 
-__all__ = ["shift_candidates", "choose_people", "post_filter", "synchronise"]
+__all__ = ["shift_candidates", "people_candidates", "choose_people", "check_people",
+           "post_filter", "synchronise"]
 
 log = logging.getLogger(__name__)
 
@@ -40,39 +41,78 @@ def shift_candidates(det, rows, k: int):
     return det, out
 
 
-def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: TrackingSettings,
-                   first: int = 0, runs=(), offsets=None):
-    """The athlete's joints chosen by multi-view consistency (docs/mocap.md
-    section 5; :mod:`photogram.mocap.tracking.multiview`): the observations
-    and the per-camera report (None: not run). ``offsets`` (camera ->
-    frames, applied to ``obs`` already): the candidates are renumbered by
-    the whole frames, the chosen joints shifted by the rest. Also returns
-    the source's person id of every observation (F, C) (-2: none, -1:
-    unknown; None: not run)."""
-    if not tracking.multiview or sum(t is not None for t in tracked) < 2:
-        return obs, None, None
+def people_candidates(source, cameras: MocapCameras, tracked, tracking: TrackingSettings,
+                      n_frames: int, offsets=None, skip: int = 0):
+    """Per camera all candidates (CameraDetections; image detectors: the
+    tracked person) and the rows of the per-camera track (F,), renumbered
+    by ``skip`` (the first frame used; image detectors' ``tracked`` start
+    there already) plus the whole frames of ``offsets``."""
     from photogram.mocap.tracking.athlete import select_person
-    from photogram.mocap.tracking.multiview import (associate, describe,
-                                                    settings_from_tracking,
-                                                    tracked_candidates)
+    from photogram.mocap.tracking.multiview import tracked_candidates
     candidates, per_camera = [], []
     for name, t in zip(cameras.names, tracked):
         if t is None:
             candidates.append(None)
             per_camera.append(None)
             continue
+        k = int(np.floor((offsets or {}).get(name, 0.0)))
         try:
             det = source.detections(name)
             c = cameras.index(name)     # pan-tilt cameras: as the per-camera track
             rows = select_person(det, tracking.min_confidence, tracking.gate,
                                  0.5 * cameras.image_size[c] if cameras.n_frames else None)
+            k += int(skip)
         except NotImplementedError:                 # image detectors: the tracked person
             det, rows = tracked_candidates(t, source.skeleton)
-        k = int(np.floor((offsets or {}).get(name, 0.0)))
         if k:
             det, rows = shift_candidates(det, np.asarray(rows), k)
         candidates.append(det)
-        per_camera.append(rows[:obs.shape[0]])
+        per_camera.append(rows[:n_frames])
+    return candidates, per_camera
+
+
+def check_people(source, cameras: MocapCameras, tracked, n_frames: int,
+                 tracking: TrackingSettings, breaks=(), offsets=None, skip: int = 0):
+    """With estimated rotations (``rotation = "estimate"``): the multi-view
+    choice (docs/mocap.md section 5) run once after the reconstruction with
+    the estimated cameras, as a *check* of the per-camera tracks that gave
+    the observations (which it does not change): the report of
+    :meth:`~photogram.mocap.tracking.multiview.Association.report` per
+    camera (``other_person``: frames where it would take another candidate
+    than the per-camera track) and the warnings (None: not run)."""
+    if not tracking.multiview or sum(t is not None for t in tracked) < 2:
+        return None, []
+    from photogram.mocap.tracking.multiview import associate, settings_from_tracking
+    candidates, per_camera = people_candidates(source, cameras, tracked, tracking, n_frames,
+                                               offsets, skip)
+    assoc = associate(candidates, cameras, n_frames, settings_from_tracking(tracking),
+                      breaks=breaks)
+    report = assoc.report(cameras.names, per_camera)
+    notes = [f"camera {name}: with the estimated rotations the multi-view check takes another "
+             f"person than the per-camera track in {d['other_person']} frames and finds "
+             f"{d['per_camera_left_out']} more of its frames inconsistent or ambiguous; the "
+             f"reconstruction used the per-camera track (docs/mocap.md section 5)"
+             for name, d in report.items() if d.get("other_person")]
+    return {"mode": "check with the estimated rotations", "cameras": report,
+            "undecided_runs": [[lo, hi - 1] for lo, hi in assoc.undecided_runs],
+            "settings": vars(assoc.settings).copy()}, notes
+
+
+def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: TrackingSettings,
+                   first: int = 0, runs=(), offsets=None, skip: int = 0):
+    """The athlete's joints chosen by multi-view consistency (docs/mocap.md
+    section 5; :mod:`photogram.mocap.tracking.multiview`): the observations
+    and the per-camera report (None: not run). ``offsets`` (camera ->
+    frames, applied to ``obs`` already): the candidates are renumbered by
+    the whole frames, the chosen joints shifted by the rest; ``skip``: the
+    first frame of ``obs`` in the source's frames. Also returns
+    the source's person id of every observation (F, C) (-2: none, -1:
+    unknown; None: not run)."""
+    if not tracking.multiview or sum(t is not None for t in tracked) < 2:
+        return obs, None, None
+    from photogram.mocap.tracking.multiview import associate, describe, settings_from_tracking
+    candidates, per_camera = people_candidates(source, cameras, tracked, tracking,
+                                               obs.shape[0], offsets, skip)
     assoc = associate(candidates, cameras, obs.shape[0], settings_from_tracking(tracking),
                       breaks=[r - first for r in runs])
     report = assoc.report(cameras.names, per_camera)

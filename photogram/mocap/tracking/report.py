@@ -17,7 +17,7 @@ import numpy as np
 
 from photogram.mocap.tracking.reacquire import ACQUIRED, LOST
 
-__all__ = ["tracking_report", "describe_tracking", "runs_of"]
+__all__ = ["tracking_report", "add_multiview", "describe_tracking", "runs_of"]
 
 
 def runs_of(mask: np.ndarray) -> list:
@@ -71,18 +71,25 @@ def tracking_report(tracked, frames, names, person=None, people=None) -> dict:
              "lost_runs": [[int(frames[a]), int(frames[b])] for a, b in lost_runs],
              "longest_loss": max((b - a + 1 for a, b in lost_runs), default=0),
              "reacquired": int(len(re)), "reacquired_frames": [int(frames[f]) for f in re]}
-        mv = (people or {}).get(name)
-        if mv is not None:
-            d["other_person"] = int(mv.get("other_person", 0))
-            d["multiview_left_out"] = int(mv.get("per_camera_left_out", 0))
-            d["multiview_gained"] = int(mv.get("gained", 0))
         if person is not None:
             p = np.asarray(person)[:len(frames), c]
             ids, n = np.unique(p[p >= 0], return_counts=True)
             if len(ids):
                 d["persons"] = {str(int(i)): int(k) for i, k in zip(ids, n)}
         out[name] = d
-    return out
+    return add_multiview(out, people)
+
+
+def add_multiview(report: dict, people) -> dict:
+    """The multi-view stage's counts (``people``: its report's ``cameras``)
+    added to a :func:`tracking_report` (in place; returned)."""
+    for name, d in report.items():
+        mv = (people or {}).get(name)
+        if mv is not None:
+            d["other_person"] = int(mv.get("other_person", 0))
+            d["multiview_left_out"] = int(mv.get("per_camera_left_out", 0))
+            d["multiview_gained"] = int(mv.get("gained", 0))
+    return report
 
 
 def describe_tracking(report: dict) -> list[str]:
