@@ -17,10 +17,13 @@ of a frame:
    ``exp(-m^2 / (2 * 0.05^2))``, ``m`` the image speed of the candidate's
    tracklet over +-5 frames in sizes per frame: the athlete stays near the
    centre and nearly still, a bystander standing still drifts across the
-   image as the camera pans, a person beside the athlete stays beside it;
+   image as the camera pans, a person beside the athlete stays beside it
+   (the product of both weights is at least :data:`WEIGHT_FLOOR` = 0.05: an
+   athlete far off the centre still counts when nobody else is there);
 2. **tracklets**: candidates are linked frame to frame (gaps of up to
    :data:`LINK_GAP` frames) by an optimal assignment on the distance to the
-   constant-velocity prediction and the size ratio; a link needs the centre
+   constant-velocity prediction (a straight line through the last 5
+   centres) and the size ratio; a link needs the centre
    within ``gate`` (0.5) sizes per frame of the prediction and a size ratio
    below :data:`SIZE_RATIO` (2);
 3. **chain**: every tracklet is cut where another one starts or ends; the
@@ -57,7 +60,7 @@ from photogram.mocap.tracking.detections import CameraDetections
 __all__ = ["PersonTrack", "follow_person", "candidate_states", "TRACKED", "ACQUIRED", "LOST",
            "LINK_GAP", "SIZE_RATIO", "CHAIN_SIZE_RATIO", "GATE_GROWTH", "LINK_COST",
            "REACQUIRE_COST", "SWITCH_COST",
-           "CENTRE_SCALE", "MOTION_FRAMES", "MOTION_SCALE"]
+           "CENTRE_SCALE", "MOTION_FRAMES", "MOTION_SCALE", "WEIGHT_FLOOR", "centre_weight"]
 
 #: per-frame status (the codes of :mod:`photogram.mocap.tracking.crop_tracking`)
 TRACKED, ACQUIRED, LOST = 0, 1, 2
@@ -74,6 +77,8 @@ GATE_GROWTH = 0.05
 LINK_COST, REACQUIRE_COST, SWITCH_COST = 0.2, 15.0, 50.0
 #: width of the image-centre weight (fraction of the half diagonal)
 CENTRE_SCALE = 0.15
+#: the smallest pan-tilt weight (a frame far off the centre still counts)
+WEIGHT_FLOOR = 0.05
 #: frames either side and scale (sizes per frame) of the motion weight
 MOTION_FRAMES, MOTION_SCALE = 5, 0.05
 _VELOCITY_FRAMES = 5        # frames of a tracklet's end its velocity is fitted to
@@ -92,9 +97,10 @@ class PersonTrack:
     chain: list
 
 
-def candidate_states(det: CameraDetections, min_confidence: float = 0.1, image_centre=None):
-    """Per candidate row: centre (n, 2), size (n,), quality (n,) and usable
-    (n,) (two joints or more), step 1 of the module doc."""
+def candidate_states(det: CameraDetections, min_confidence: float = 0.1):
+    """Per candidate row: centre (n, 2), size (n,), quality (n,) (without
+    the pan-tilt weights) and usable (n,) (two joints or more), step 1 of
+    the module doc."""
     j = np.asarray(det.joints, float)
     n, J = j.shape[:2]
     conf = np.nan_to_num(j[..., 2])
@@ -108,11 +114,15 @@ def candidate_states(det: CameraDetections, min_confidence: float = 0.1, image_c
     usable = (ok.sum(1) >= 2) & np.all(np.isfinite(centre), -1) & np.isfinite(size)
     size = np.where(usable, np.maximum(np.nan_to_num(size), 1.0), np.nan)
     quality = np.where(ok, conf, 0.0).sum(1) / max(J, 1)
-    if image_centre is not None:
-        c0 = np.asarray(image_centre, float)
-        r = np.linalg.norm(centre - c0, axis=-1) / max(float(np.linalg.norm(c0)), 1.0)
-        quality = quality * np.exp(-0.5 * (np.nan_to_num(r, nan=1e3) / CENTRE_SCALE) ** 2)
     return centre, size, np.where(usable, quality, 0.0), usable
+
+
+def centre_weight(centre, image_centre) -> np.ndarray:
+    """``exp(-r^2 / (2 CENTRE_SCALE^2))`` per candidate centre (n, 2), ``r``
+    the distance from ``image_centre`` over the half diagonal."""
+    c0 = np.asarray(image_centre, float)
+    r = np.linalg.norm(centre - c0, axis=-1) / max(float(np.linalg.norm(c0)), 1.0)
+    return np.exp(-0.5 * (np.nan_to_num(r, nan=1e3) / CENTRE_SCALE) ** 2)
 
 
 def _tracklets(frames, centre, size, usable, F, gate):
@@ -129,13 +139,10 @@ def _tracklets(frames, centre, size, usable, F, gate):
         taken = set()
         if active and cand:
             last = np.array([tracks[t][-1] for t in active])
-            prev = np.array([tracks[t][-2] if len(tracks[t]) > 1 else tracks[t][-1]
-                             for t in active])
+            ends = [_end_state(np.array(tracks[t]), frames, centre, size, True)
+                    for t in active]
             g = (f - frames[last]).astype(float)
-            dt = np.maximum(frames[last] - frames[prev], 1)
-            v = np.where((frames[last] > frames[prev])[:, None],
-                         (centre[last] - centre[prev]) / dt[:, None], 0.0)
-            pred = centre[last] + v * g[:, None]
+            pred = np.array([e[0] + e[2] * gi for e, gi in zip(ends, g)])
             c = np.array(cand)
             d = np.linalg.norm(centre[c][None] - pred[:, None], axis=-1) / (
                 gate * g[:, None] * size[last][:, None])
@@ -155,15 +162,19 @@ def _tracklets(frames, centre, size, usable, F, gate):
 
 
 def _end_state(rows, frames, centre, size, tail: bool):
-    """Centre, size, velocity (per frame) and frame at one end of a tracklet."""
+    """Centre, size, velocity (per frame) and frame at one end of a run of
+    rows: a least-squares straight line through the centres of its last (or
+    first) :data:`_VELOCITY_FRAMES` frames, evaluated at the end (one noisy
+    frame does not decide), and their median size."""
     k = rows[-_VELOCITY_FRAMES:] if tail else rows[:_VELOCITY_FRAMES]
     fr = frames[k].astype(float)
     c = centre[k]
-    v = np.zeros(2)
-    if len(k) >= 2 and np.ptp(fr) > 0:
-        v = np.polyfit(fr - fr.mean(), c, 1)[0]
     end = -1 if tail else 0
-    return centre[k[end]], float(np.median(size[k])), v, int(frames[k[end]])
+    v, at = np.zeros(2), c[end]
+    if len(k) >= 3 and np.ptp(fr) > 0:
+        v, mean = np.polyfit(fr - fr.mean(), c, 1)
+        at = mean + v * (fr[end] - fr.mean())
+    return at, float(np.median(size[k])), v, int(frames[k[end]])
 
 
 def _segments(tracks, frames):
@@ -225,12 +236,14 @@ def follow_person(det: CameraDetections, min_confidence: float = 0.1, gate: floa
     rows_out = np.full(F, -1)
     status = np.full(F, LOST)
     frames = np.asarray(det.frames, int)
-    centre, size, quality, usable = candidate_states(det, min_confidence, image_centre)
+    centre, size, quality, usable = candidate_states(det, min_confidence)
     tracks = _tracklets(frames, centre, size, usable, F, gate)
     if not tracks:
         return PersonTrack(rows_out, status, 0, [])
     if image_centre is not None:
-        quality = quality * _motion_weight(tracks, frames, centre, size, len(quality))
+        weight = centre_weight(centre, image_centre) * _motion_weight(tracks, frames, centre,
+                                                                      size, len(quality))
+        quality = quality * np.maximum(weight, WEIGHT_FLOOR)
     segs = _segments(tracks, frames)
     S = len(segs)
     owner = np.array([k for k, _ in segs])

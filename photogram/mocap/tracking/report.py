@@ -96,9 +96,11 @@ def describe_tracking(report: dict) -> list[str]:
     """One log line per camera of :func:`tracking_report`."""
     out = []
     for name, d in report.items():
+        runs = len(d["lost_runs"])
         line = (f"camera {name}: athlete tracked in {d['tracked']} of {d['frames']} frames, "
-                f"lost in {d['lost']} ({len(d['lost_runs'])} runs, longest {d['longest_loss']}), "
-                f"re-acquired {d['reacquired']} times")
+                f"lost in {d['lost']} ({runs} run{'' if runs == 1 else 's'}, longest "
+                f"{d['longest_loss']}), re-acquired {d['reacquired']} "
+                f"time{'' if d['reacquired'] == 1 else 's'}")
         if d["reacquired_frames"]:
             shown = d["reacquired_frames"][:10]
             line += " (frames " + ", ".join(map(str, shown)) + (
