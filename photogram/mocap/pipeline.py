@@ -34,7 +34,7 @@ from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.reconstruct import (Reconstruction, ReconstructionSettings,
                                                         reconstruct)
 from photogram.mocap.sources import open_source
-from photogram.mocap.stages import choose_people, post_filter, synchronise
+from photogram.mocap.stages import check_estimated, choose_people, post_filter, synchronise
 from photogram.mocap.tracking.athlete import TrackingSettings
 
 __all__ = ["MocapResult", "run_mocap", "reprojection_errors", "REFERENCE_CONFIDENCE"]
@@ -183,7 +183,6 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
         timings["rotation_differences_s"] = time.perf_counter() - t1
         est = estimate_settings(**rs)
         rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights, est, breaks)
-        from photogram.mocap.people_check import check_estimated
         checked, rec, people = check_estimated(           # the multi-view check
             project, source, cameras, tracked, obs_source[lo:hi], skeleton, rec, frames, lo,
             breaks, sync_info, tracking_info,

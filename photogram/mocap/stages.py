@@ -1,7 +1,9 @@
 """Stages of ``photogram mocap`` between the detections and the
 reconstruction (docs/mocap.md): the synchronisation of the cameras
 (``offsets``), the multi-view choice of the athlete among the candidates
-of every camera, and the zero-lag post-filter of the joints."""
+of every camera (with estimated rotations: its check after the
+reconstruction and a second pass), and the zero-lag post-filter of the
+joints."""
 
 from __future__ import annotations
 
@@ -16,7 +18,7 @@ from photogram.mocap.reconstruction.reconstruct import Reconstruction
 from photogram.mocap.tracking.athlete import TrackingSettings
 
 __all__ = ["shift_candidates", "people_candidates", "choose_people", "check_people",
-           "post_filter", "synchronise"]
+           "check_estimated", "post_filter", "synchronise"]
 
 log = logging.getLogger(__name__)
 
@@ -197,3 +199,82 @@ def synchronise(obs, cameras: MocapCameras, ms):
             f"{n} {o:+.3g}" for n, o in applied.items()))
     info["applied"] = applied
     return obs, cameras, info
+
+
+def check_estimated(project, source, cameras, tracked, obs_source, skeleton, rec, frames, lo,
+                    breaks, sync_info, tracking_info, solve):
+    """With estimated rotations: the multi-view check and, when it takes
+    another person than the per-camera track, the second pass.
+
+    Without rotations the multi-view choice cannot run before the
+    reconstruction: the observations are the per-camera tracks
+    (:mod:`photogram.mocap.tracking.reacquire`). Once the poses and
+    rotations are estimated, :func:`check_people` runs with the estimated
+    cameras. If it takes another person than the per-camera track in some
+    camera-frames, the observations become its choice (as with known
+    rotations: inconsistent and ambiguous camera-frames left out, undecided
+    runs kept) and ``solve`` estimates the poses and rotations once more;
+    the log, ``warnings`` and summary.json (``people.mode``,
+    ``people.first_pass``, ``tracking``: ``persons`` of the second pass,
+    ``persons_first_pass``) say so.
+
+    Parameters
+    ----------
+    cameras : MocapCameras
+        The cameras of the reconstructed frames, rotations unknown.
+    obs_source : (F, C, J, 3)
+        The observations in the source's skeleton (reconstructed frames).
+    skeleton : Skeleton
+        The reconstruction's skeleton.
+    rec : Reconstruction
+        The first estimate (``rec.R`` the estimated rotations).
+    frames : (F,) frame numbers; ``lo`` the first one's index in the source.
+    solve : callable
+        ``observations -> Reconstruction`` (the estimate of the pipeline).
+
+    Returns
+    -------
+    observations (in ``skeleton``) or None (unchanged), the reconstruction,
+    the people entry of summary.json (None: not run).
+    """
+    from photogram.mocap.body.skeleton import map_joints
+    from photogram.mocap.tracking.multiview import describe
+    from photogram.mocap.tracking.report import add_multiview
+    tracking = TrackingSettings(**project.mocap.tracking)
+    offsets = (sync_info or {}).get("applied")
+    estimated = replace(cameras, R=rec.R)
+    people, _ = check_people(source, estimated, tracked, len(frames), tracking, breaks,
+                             offsets, lo)
+    if people is None:
+        return None, rec, None
+    for line in describe(people["cameras"]):
+        log.info("check with the estimated rotations: %s", line)
+    other = {n: d["other_person"] for n, d in people["cameras"].items() if d.get("other_person")}
+    if not other:
+        add_multiview(tracking_info, people["cameras"])
+        return None, rec, people
+    chosen, second, person = choose_people(source, estimated, tracked, obs_source, tracking,
+                                           int(frames[0]), [int(frames[0]) + b for b in breaks],
+                                           offsets, lo)
+    if source.skeleton.name != skeleton.name:
+        chosen = map_joints(chosen, source.skeleton, skeleton)
+    for name, n in other.items():
+        note = (f"camera {name}: with the estimated rotations the multi-view check took another "
+                f"person than the per-camera track in {n} frames; the poses and rotations were "
+                f"estimated again from the multi-view choice (docs/mocap.md section 5)")
+        log.warning("warning: %s", note)
+        project.warnings.append(note)
+    rec = solve(chosen)
+    second["mode"] = "chosen with the estimated rotations (second pass)"
+    second["first_pass"] = people["cameras"]
+    add_multiview(tracking_info, second["cameras"])
+    for c, name in enumerate(cameras.names):
+        if name in tracking_info:
+            p = person[:, c]
+            ids, k = np.unique(p[p >= 0], return_counts=True)
+            before = tracking_info[name].pop("persons", None)
+            if before is not None:
+                tracking_info[name]["persons_first_pass"] = before
+            if len(ids):
+                tracking_info[name]["persons"] = {str(int(i)): int(v) for i, v in zip(ids, k)}
+    return chosen, rec, second

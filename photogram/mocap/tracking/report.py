@@ -26,7 +26,8 @@ def runs_of(mask: np.ndarray) -> list:
     if not m.any():
         return []
     edges = np.diff(np.r_[0, m.astype(int), 0])
-    return list(zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist()))
+    return list(zip(np.flatnonzero(edges == 1).tolist(),
+                    (np.flatnonzero(edges == -1) - 1).tolist()))
 
 
 def _status(t) -> np.ndarray:
