@@ -171,9 +171,11 @@ def _end_state(rows, frames, centre, size, tail: bool):
     c = centre[k]
     end = -1 if tail else 0
     v, at = np.zeros(2), c[end]
-    if len(k) >= 3 and np.ptp(fr) > 0:
-        v, mean = np.polyfit(fr - fr.mean(), c, 1)
-        at = mean + v * (fr[end] - fr.mean())
+    if len(k) >= 3 and np.ptp(fr) > 0:              # least squares, closed form
+        t = fr - fr.mean()
+        mean = c.mean(0)
+        v = t @ (c - mean) / (t @ t)
+        at = mean + v * t[end]
     return at, float(np.median(size[k])), v, int(frames[k[end]])
 
 
