@@ -83,7 +83,8 @@ def _observations(project, cameras: MocapCameras, allow_plugin: bool = False):
         st = replace(tracking, image_centre=tuple(0.5 * cameras.image_size[c])) if (
             pan_tilt) else tracking
         tracked.append(source.track(name, st, wide=name in ms.source.wide))
-        log.debug("camera %s: %d frames (%.1f s)", name, len(tracked[-1].joints),
+        log.debug("camera %s: %d frames of detections, tracking %.1f s (frames tracked, "
+                  "lost and re-acquired: below)", name, len(tracked[-1].joints),
                   time.perf_counter() - t0)
     F = max((len(t.joints) for t in tracked if t is not None), default=0)
     if F == 0:
