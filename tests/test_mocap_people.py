@@ -274,8 +274,11 @@ def test_command_reports_the_choice_and_keeps_the_bystander_out(tmp_path, capsys
     assert main(["mocap", "-q", str(tmp_path / "ski.prj")]) == 0
     s = json.loads((tmp_path / "results" / "summary.json").read_text())
     people = s["people"]["cameras"]
-    assert people["C1"]["other_person"] >= 35 and people["C1"]["used"] >= 38
-    assert all(people[c]["other_person"] == 0 for c in ("C2", "C3", "C4", "C5", "C6"))
+    # the per-camera track of a pan-tilt camera keeps the copy 300 px off the
+    # image centre out as well (issue 22): both choices agree
+    assert people["C1"]["used"] >= 38
+    assert all(people[c]["other_person"] == 0 for c in ("C1", "C2", "C3", "C4", "C5", "C6"))
+    assert s["tracking"]["C1"]["persons"] == {"0": 40}
     assert s["accuracy"]["mpjpe"] < 0.03
     log = (tmp_path / "results" / "log.txt").read_text()
     assert "camera C1: multi-view choice in" in log

@@ -90,6 +90,8 @@ def summary(result, project) -> dict:
     }
     if rec.gaps is not None:                    # joint-frames fewer than 2 cameras see
         out["gaps"] = rec.gaps.summary(result.skeleton.joints)
+    if "tracking" in result.info:               # per camera: tracked, lost, re-acquired
+        out["tracking"] = result.info["tracking"]
     if "people" in result.info:                 # the multi-view choice (section 5)
         out["people"] = result.info["people"]
     if result.info.get("rotation") == "estimate":

@@ -36,7 +36,8 @@ from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.reconstruct import (Reconstruction, ReconstructionSettings,
                                                         reconstruct)
 from photogram.mocap.sources import open_source
-from photogram.mocap.stages import choose_people, mark_gaps, post_filter, synchronise
+from photogram.mocap.stages import (check_estimated, choose_people, mark_gaps, post_filter,
+                                    synchronise)
 from photogram.mocap.tracking.athlete import TrackingSettings
 
 __all__ = ["MocapResult", "run_mocap", "reprojection_errors", "REFERENCE_CONFIDENCE"]
@@ -73,15 +74,21 @@ def _observations(project, cameras: MocapCameras, allow_plugin: bool = False):
     ms = project.mocap
     source = open_source(ms, cameras.names, project.folder, allow_plugin=allow_plugin)
     tracking = TrackingSettings(**ms.tracking)
+    # pan-tilt cameras (rotations per frame, known or estimated) follow the
+    # athlete: the per-camera choice prefers candidates near the image centre
+    pan_tilt = ms.camera_frames is not None or ms.rotation == "estimate"
     tracked = []
-    for name in cameras.names:
+    for c, name in enumerate(cameras.names):
         if name not in source.cameras:
             tracked.append(None)
             continue
         t0 = time.perf_counter()
-        tracked.append(source.track(name, tracking, wide=name in ms.source.wide))
-        log.debug("camera %s: %d frames tracked (%.1f s)", name, len(tracked[-1].joints),
-                 time.perf_counter() - t0)
+        st = replace(tracking, image_centre=tuple(0.5 * cameras.image_size[c])) if (
+            pan_tilt) else tracking
+        tracked.append(source.track(name, st, wide=name in ms.source.wide))
+        log.debug("camera %s: %d frames of detections, tracking %.1f s (frames tracked, "
+                  "lost and re-acquired: below)", name, len(tracked[-1].joints),
+                  time.perf_counter() - t0)
     F = max((len(t.joints) for t in tracked if t is not None), default=0)
     if F == 0:
         raise InputError("the source has no detections", file=project.path)
@@ -122,10 +129,16 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
                     "truth_rotations keep every camera's own frame numbers")
             log.warning("warning: %s", note)
             project.warnings.append(note)
-    obs, people = (obs, None) if estimate else choose_people(
+    obs, people, person = (obs, None, None) if estimate else choose_people(
         source, cameras, tracked, obs, TrackingSettings(**ms.tracking), first, ms.runs,
         (sync_info or {}).get("applied"))
+    if person is None:          # the per-camera track gives the observations
+        person = np.full((F, len(tracked)), -2)
+        for c, t in enumerate(tracked):
+            if t is not None:
+                person[:len(t.person), c] = np.asarray(t.person)[:F]
     skeleton = source.skeleton
+    obs_source = obs                    # in the source's skeleton
     if ms.skeleton is not None:
         try:
             target = get_skeleton(ms.skeleton)
@@ -146,9 +159,14 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
                            f"{first}..{first + F - 1}")
     obs, frames = obs[lo:hi], frames[lo:hi]
     cameras = cameras.select_frames(np.arange(lo, hi)) if cameras.n_frames else cameras
-    tracked = [None if t is None else type(t)(t.camera, t.joints[lo:hi], t.detected[lo:hi],
-                                                t.boxes[lo:hi], t.person[lo:hi])
-               for t in tracked]
+    tracked = [None if t is None else type(t)(
+        t.camera, t.joints[lo:hi], t.detected[lo:hi], t.boxes[lo:hi], t.person[lo:hi],
+        None if t.status is None else t.status[lo:hi]) for t in tracked]
+    from photogram.mocap.tracking.report import describe_tracking, tracking_report
+    tracking_info = tracking_report(tracked, frames, cameras.names, person[lo:hi],
+                                    (people or {}).get("cameras"))
+    for line in describe_tracking(tracking_info):
+        log.info("%s", line)
     breaks = [r - frames[0] for r in ms.runs if frames[0] < r <= frames[-1]]
     rs = dict(ms.reconstruction)
     from photogram.mocap.evaluation.checks import check_coverage
@@ -174,8 +192,13 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
             cache=project.output_folder() / PARTIAL / "rotation_differences")
         timings["rotation_differences_s"] = time.perf_counter() - t1
         settings = estimate_settings(**rs)
-        rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights, settings,
-                                           breaks)
+        rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights, settings, breaks)
+        checked, rec, people = check_estimated(           # the multi-view check
+            project, source, cameras, tracked, obs_source[lo:hi], skeleton, rec, frames, lo,
+            breaks, sync_info, tracking_info,
+            lambda o: estimate_poses_and_rotations(o, cameras, skeleton, dR, weights, settings,
+                                                   breaks))
+        obs = obs if checked is None else checked
         cameras = replace(cameras, R=rec.R)
         rotation_info = {"differences": per_camera, "weights": weights}
     else:
@@ -196,7 +219,7 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
         reprojection=reprojection_errors(rec.joints, cameras, obs),
         bones=bone_lengths(rec.joints, skeleton), breaks=breaks,
         info={"source": source.describe(), "timings": timings, "rotation": ms.rotation,
-              "filter": filter_report, **rotation_info,
+              "filter": filter_report, "tracking": tracking_info, **rotation_info,
               **({"sync": sync_info} if sync_info else {}),
               **({"people": people} if people else {})})
     from photogram.mocap.evaluation.checks import check_fit

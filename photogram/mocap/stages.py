@@ -1,8 +1,9 @@
 """Stages of ``photogram mocap`` between the detections and the
 reconstruction (docs/mocap.md): the synchronisation of the cameras
 (``offsets``), the multi-view choice of the athlete among the candidates
-of every camera, the gaps (joint-frames fewer than two cameras observe)
-and the zero-lag post-filter of the joints."""
+of every camera (with estimated rotations: its check after the
+reconstruction and a second pass), the gaps (joint-frames fewer than two
+cameras observe) and the zero-lag post-filter of the joints."""
 
 from __future__ import annotations
 
@@ -16,7 +17,8 @@ from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.reconstruct import Reconstruction
 from photogram.mocap.tracking.athlete import TrackingSettings
 
-__all__ = ["shift_candidates", "choose_people", "mark_gaps", "post_filter", "synchronise"]
+__all__ = ["shift_candidates", "people_candidates", "choose_people", "check_people",
+           "check_estimated", "mark_gaps", "post_filter", "synchronise"]
 
 log = logging.getLogger(__name__)
 
@@ -41,35 +43,78 @@ def shift_candidates(det, rows, k: int):
     return det, out
 
 
-def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: TrackingSettings,
-                   first: int = 0, runs=(), offsets=None):
-    """The athlete's joints chosen by multi-view consistency (docs/mocap.md
-    section 5; :mod:`photogram.mocap.tracking.multiview`): the observations
-    and the per-camera report (None: not run). ``offsets`` (camera ->
-    frames, applied to ``obs`` already): the candidates are renumbered by
-    the whole frames, the chosen joints shifted by the rest."""
-    if not tracking.multiview or sum(t is not None for t in tracked) < 2:
-        return obs, None
+def people_candidates(source, cameras: MocapCameras, tracked, tracking: TrackingSettings,
+                      n_frames: int, offsets=None, skip: int = 0):
+    """Per camera all candidates (CameraDetections; image detectors: the
+    tracked person) and the rows of the per-camera track (F,), renumbered
+    by ``skip`` (the first frame used; image detectors' ``tracked`` start
+    there already) plus the whole frames of ``offsets``."""
     from photogram.mocap.tracking.athlete import select_person
-    from photogram.mocap.tracking.multiview import (associate, describe,
-                                                    settings_from_tracking,
-                                                    tracked_candidates)
+    from photogram.mocap.tracking.multiview import tracked_candidates
     candidates, per_camera = [], []
     for name, t in zip(cameras.names, tracked):
         if t is None:
             candidates.append(None)
             per_camera.append(None)
             continue
+        k = int(np.floor((offsets or {}).get(name, 0.0)))
         try:
             det = source.detections(name)
-            rows = select_person(det, tracking.min_confidence)
+            c = cameras.index(name)     # pan-tilt cameras: as the per-camera track
+            rows = select_person(det, tracking.min_confidence, tracking.gate,
+                                 0.5 * cameras.image_size[c] if cameras.n_frames else None)
+            k += int(skip)
         except NotImplementedError:                 # image detectors: the tracked person
             det, rows = tracked_candidates(t, source.skeleton)
-        k = int(np.floor((offsets or {}).get(name, 0.0)))
         if k:
             det, rows = shift_candidates(det, np.asarray(rows), k)
         candidates.append(det)
-        per_camera.append(rows[:obs.shape[0]])
+        per_camera.append(rows[:n_frames])
+    return candidates, per_camera
+
+
+def check_people(source, cameras: MocapCameras, tracked, n_frames: int,
+                 tracking: TrackingSettings, breaks=(), offsets=None, skip: int = 0):
+    """With estimated rotations (``rotation = "estimate"``): the multi-view
+    choice (docs/mocap.md section 5) run once after the reconstruction with
+    the estimated cameras, as a *check* of the per-camera tracks that gave
+    the observations (which it does not change): the report of
+    :meth:`~photogram.mocap.tracking.multiview.Association.report` per
+    camera (``other_person``: frames where it would take another candidate
+    than the per-camera track) and the warnings (None: not run)."""
+    if not tracking.multiview or sum(t is not None for t in tracked) < 2:
+        return None, []
+    from photogram.mocap.tracking.multiview import associate, settings_from_tracking
+    candidates, per_camera = people_candidates(source, cameras, tracked, tracking, n_frames,
+                                               offsets, skip)
+    assoc = associate(candidates, cameras, n_frames, settings_from_tracking(tracking),
+                      breaks=breaks)
+    report = assoc.report(cameras.names, per_camera)
+    notes = [f"camera {name}: with the estimated rotations the multi-view check takes another "
+             f"person than the per-camera track in {d['other_person']} frames and finds "
+             f"{d['per_camera_left_out']} more of its frames inconsistent or ambiguous; the "
+             f"reconstruction used the per-camera track (docs/mocap.md section 5)"
+             for name, d in report.items() if d.get("other_person")]
+    return {"mode": "check with the estimated rotations", "cameras": report,
+            "undecided_runs": [[lo, hi - 1] for lo, hi in assoc.undecided_runs],
+            "settings": vars(assoc.settings).copy()}, notes
+
+
+def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: TrackingSettings,
+                   first: int = 0, runs=(), offsets=None, skip: int = 0):
+    """The athlete's joints chosen by multi-view consistency (docs/mocap.md
+    section 5; :mod:`photogram.mocap.tracking.multiview`): the observations
+    and the per-camera report (None: not run). ``offsets`` (camera ->
+    frames, applied to ``obs`` already): the candidates are renumbered by
+    the whole frames, the chosen joints shifted by the rest; ``skip``: the
+    first frame of ``obs`` in the source's frames. Also returns
+    the source's person id of every observation (F, C) (-2: none, -1:
+    unknown; None: not run)."""
+    if not tracking.multiview or sum(t is not None for t in tracked) < 2:
+        return obs, None, None
+    from photogram.mocap.tracking.multiview import associate, describe, settings_from_tracking
+    candidates, per_camera = people_candidates(source, cameras, tracked, tracking,
+                                               obs.shape[0], offsets, skip)
     assoc = associate(candidates, cameras, obs.shape[0], settings_from_tracking(tracking),
                       breaks=[r - first for r in runs])
     report = assoc.report(cameras.names, per_camera)
@@ -81,8 +126,15 @@ def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: Trackin
             from photogram.mocap.evaluation.sync_shift import shift_observations
             c = cameras.index(name)
             chosen[:, c] = shift_observations(chosen[:, c], o - np.floor(o))
+    person = np.full(assoc.rows.shape, -2)
+    for c, det in enumerate(candidates):
+        take = assoc.rows[:, c] >= 0
+        if det is not None and take.any():
+            person[take, c] = det.person[assoc.rows[take, c]]
     for lo, hi in assoc.undecided_runs:     # mostly inconsistent: the cameras are wrong,
         chosen[lo:hi] = obs[lo:hi]          # the per-camera choice is kept
+        for c, t in enumerate(tracked):
+            person[lo:hi, c] = -2 if t is None else np.asarray(t.person)[lo:hi]
         log.info("frames %d..%d: the cameras are mostly inconsistent with each other (%g px); "
                  "the per-camera choice of the athlete is kept", first + lo, first + hi - 1,
                  tracking.association_px)
@@ -90,7 +142,7 @@ def choose_people(source, cameras: MocapCameras, tracked, obs, tracking: Trackin
               "undecided_runs": [[first + lo, first + hi - 1] for lo, hi in assoc.undecided_runs],
               "seed_frames": [first + f for f in assoc.seeds], "sizes": assoc.sizes,
               "settings": vars(assoc.settings).copy()}
-    return chosen, people
+    return chosen, people, person
 
 
 def mark_gaps(rec: Reconstruction, obs, cameras: MocapCameras, skeleton, settings, breaks,
@@ -175,3 +227,82 @@ def synchronise(obs, cameras: MocapCameras, ms):
             f"{n} {o:+.3g}" for n, o in applied.items()))
     info["applied"] = applied
     return obs, cameras, info
+
+
+def check_estimated(project, source, cameras, tracked, obs_source, skeleton, rec, frames, lo,
+                    breaks, sync_info, tracking_info, solve):
+    """With estimated rotations: the multi-view check and, when it takes
+    another person than the per-camera track, the second pass.
+
+    Without rotations the multi-view choice cannot run before the
+    reconstruction: the observations are the per-camera tracks
+    (:mod:`photogram.mocap.tracking.reacquire`). Once the poses and
+    rotations are estimated, :func:`check_people` runs with the estimated
+    cameras. If it takes another person than the per-camera track in some
+    camera-frames, the observations become its choice (as with known
+    rotations: inconsistent and ambiguous camera-frames left out, undecided
+    runs kept) and ``solve`` estimates the poses and rotations once more;
+    the log, ``warnings`` and summary.json (``people.mode``,
+    ``people.first_pass``, ``tracking``: ``persons`` of the second pass,
+    ``persons_first_pass``) say so.
+
+    Parameters
+    ----------
+    cameras : MocapCameras
+        The cameras of the reconstructed frames, rotations unknown.
+    obs_source : (F, C, J, 3)
+        The observations in the source's skeleton (reconstructed frames).
+    skeleton : Skeleton
+        The reconstruction's skeleton.
+    rec : Reconstruction
+        The first estimate (``rec.R`` the estimated rotations).
+    frames : (F,) frame numbers; ``lo`` the first one's index in the source.
+    solve : callable
+        ``observations -> Reconstruction`` (the estimate of the pipeline).
+
+    Returns
+    -------
+    observations (in ``skeleton``) or None (unchanged), the reconstruction,
+    the people entry of summary.json (None: not run).
+    """
+    from photogram.mocap.body.skeleton import map_joints
+    from photogram.mocap.tracking.multiview import describe
+    from photogram.mocap.tracking.report import add_multiview
+    tracking = TrackingSettings(**project.mocap.tracking)
+    offsets = (sync_info or {}).get("applied")
+    estimated = replace(cameras, R=rec.R)
+    people, _ = check_people(source, estimated, tracked, len(frames), tracking, breaks,
+                             offsets, lo)
+    if people is None:
+        return None, rec, None
+    for line in describe(people["cameras"]):
+        log.info("check with the estimated rotations: %s", line)
+    other = {n: d["other_person"] for n, d in people["cameras"].items() if d.get("other_person")}
+    if not other:
+        add_multiview(tracking_info, people["cameras"])
+        return None, rec, people
+    chosen, second, person = choose_people(source, estimated, tracked, obs_source, tracking,
+                                           int(frames[0]), [int(frames[0]) + b for b in breaks],
+                                           offsets, lo)
+    if source.skeleton.name != skeleton.name:
+        chosen = map_joints(chosen, source.skeleton, skeleton)
+    for name, n in other.items():
+        note = (f"camera {name}: with the estimated rotations the multi-view check took another "
+                f"person than the per-camera track in {n} frames; the poses and rotations were "
+                f"estimated again from the multi-view choice (docs/mocap.md section 5)")
+        log.warning("warning: %s", note)
+        project.warnings.append(note)
+    rec = solve(chosen)
+    second["mode"] = "chosen with the estimated rotations (second pass)"
+    second["first_pass"] = people["cameras"]
+    add_multiview(tracking_info, second["cameras"])
+    for c, name in enumerate(cameras.names):
+        if name in tracking_info:
+            p = person[:, c]
+            ids, k = np.unique(p[p >= 0], return_counts=True)
+            before = tracking_info[name].pop("persons", None)
+            if before is not None:
+                tracking_info[name]["persons_first_pass"] = before
+            if len(ids):
+                tracking_info[name]["persons"] = {str(int(i)): int(v) for i, v in zip(ids, k)}
+    return chosen, rec, second

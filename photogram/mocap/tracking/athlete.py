@@ -20,12 +20,16 @@ with square crops along smoothed boxes:
 
 For detection sources (joints already in full-image coordinates: OpenPose,
 CSV) steps 1-3 select the athlete and give the boxes; nothing is cropped.
-With several people in a view the main person is picked consistently: the
-candidate with the best score (mean confidence times the square root of the
-box area: large and sure) over the whole sequence seeds a track that is
-followed forwards and backwards by the candidate whose centre lies in the
-last good box (nearest to its centre); frames without such a candidate are
-missing.
+With several people in a view the main person is the best *sequence*
+(:func:`photogram.mocap.tracking.reacquire.follow_person`): candidates are
+linked into tracklets, and the chain of tracklets of the largest total
+quality (confidence; near the image centre for a pan-tilt camera, whose
+centre the pipeline sets as ``image_centre``) is the athlete; a loss is
+bridged by a gate that grows with the frames lost, and a tracklet found
+anywhere else in the image re-acquires the track if it is worth more than
+:data:`~photogram.mocap.tracking.reacquire.REACQUIRE_COST` frames. The
+frames are reported as tracked, acquired (the first frame and every
+re-acquisition) or lost (``status`` of :class:`TrackedCamera`).
 """
 
 from __future__ import annotations
@@ -58,19 +62,27 @@ class TrackingSettings:
     association_px: float = 40.0
     association_confidence: float = 0.3
     gate: float = 0.5
+    # the image centre (px) of a pan-tilt camera following the athlete (set
+    # per camera by the pipeline, not a project key): the main-person choice
+    # prefers candidates near it (photogram.mocap.tracking.reacquire)
+    image_centre: tuple | None = None
 
 
 @dataclass
 class TrackedCamera:
     """The athlete in one camera: ``joints`` (F, J, 3) (NaN, 0 where
     missing), ``detected`` (F, 4) raw boxes, ``boxes`` (F, 4) smoothed crop
-    boxes, ``person`` (F,) chosen candidate's person id (-2: none)."""
+    boxes, ``person`` (F,) chosen candidate's person id (-2: none),
+    ``status`` (F,) tracked / acquired / lost (codes of
+    :mod:`photogram.mocap.tracking.reacquire`; None: not tracked frame by
+    frame)."""
 
     camera: str
     joints: np.ndarray
     detected: np.ndarray
     boxes: np.ndarray
     person: np.ndarray
+    status: np.ndarray | None = None
 
 
 def gaussian_smooth(values: np.ndarray, valid: np.ndarray, sigma: float) -> np.ndarray:
@@ -94,53 +106,29 @@ def _inside(point, box):
     return bool(box[0] <= point[0] <= box[2] and box[1] <= point[1] <= box[3])
 
 
-def select_person(det: CameraDetections, min_confidence: float = 0.1) -> np.ndarray:
-    """Row of ``det`` chosen in every frame (-1: none), module doc."""
-    F = det.n_frames
-    chosen = np.full(F, -1)
-    if not len(det.frames):
-        return chosen
-    conf = np.where(det.joints[..., 2] > min_confidence, det.joints[..., 2], np.nan)
-    with np.errstate(invalid="ignore"):
-        mean_conf = np.nan_to_num(np.nanmean(conf, axis=1)) if conf.size else np.zeros(0)
-    boxes = boxes_from_joints(det.joints, min_confidence)
-    area = np.nan_to_num((boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1]))
-    score = mean_conf * np.sqrt(np.maximum(area, 0))
-    ok = np.all(np.isfinite(boxes), axis=1)
-    if not ok.any():
-        return chosen
-    by_frame: dict[int, list[int]] = {}
-    for i in np.flatnonzero(ok):
-        by_frame.setdefault(int(det.frames[i]), []).append(int(i))
-    seed = int(np.flatnonzero(ok)[np.argmax(score[ok])])
-    f0 = int(det.frames[seed])
-    chosen[f0] = seed
-    for order in (range(f0 + 1, F), range(f0 - 1, -1, -1)):
-        last = boxes[seed]
-        for f in order:
-            best, best_d = -1, np.inf
-            for i in by_frame.get(f, ()):
-                c = _centre(boxes[i])
-                if _inside(c, last):
-                    d = float(np.hypot(*(c - _centre(last))))
-                    if d < best_d:
-                        best, best_d = i, d
-            if best >= 0:
-                chosen[f] = best
-                last = boxes[best]
-    return chosen
+def select_person(det: CameraDetections, min_confidence: float = 0.1, gate: float = 0.5,
+                  image_centre=None) -> np.ndarray:
+    """Row of ``det`` chosen in every frame (-1: none): the athlete's track
+    of :func:`photogram.mocap.tracking.reacquire.follow_person`."""
+    from photogram.mocap.tracking.reacquire import follow_person
+    return follow_person(det, min_confidence, gate, image_centre).rows
 
 
-def clean_boxes(boxes: np.ndarray) -> np.ndarray:
+def clean_boxes(boxes: np.ndarray, growth: float = 0.05) -> np.ndarray:
     """Valid-frame mask after replacing detections whose centre leaves the
-    last good box (boxes (F, 4), NaN: no detection)."""
+    last good box (boxes (F, 4), NaN: no detection), grown about its centre
+    by ``growth`` times its size per frame since it was good: a detection
+    that jumped is replaced, one found again after a loss is kept."""
     valid = np.all(np.isfinite(boxes), axis=1)
-    last = None
+    last, last_f = None, 0
     for f in np.flatnonzero(valid):
-        if last is not None and not _inside(_centre(boxes[f]), last):
-            valid[f] = False
-            continue
-        last = boxes[f]
+        if last is not None:
+            c, half = _centre(last), 0.5 * (last[2:] - last[:2])
+            half = half * (1.0 + growth * (f - last_f - 1))
+            if not _inside(_centre(boxes[f]), np.r_[c - half, c + half]):
+                valid[f] = False
+                continue
+        last, last_f = boxes[f], f
     return valid
 
 
@@ -160,7 +148,9 @@ def track_detections(det: CameraDetections, settings: TrackingSettings | None = 
     """Select the athlete among full-image detections and smooth its boxes."""
     st = settings or TrackingSettings()
     F, J = det.n_frames, det.skeleton.n_joints
-    rows = select_person(det, st.min_confidence)
+    from photogram.mocap.tracking.reacquire import follow_person
+    track = follow_person(det, st.min_confidence, st.gate, st.image_centre)
+    rows = track.rows
     joints = np.full((F, J, 3), np.nan)
     joints[..., 2] = 0.0
     person = np.full(F, -2)
@@ -170,7 +160,7 @@ def track_detections(det: CameraDetections, settings: TrackingSettings | None = 
     detected = boxes_from_joints(joints, st.min_confidence)
     valid = clean_boxes(detected)
     boxes = smooth_boxes(detected, valid, st, st.wide_scale if wide else st.scale)
-    return TrackedCamera(det.camera, joints, detected, boxes, person)
+    return TrackedCamera(det.camera, joints, detected, boxes, person, track.status)
 
 
 # --------------------------------------------------------------------------
