@@ -95,7 +95,8 @@ def seam_jumps(X, truth, settings, breaks):
         cover[w.start:w.stop] += 1
     seam = (cover[:-1] > 1) | (cover[1:] > 1)
     ok = np.isfinite(jump)
-    return {"seam_mean": float(np.mean(jump[seam & ok])), "seam_max": float(np.max(jump[seam & ok])),
+    return {"seam_mean": float(np.mean(jump[seam & ok])),
+            "seam_max": float(np.max(jump[seam & ok])),
             "inside_mean": float(np.mean(jump[~seam & ok])),
             "inside_max": float(np.max(jump[~seam & ok]))}
 

@@ -25,7 +25,15 @@ paper's 100 px^2 is still ``[mocap.reconstruction] sigma2 = 100``): ski-ptz
 MPJPE 4.83 -> 4.53 mm, ski-ptz-estimate 43.9 -> 38.2 mm, the demo's
 bone-length CV 7.6 -> 5.1 %, cam_03's median reprojection error 25.5 -> 21.3
 px and cam_01, cam_02, cam_04's 6.0, 6.4, 5.2 -> 7.7, 7.2, 6.6 px
-(docs/mocap.md section 10). The real-data steps (DBAT's CAMCAL and SXB, the
+(docs/mocap.md section 10). And the same three mocap steps re-recorded on
+2026-12-03 for issue 22, items 3-4 (only these three, as above): the pose
+basis with a linear trend and, with unknown rotations, the windows on the
+chain of the measured differences and one rotation track per camera
+(docs/mocap.md sections 6 and 11): ski-ptz MPJPE 4.53 -> 4.31 mm, speed MAE
+0.022 -> 0.012 m/s; ski-ptz-estimate MPJPE 38.2 -> 24.9 mm, speed MAE 0.469
+-> 0.032 m/s, knee-flexion MAE 0.56 -> 0.59 deg; the demo's bone-length CV
+5.15 -> 5.12 %, cam_03's median reprojection error 21.3 -> 21.5 px; the
+last stages also report ``seam_disagreement_m``. The real-data steps (DBAT's CAMCAL and SXB, the
 Pose2Sim demo) skip when ../shared/data is absent.
 """
 

@@ -62,8 +62,8 @@ import numpy as np
 
 from photogram.errors import InputError
 
-__all__ = ["dct_basis", "trend_basis", "Window", "plan_windows", "blend_weights", "coefficients_for_cutoff",
-           "basis_frequencies"]
+__all__ = ["dct_basis", "trend_basis", "Window", "plan_windows", "blend_weights",
+           "coefficients_for_cutoff", "basis_frequencies"]
 
 
 def dct_basis(T: int, K: int) -> np.ndarray:
