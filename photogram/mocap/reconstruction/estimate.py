@@ -24,7 +24,7 @@ eqs. (12)-(13)). Steps:
    the same weights and projected to the nearest rotation;
 4. with measured differences: one rotation track per camera and run, the
    chain ``Q(t)`` times its offset ``Q(t)^T R(t)`` smoothed over the
-   observed frames (Gaussian, 25 frames; the frames without observations
+   observed frames (Gaussian, sigma 10 frames; the frames without observations
    get the offsets of both sides of their gap), and the poses of every
    window solved again on these cameras (the last stage of part 1,
    warm-started): independent windows fix the absolute orientation each
