@@ -30,8 +30,8 @@ px and cam_01, cam_02, cam_04's 6.0, 6.4, 5.2 -> 7.7, 7.2, 6.6 px
 basis with a linear trend and, with unknown rotations, the windows on the
 chain of the measured differences and one rotation track per camera
 (docs/mocap.md sections 6 and 11): ski-ptz MPJPE 4.53 -> 4.31 mm, speed MAE
-0.022 -> 0.012 m/s; ski-ptz-estimate MPJPE 38.2 -> 24.9 mm, speed MAE 0.469
--> 0.032 m/s, knee-flexion MAE 0.56 -> 0.59 deg; the demo's bone-length CV
+0.022 -> 0.012 m/s; ski-ptz-estimate MPJPE 38.2 -> 29.2 mm, speed MAE 0.469
+-> 0.050 m/s, knee-flexion MAE 0.56 -> 0.59 deg; the demo's bone-length CV
 5.15 -> 5.12 %, cam_03's median reprojection error 21.3 -> 21.5 px; the
 last stages also report ``seam_disagreement_m``. The real-data steps (DBAT's CAMCAL and SXB, the
 Pose2Sim demo) skip when ../shared/data is absent.

@@ -236,8 +236,9 @@ def test_the_filter_is_reported_and_the_unfiltered_joints_kept(small_project):
     # filtered joints fit the simulated truth about as well as the unfiltered on
     # these 60-frame runs: 8.5 against 8.2 mm since the pose basis has a linear
     # trend (issue 22, item 3; the unfiltered window ends are no longer bent flat);
-    # before, 8.7 against 10.3 mm (2 x 60 frames of benchmarks/ski_ptz.py's session).
-    # Over 279-frame runs the filter still helps (8.2 -> 5.9 mm, docs/mocap.md section 6)
+    # on simulate_session(n_runs=2, frames_per_run=60) 7.9 against 7.5 mm, before
+    # 8.7 against 10.3 mm. Over 279-frame runs the filter still helps (8.2 -> 5.9
+    # mm, docs/mocap.md section 6)
     from photogram.mocap.evaluation.metrics import accuracy_3d
     from photogram.mocap.body.skeleton import SKI24
     sim_truth = r.truth
