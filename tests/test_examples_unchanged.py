@@ -42,6 +42,16 @@ reprojection figures (cam_02 median 7.166 -> 7.162 px, mean 8.861 -> 8.815
 px; cam_01 median 7.7208 -> 7.7224 px) and split 6 more filter runs (75 ->
 81). The real-data steps (DBAT's CAMCAL and SXB, the Pose2Sim demo) skip
 when ../shared/data is absent.
+And the same three mocap steps re-recorded on 2026-12-03 for issue 22,
+items 3-4, after items 1, 2 and 5 were merged (only these three, as above): the pose
+basis with a linear trend and, with unknown rotations, the windows on the
+chain of the measured differences and one rotation track per camera
+(docs/mocap.md sections 6 and 12): ski-ptz MPJPE 4.53 -> 4.31 mm, speed MAE
+0.022 -> 0.012 m/s; ski-ptz-estimate MPJPE 38.2 -> 29.2 mm, speed MAE 0.469
+-> 0.050 m/s, knee-flexion MAE 0.56 -> 0.59 deg; the demo's bone-length CV
+5.15 -> 5.12 %, cam_03's median reprojection error 21.3 -> 21.5 px; the
+last stages also report ``seam_disagreement_m``. The real-data steps (DBAT's CAMCAL and SXB, the
+Pose2Sim demo) skip when ../shared/data is absent.
 """
 
 import math

@@ -85,6 +85,7 @@ def _joint_batch(sim, F, obs, cams, K=5):
     windows, batches = _batches(obs, cams, SKI24, s, ())
     ws, idx, b = batches[0]
     T = idx.shape[1]
+    K = b.B.shape[1]                    # the pose basis: K DCT terms and the linear trend
     BG = dct_basis(T, 4)
     R = cams.R[idx]                                              # (nw, T, C, 3, 3)
     R_ref = R[:, T // 2]

@@ -16,8 +16,21 @@ eqs. (12)-(13)). Steps:
    values; residual units in docs/mocap.md), by Levenberg-Marquardt on the
    dense per-window model (the paper ran 1500 L-BFGS iterations; the
    Gauss-Newton model reaches the minimum in tens);
+   With measured differences every window's rotation follows their chain
+   per frame, ``R(t) = Q(t) Q(m)^T R(m) E(gamma(t))``, and a camera without
+   athlete detections in a window is held there
+   (:mod:`photogram.mocap.reconstruction.rotation_chain`);
 3. windows blended as in part 1 (poses) and rotation matrices blended with
-   the same weights and projected to the nearest rotation.
+   the same weights and projected to the nearest rotation;
+4. with measured differences: one rotation track per camera and run, the
+   chain ``Q(t)`` times its offset ``Q(t)^T R(t)`` smoothed over the
+   observed frames (Gaussian, sigma 10 frames; the frames without observations
+   get the offsets of both sides of their gap), and the poses of every
+   window solved again on these cameras (the last stage of part 1,
+   warm-started): independent windows fix the absolute orientation each
+   from their own frames and disagree in the overlaps (p95 23 cm on the
+   simulated run of benchmarks/mocap_seams.py, 5.6 cm after), which the
+   blend turned into jumps of the centre of mass (docs/mocap.md section 12).
 
 Ablations (Table 2 of the paper): ``pose_basis = "free"`` (a position per
 joint and frame: Ours-A, Ours-B), ``rotation_basis = "free"`` (angles per
@@ -43,7 +56,11 @@ from photogram.mocap.reconstruction.joint import JointBatch
 from photogram.mocap.reconstruction.joint_solver import solve_joint, solve_joint_lbfgs
 from photogram.mocap.reconstruction.reconstruct import (Reconstruction, ReconstructionSettings,
                                                         _batches, _blend, _given_lengths, _support,
-                                                        limb_lengths)
+                                                        limb_lengths, window_disagreement)
+from photogram.mocap.reconstruction.rotation_chain import (anchor_rotations, chained_references,
+                                                           difference_chain, observed_frames,
+                                                           window_cameras)
+from photogram.mocap.reconstruction.solvers import solve_gauss_newton
 
 __all__ = ["ESTIMATE_DEFAULTS", "ABLATIONS", "estimate_settings", "EstimatedRotations",
            "estimate_poses_and_rotations"]
@@ -103,13 +120,18 @@ def _free_points(b):
     return replace(b, B=np.eye(T), n_coef=n)
 
 
-def _window_rotation_data(idx, R_boot, dR, dR_weight, BG):
+def _window_rotation_data(idx, R_boot, dR, dR_weight, BG, Q=None):
     """R_ref, start coefficients g, measured differences and weights of the
-    windows with frame indices ``idx`` (nw, T)."""
+    windows with frame indices ``idx`` (nw, T); with the chain ``Q`` (F, C,
+    3, 3) R_ref is chained per frame (:mod:`photogram.mocap.reconstruction.rotation_chain`)."""
     nw, T = idx.shape
-    R_ref = R_boot[idx[:, T // 2]]                                  # (nw, C, 3, 3)
     Rw = R_boot[idx].transpose(0, 2, 1, 3, 4)                        # (nw, C, T, 3, 3)
-    gam = euler_from_matrices(np.swapaxes(R_ref, -1, -2)[:, :, None] @ Rw)
+    if Q is None:
+        R_ref = R_boot[idx[:, T // 2]]                              # (nw, C, 3, 3)
+        gam = euler_from_matrices(np.swapaxes(R_ref, -1, -2)[:, :, None] @ Rw)
+    else:
+        R_ref = chained_references(idx, R_boot, Q)                  # (nw, C, T, 3, 3)
+        gam = euler_from_matrices(np.swapaxes(R_ref, -1, -2) @ Rw)
     g = np.einsum("wcta,tk->wcak", gam, BG)
     if dR is None:
         C = R_boot.shape[1]
@@ -118,6 +140,28 @@ def _window_rotation_data(idx, R_boot, dR, dR_weight, BG):
     pairs = idx[:, :-1]
     return (R_ref, g, dR[pairs].transpose(0, 2, 1, 3, 4),
             dR_weight[pairs].transpose(0, 2, 1))
+
+
+def _pose_on_anchor(batches, coeffs, R, X0, lengths, s, F, J):
+    """The poses of every window again, the cameras held on the shared
+    rotation track R (F, C, 3, 3) (the last stage of part 1, warm-started):
+    every window then sees the same cameras and the blended trajectory is
+    continuous (module doc); returns X, views and the stage's record."""
+    E, iterations = 0.0, 0
+    L = np.nan_to_num(lengths)
+    lam_limbs = s.lambda_limbs / s.limb_unit ** 2
+    for (ws, idx, b), a in zip(batches, coeffs):
+        b.R = np.ascontiguousarray(R[idx].transpose(0, 2, 3, 4, 1))      # (nw, C, 3, 3, T)
+        b.RX0 = np.einsum("wcabt,cb->wcat", b.R, X0)
+        use = b.with_limb_mask(b.limb_mask * np.isfinite(lengths))
+        a[...], e, it = solve_gauss_newton(use, a, s.sigma2, L, s.lambda_rep, lam_limbs,
+                                           s.max_iterations, s.tolerance,
+                                           step_tol=s.step_tol)
+        E += float(np.sum(e))
+        iterations = max(iterations, it)
+    X, views = _blend(batches, coeffs, F, J, s.overlap)
+    return X, views, {"step": "anchored poses", "sigma2": s.sigma2, "energy": E,
+                      "iterations": iterations}
 
 
 def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: Skeleton,
@@ -181,13 +225,16 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
                                                            s.symmetric_limbs)
     lam_limbs = s.lambda_limbs / s.limb_unit ** 2
     L = np.nan_to_num(lengths)
+    observed = observed_frames(conf)
+    Q = difference_chain(dR, weights, breaks) if lambda_rot else None
     energy, iterations, Rw, stages = 0.0, 0, [], []
     for b, (ws, idx, batch) in enumerate(batches):
         T = idx.shape[1]
         BG = np.eye(T) if s.rotation_basis == "free" else dct_basis(T, s.n_rotation_dct)
-        R_ref, g, dRw, wts = _window_rotation_data(idx, R_boot, dR, weights, BG)
+        R_ref, g, dRw, wts = _window_rotation_data(idx, R_boot, dR, weights, BG, Q)
         obs_batch = batch.with_limb_mask(batch.limb_mask * np.isfinite(lengths))
-        jb = JointBatch(obs_batch, cameras.X0, R_ref, dRw, wts, BG)
+        jb = JointBatch(obs_batch, cameras.X0, R_ref, dRw, wts, BG,
+                        camera_free=window_cameras(observed, idx))
         if s.solver == "lbfgs":       # the paper's, for comparison (1500 iterations)
             a, g, E, it = solve_joint_lbfgs(jb, coeffs[b], g, s.sigma2, L, s.lambda_rep,
                                             lam_limbs, lambda_rot, 15 * s.max_iterations)
@@ -201,14 +248,31 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
         iterations = max(iterations, it)
     X, views = _blend(batches, coeffs, F, J, s.overlap)
     R = _blend_rotations(batches, Rw, F, s.overlap)
+    t_joint = time.perf_counter() - t0 - t_boot
+    joint_coeffs = [a.copy() for a in coeffs]
+    carried = np.zeros((F, C), bool)
+    anchored = None
+    if Q is not None:       # one rotation track per camera, the poses again on it
+        usable = np.any(weights > 0, axis=0)
+        R = anchor_rotations(R, Q, observed, usable, breaks)
+        carried = ~observed & usable[None, :]
+        X, views, anchored = _pose_on_anchor(batches, coeffs, R, cameras.X0, lengths, s, F, J)
     n_views = np.sum(np.isfinite(obs[..., 0]) & (np.nan_to_num(obs[..., 2]) >
                                                   s.min_confidence), axis=1)
     X[(views == 0) | (_support(n_views, s.support_frames) < 2)] = np.nan
+    valid = np.isfinite(X).all(axis=-1)
     seconds = time.perf_counter() - t0
     stages.append({"step": "bootstrap", "rounds": s.bootstrap_iterations,
                    "seconds": t_boot, "last_change_m": history[-1] if history else None})
     stages.append({"step": "joint", "sigma2": s.sigma2, "lambda_rot": lambda_rot,
-                   "energy": energy, "iterations": iterations, "seconds": seconds - t_boot})
+                   "energy": energy, "iterations": iterations, "seconds": t_joint,
+                   "seam_disagreement_m": window_disagreement(batches, joint_coeffs, F, J,
+                                                              valid),
+                   "chained_camera_frames": carried.sum(axis=0).tolist()})
+    if anchored is not None:
+        anchored.update(seconds=seconds - t_boot - t_joint,
+                        seam_disagreement_m=window_disagreement(batches, coeffs, F, J, valid))
+        stages.append(anchored)
     return EstimatedRotations(joints=X, n_views=n_views, limb_lengths=lengths, energy=energy,
                               iterations=iterations, seconds=seconds,
                               solver="joint-lbfgs" if s.solver == "lbfgs" else "joint-lm",

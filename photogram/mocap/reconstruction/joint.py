@@ -59,7 +59,12 @@ class JointBatch:
     ``RX0`` are not used); ``X0`` (C, 3); ``R_ref`` (nw, C, 3, 3);
     ``dR`` (nw, C, T-1, 3, 3) measured rotation differences and
     ``rot_w`` (nw, C, T-1) their weights (0: no measurement); ``BG``
-    (T, K_Gamma) the camera basis.
+    (T, K_Gamma) the camera basis. ``R_ref`` may also be given per frame,
+    (nw, C, T, 3, 3): the chained differences of
+    :mod:`photogram.mocap.motion.camera_motion`. ``camera_free`` (nw, C):
+    False holds a camera's angle coefficients (a camera without athlete
+    detections in the window: nothing but E_rot's differences would
+    determine its orientation there); None: all free.
     """
 
     obs: WindowBatch
@@ -68,6 +73,12 @@ class JointBatch:
     dR: np.ndarray
     rot_w: np.ndarray
     BG: np.ndarray
+    camera_free: np.ndarray | None = None
+
+    @property
+    def ref_frames(self) -> np.ndarray:
+        """R_ref per frame, (nw, C, T, 3, 3) or broadcastable (nw, C, 1, 3, 3)."""
+        return self.R_ref if self.R_ref.ndim == 5 else self.R_ref[:, :, None]
 
     @property
     def sizes(self):
@@ -76,7 +87,8 @@ class JointBatch:
 
     def subset(self, idx) -> "JointBatch":
         return JointBatch(self.obs.subset(idx), self.X0, self.R_ref[idx], self.dR[idx],
-                          self.rot_w[idx], self.BG)
+                          self.rot_w[idx], self.BG,
+                          None if self.camera_free is None else self.camera_free[idx])
 
     # ------------------------------------------------------------------
     def rotations(self, g, derivatives=False):
@@ -86,7 +98,7 @@ class JointBatch:
             E, dE = euler_matrices(gam, derivatives=True)
         else:
             E, dE = euler_matrices(gam), None
-        R = self.R_ref[:, :, None] @ E
+        R = self.ref_frames @ E
         return gam, E, R, dE
 
     def _camera_points(self, X, R):
@@ -139,7 +151,7 @@ class JointBatch:
         f1 = -self.obs.sy * iz * front
         Jx0 = [f0 * (Rt[:, :, 0, b] + u * Rt[:, :, 2, b]) for b in range(3)]
         Jx1 = [f1 * (Rt[:, :, 1, b] - v * Rt[:, :, 2, b]) for b in range(3)]
-        G = generators(self.R_ref[None, :, :, None], E[None], dE)     # (3,nw,C,T,3,3)
+        G = generators(self.ref_frames[None], E[None], dE)            # (3,nw,C,T,3,3)
         Jg0, Jg1 = [], []
         for k in range(3):
             Gt = G[k].transpose(0, 1, 3, 4, 2)[:, :, :, :, None, :]   # (nw,C,3,3,1,T)

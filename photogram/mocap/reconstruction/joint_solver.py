@@ -32,10 +32,13 @@ def _chunks(ids, n_unknowns, budget=100e6):
 
 def _mask(batch: JointBatch, nw):
     """1 for the unknowns a window may change: the pose coefficients of
-    observed joints (``n_coef``), every camera coefficient."""
+    observed joints (``n_coef``), the angle coefficients of the cameras
+    that are free in the window (``camera_free``)."""
     _, C, J, T, KP, KG = batch.sizes
     mp = np.broadcast_to(batch.obs.mask(KP), (nw, J, 3, KP)).reshape(nw, -1)
-    return np.concatenate([mp, np.ones((nw, C * 3 * KG), bool)], axis=1).astype(float)
+    free = np.ones((nw, C), bool) if batch.camera_free is None else batch.camera_free
+    mc = np.repeat(free, 3 * KG, axis=1)
+    return np.concatenate([mp, mc], axis=1).astype(float)
 
 
 def _solve_dense(A, b):

@@ -1,8 +1,10 @@
 """3D reconstruction of a sequence from multi-view 2D detections (sections
 4.3-4.4 of the paper, with known camera rotations).
 
-Every joint coordinate is an inverse DCT per window
-(:mod:`photogram.mocap.reconstruction.dct`) whose basis is chosen by a cut-off
+Every joint coordinate is an inverse DCT plus a linear trend per window
+(:func:`photogram.mocap.reconstruction.dct.trend_basis`: without the trend
+every window's ends bend flat and overlapping windows disagree) whose DCT
+terms are chosen by a cut-off
 frequency, ``cutoff_hz`` (default 12 Hz: ``floor(2 T fc / fps) + 1``
 coefficients in a window of T frames, 25 over 50 frames at 50 fps, the
 paper's N_Pi), or by an explicit count ``n_dct`` (which then wins; the
@@ -52,14 +54,15 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.mocap.body.skeleton import Skeleton
 from photogram.mocap.reconstruction.cameras import MocapCameras
-from photogram.mocap.reconstruction.dct import (blend_weights, coefficients_for_cutoff, dct_basis,
-                                                plan_windows)
+from photogram.mocap.reconstruction.dct import (blend_weights, coefficients_for_cutoff,
+                                                plan_windows, trend_basis)
 from photogram.mocap.reconstruction.energy import WindowBatch
 from photogram.mocap.reconstruction.observability import (Gaps, bridge_short_runs, find_gaps,
                                                           observing_cameras)
 from photogram.mocap.reconstruction.solvers import solve_gauss_newton, solve_lbfgs
 
 __all__ = ["ReconstructionSettings", "Reconstruction", "reconstruct", "limb_lengths",
+           "window_disagreement",
            "SOLVERS", "DEFAULT_CUTOFF_HZ"]
 
 log = logging.getLogger(__name__)
@@ -228,7 +231,7 @@ def _batches(obs, cameras: MocapCameras, skeleton: Skeleton, settings, breaks):
     for (T, K), ws in groups.items():
         idx = np.array([np.arange(w.start, w.stop) for w in ws])       # (nw, T)
         c = np.ascontiguousarray(conf[:, :, idx].transpose(2, 0, 1, 3))   # (nw, C, J, T)
-        B = dct_basis(T, K)
+        B = trend_basis(T, K)
         n_coef = _coefficients(np.any(c > 0, axis=1), B)              # (nw, J)
         support = determined[idx]                                      # (nw, T, J)
         observed = n_coef > 0
@@ -326,7 +329,7 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
     solver = solve_gauss_newton if s.solver == "gauss-newton" else solve_lbfgs
     stages, iterations = [], 0
     plan = _stage_plan(s)
-    n_max = max(batch.B.shape[1] for _, _, batch in batches)
+    n_max = max(w.n_coefficients for w in windows)      # DCT terms (the basis adds a trend)
     lengths = given if given is not None else np.full(len(skeleton.limbs), np.nan)
     for n, (sigma2, k, step) in enumerate(plan):
         last = n == len(plan) - 1
@@ -350,6 +353,7 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
             stage_it = max(stage_it, it)
         iterations += stage_it
         stages.append({"sigma2": sigma2, "coefficients": min(k or n_max, n_max),
+                       "linear_trend": True,
                        "cutoff_hz": s.cutoff if k is None else None, "frame_step": step,
                        "lambda_limbs": lam, "energy": stage_E, "iterations": stage_it,
                        "seconds": time.perf_counter() - t0})
@@ -362,6 +366,8 @@ def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skele
     gaps = find_gaps(obs, s.min_confidence, s.support_frames, breaks, cameras, X,
                      max_error_px=s.inlier_px)
     X[gaps.mask] = np.nan
+    stages[-1]["seam_disagreement_m"] = window_disagreement(batches, coeffs, F, J,
+                                                            np.isfinite(X).all(axis=-1))
     return Reconstruction(joints=X, n_views=n_views, limb_lengths=lengths,
                           energy=stages[-1]["energy"], iterations=iterations,
                           seconds=time.perf_counter() - t0, solver=s.solver,
@@ -395,3 +401,29 @@ def _blend(batches, coeffs, F, J, overlap):
     with np.errstate(invalid="ignore", divide="ignore"):
         X = acc / wsum[..., None]
     return X, views
+
+
+def window_disagreement(batches, coeffs, F, J, valid=None) -> dict:
+    """How far overlapping windows' solutions are apart before blending:
+    ``|X_a(t) - X_b(t)|`` of the joints observed in both windows of an
+    overlap (twice the spread about their mean where three overlap), over
+    the frames and joints ``valid`` (F, J) (default all): median, 95th
+    percentile and maximum (m; None without overlaps). Independent window
+    solutions that disagree are blended into a trajectory that changes
+    faster in the overlap than the motion (docs/mocap.md section 6)."""
+    s1 = np.zeros((F, J, 3))
+    s2 = np.zeros((F, J))
+    n = np.zeros((F, J))
+    for (ws, idx, batch), a in zip(batches, coeffs):
+        X = batch.positions(a).transpose(0, 3, 1, 2)              # (nw, T, J, 3)
+        m = np.broadcast_to(batch.observed[:, None, :], X.shape[:3]).astype(float)
+        np.add.at(s1, idx, m[..., None] * X)
+        np.add.at(s2, idx, m * np.sum(X * X, axis=-1))
+        np.add.at(n, idx, m)
+    use = (n >= 2) & (True if valid is None else valid)
+    if not use.any():
+        return {"median": None, "p95": None, "max": None}
+    mean = s1[use] / n[use, None]
+    d = 2.0 * np.sqrt(np.maximum(s2[use] / n[use] - np.sum(mean * mean, axis=-1), 0.0))
+    return {"median": float(np.median(d)), "p95": float(np.percentile(d, 95)),
+            "max": float(d.max())}
