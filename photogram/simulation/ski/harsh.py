@@ -54,8 +54,7 @@ from photogram.geometry.rotations import rodrigues_to_matrix
 from photogram.mocap.body.anthropometry import centre_of_mass
 from photogram.mocap.body.skeleton import SKI24
 from photogram.mocap.reconstruction.cameras import MocapCameras
-from photogram.simulation.ski.simulate import IMAGE_SIZE, SkiSimulation
-from photogram.simulation.ski.skier import SkierBody, pose_skier
+from photogram.simulation.ski.simulate import IMAGE_SIZE, SkiSimulation, pose_run, slope_axes
 
 __all__ = ["HarshSettings", "HarshSimulation", "simulate_harsh", "two_cameras",
            "simulated_rotation_differences", "TWO_CAMERAS"]
@@ -174,12 +173,6 @@ class Terrain:
                 (self.height(p, q + eps) - self.height(p, q - eps)) / (2 * eps))
 
 
-def _axes(alpha):
-    e_fall = np.array([np.cos(alpha), 0.0, -np.sin(alpha)])
-    e_lat = np.array([0.0, 1.0, 0.0])
-    return e_fall, e_lat, np.cross(e_fall, e_lat)
-
-
 def _run(rng, st: HarshSettings, alpha):
     """The athlete: joints (F, 24, 3), the path (p, q), the terrain, info."""
     F, fps = st.frames, st.fps
@@ -210,7 +203,7 @@ def _run(rng, st: HarshSettings, alpha):
         airborne = (k, end)
     else:
         airborne = (0, 0)
-    e_fall, e_lat, n0 = _axes(alpha)
+    e_fall, e_lat, n0 = slope_axes(alpha)
     P = p[:, None] * e_fall + q[:, None] * e_lat + z[:, None] * n0
     gp, gq = terrain.gradient(p, q)
     n = n0[None] - gp[:, None] * e_fall - gq[:, None] * e_lat
@@ -223,19 +216,7 @@ def _run(rng, st: HarshSettings, alpha):
     d = dp[:, None] * e_fall + dq[:, None] * e_lat + np.gradient(z, t)[:, None] * n0
     phi = np.arctan(v ** 2 * kappa / (G * np.cos(alpha)))
     phi = gaussian_filter1d(np.clip(phi, -1.15, 1.15), 3.0, mode="nearest")
-
-    def wobble(sd, sig):
-        return gaussian_filter1d(rng.normal(0, sd, F), sig, mode="nearest") * np.sqrt(sig)
-
-    body = SkierBody(height=1.80 * (1 + rng.normal(0, 0.03)))
-    kh = body.height / 1.8
-    joints = pose_skier(
-        P, d, n, phi, body,
-        hip_height=kh * (0.86 - 0.12 * turn + wobble(0.01, 8)),
-        trunk_flexion=0.55 + 0.12 * turn + wobble(0.02, 10),
-        fore_aft=0.05 * np.sin(2 * st.turns * np.pi * t / T + 0.7) + wobble(0.01, 10),
-        arm_swing=0.25 * np.sin(2 * st.turns * np.pi * t / T) + wobble(0.03, 6),
-        counter_rotation=-0.35 * phi)
+    joints, body = pose_run(rng, P, d, n, phi, turn, t, T, turns=st.turns)
     info = {"gate_distance": Gd, "amplitude": A, "length": st.turns * Gd,
             "speed_min": float(v.min()), "speed_max": float(v.max()),
             "airborne_frames": [int(airborne[0]), int(airborne[1])],
@@ -266,7 +247,7 @@ def _lost_aim(aim, com, st: HarshSettings):
 
 def _cameras(rng, st: HarshSettings, com, terrain, length, amplitude, alpha):
     F = len(com)
-    e_fall, e_lat, n0 = _axes(alpha)
+    e_fall, e_lat, n0 = slope_axes(alpha)
     sides = np.array([1.0, -1.0, 1.0, -1.0, 1.0])
     pq = [(length + 25.0, 6.0)] + [
         (f * length, sides[i] * (amplitude + rng.uniform(18.0, 26.0)))
@@ -323,7 +304,7 @@ def simulate_harsh(settings: HarshSettings | None = None, seed: int | None = Non
     others, kinds = bystanders(rng, st, joints, cams, terrain, alpha)
     xy = cams.project(joints)
     det = detect_people(rng, st, cams, xy, [cams.project(X) for X in others])
-    _, _, n0 = _axes(alpha)
+    _, _, n0 = slope_axes(alpha)
     info.update(cinfo)
     info.update({"seed": st.seed, "runs": 1, "frames_per_run": st.frames,
                  "slope_deg": st.slope_deg, "setting": "harsh"})

@@ -53,7 +53,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from photogram.mocap.body.skeleton import SKI24
-from photogram.simulation.ski.simulate import IMAGE_SIZE
+from photogram.simulation.ski.simulate import IMAGE_SIZE, slope_axes
 from photogram.simulation.ski.skier import SkierBody, pose_skier
 
 __all__ = ["bystanders", "detect_people", "image_height"]
@@ -87,8 +87,7 @@ def _standing(P, d, n, height):
 
 
 def _on_terrain(p, q, terrain, alpha):
-    from photogram.simulation.ski.harsh import _axes
-    e_fall, e_lat, n0 = _axes(alpha)
+    e_fall, e_lat, n0 = slope_axes(alpha)
     p, q = np.broadcast_arrays(np.asarray(p, float), np.asarray(q, float))
     return (p[..., None] * e_fall + q[..., None] * e_lat
             + terrain.height(p, q)[..., None] * n0)
@@ -97,8 +96,7 @@ def _on_terrain(p, q, terrain, alpha):
 def bystanders(rng, st, joints, cameras, terrain, alpha):
     """The 3D bystanders (list of (F, 24, 3)) and their names (module doc)."""
     from photogram.mocap.body.anthropometry import centre_of_mass
-    from photogram.simulation.ski.harsh import _axes
-    e_fall, e_lat, n0 = _axes(alpha)
+    e_fall, e_lat, n0 = slope_axes(alpha)
     F = len(joints)
     com = centre_of_mass({nm: joints[:, k] for k, nm in enumerate(SKI24.joints)})
     p_a, q_a = com @ e_fall, com @ e_lat

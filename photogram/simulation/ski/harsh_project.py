@@ -27,7 +27,7 @@ from photogram.mocap.motion.rotation_series import write_rotation_differences
 from photogram.project.atomic import atomic_write_text
 from photogram.simulation.ski.harsh import (HarshSimulation, simulated_rotation_differences,
                                             two_cameras)
-from photogram.simulation.ski.simproject import _csv, _f
+from photogram.simulation.ski.simproject import _csv, _f, camera_sections
 
 __all__ = ["write_harsh_project", "header"]
 
@@ -51,12 +51,7 @@ def _prj(sim, name, head, estimate=False, two=False, truth="truth/joints3d.csv")
              + f"Run: photogram mocap {where}/{stem}.prj  (see README.md)", "",
              "[project]", f'name = "{stem}"', 'length_unit = "m"', 'angle_unit = "deg"',
              'image_unit = "px"', ""]
-    for c, cam in enumerate(cams.names):
-        io = cams.io[c][0]
-        lines += [f"[cameras.{cam}]", 'model = "opencv"',
-                  f"image_size = [{int(cams.image_size[c, 0])}, {int(cams.image_size[c, 1])}]",
-                  f"fx = {_f(io[0], 2)}", f"fy = {_f(io[1], 2)}", f"cx = {_f(io[2], 2)}",
-                  f"cy = {_f(io[3], 2)}", f"k1 = {io[4]:g}", ""]
+    lines += camera_sections(cams)
     lines += ["[stations]", 'file = "stations.csv"', "",
               "[mocap]", f"fps = {sim.fps:g}", 'skeleton = "ski24"']
     if estimate:

@@ -35,6 +35,19 @@ def _f(x, d):
     return f"{x:.{d}f}"
 
 
+def camera_sections(cams) -> list[str]:
+    """The ``[cameras.NAME]`` sections (opencv model, frame 0's interior
+    orientation) of a simulated project file, as lines."""
+    lines = []
+    for c, cam in enumerate(cams.names):
+        io = cams.io[c][0]
+        lines += [f"[cameras.{cam}]", 'model = "opencv"',
+                  f"image_size = [{int(cams.image_size[c, 0])}, {int(cams.image_size[c, 1])}]",
+                  f"fx = {_f(io[0], 2)}", f"fy = {_f(io[1], 2)}", f"cx = {_f(io[2], 2)}",
+                  f"cy = {_f(io[3], 2)}", f"k1 = {io[4]:g}", ""]
+    return lines
+
+
 def write_simulated_project(sim: SkiSimulation, folder: Path, name: str = "ski-ptz",
                             command: str = "projects/ski-ptz/generate.py") -> list[Path]:
     folder = Path(folder)
@@ -53,12 +66,7 @@ def write_simulated_project(sim: SkiSimulation, folder: Path, name: str = "ski-p
            f"# Run: photogram mocap projects/{name}/{name}.prj  (see README.md)", "",
            "[project]", f'name = "{name}"', 'length_unit = "m"', 'angle_unit = "deg"',
            'image_unit = "px"', ""]
-    for c, cam in enumerate(cams.names):
-        io = cams.io[c][0]
-        prj += [f"[cameras.{cam}]", 'model = "opencv"',
-                f"image_size = [{int(cams.image_size[c, 0])}, {int(cams.image_size[c, 1])}]",
-                f"fx = {_f(io[0], 2)}", f"fy = {_f(io[1], 2)}", f"cx = {_f(io[2], 2)}",
-                f"cy = {_f(io[3], 2)}", f"k1 = {io[4]:g}", ""]
+    prj += camera_sections(cams)
     prj += ["[stations]", 'file = "stations.csv"', "",
             "[mocap]", f"fps = {sim.fps:g}", 'skeleton = "ski24"',
             'camera_frames = "camera_frames.csv"   # rotations and zoom per frame (known)',

@@ -46,7 +46,7 @@ from photogram.mocap.body.skeleton import SKI24
 from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.simulation.ski.skier import SkierBody, pose_skier
 
-__all__ = ["SkiSimulation", "simulate_session", "IMAGE_SIZE"]
+__all__ = ["SkiSimulation", "simulate_session", "IMAGE_SIZE", "slope_axes", "pose_run"]
 
 IMAGE_SIZE = (1920, 1080)
 G = 9.81
@@ -74,7 +74,9 @@ class SkiSimulation:
         return centre_of_mass({n: self.joints[:, k] for k, n in enumerate(SKI24.joints)})
 
 
-def _slope(alpha):
+def slope_axes(alpha):
+    """Fall line, lateral and normal unit vectors of a plane slope of
+    inclination ``alpha`` (rad; module doc)."""
     e_fall = np.array([np.cos(alpha), 0.0, -np.sin(alpha)])
     e_lat = np.array([0.0, 1.0, 0.0])
     return e_fall, e_lat, np.cross(e_fall, e_lat)
@@ -92,6 +94,29 @@ def _course_line(S, radius=23.0):
     return Gd, (Gd / np.pi) ** 2 / radius
 
 
+def pose_run(rng, P, d, n, phi, turn, t, T, turns: int = 3):
+    """The skier along a run (joints (F, 24, 3) and its body): a random
+    height of 1.80 m +- 3 %, the pelvis lower and the trunk more flexed in
+    the turns (``turn`` in [0, 1]), fore/aft and arm swing with ``turns``
+    periods over the run's duration ``T``, small smooth wobbles (module
+    doc); shared by the old and the harsh settings."""
+    F = len(t)
+
+    def wobble(sd, sig):
+        return gaussian_filter1d(rng.normal(0, sd, F), sig, mode="nearest") * np.sqrt(sig)
+
+    body = SkierBody(height=1.80 * (1 + rng.normal(0, 0.03)))
+    k = body.height / 1.8
+    joints = pose_skier(
+        P, d, n, phi, body,
+        hip_height=k * (0.86 - 0.12 * turn + wobble(0.01, 8)),
+        trunk_flexion=0.55 + 0.12 * turn + wobble(0.02, 10),
+        fore_aft=0.05 * np.sin(2 * turns * np.pi * t / T + 0.7) + wobble(0.01, 10),
+        arm_swing=0.25 * np.sin(2 * turns * np.pi * t / T) + wobble(0.03, 6),
+        counter_rotation=-0.35 * phi)
+    return joints, body
+
+
 def _run(rng, n_frames, fps, alpha, Gd_nominal):
     """Truth of one run: joints (F, 24, 3)."""
     T = n_frames / fps
@@ -106,7 +131,7 @@ def _run(rng, n_frames, fps, alpha, Gd_nominal):
     arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(pp), np.diff(qq)))])
     p = np.interp(s, arc, pp) + 1.5 * (Gd_nominal - Gd)     # centred on the course
     q = np.interp(s, arc, qq) + rng.uniform(-0.5, 0.5)
-    e_fall, e_lat, n = _slope(alpha)
+    e_fall, e_lat, n = slope_axes(alpha)
     P = p[:, None] * e_fall + q[:, None] * e_lat
     dp, dq = np.gradient(p, t), np.gradient(q, t)
     ddp, ddq = np.gradient(dp, t), np.gradient(dq, t)
@@ -114,23 +139,13 @@ def _run(rng, n_frames, fps, alpha, Gd_nominal):
     d = dp[:, None] * e_fall + dq[:, None] * e_lat
     phi = np.arctan(v ** 2 * kappa / (G * np.cos(alpha)))
     phi = gaussian_filter1d(np.clip(phi, -1.15, 1.15), 3.0, mode="nearest")
-    wobble = lambda sd, sig: gaussian_filter1d(rng.normal(0, sd, n_frames), sig,  # noqa: E731
-                                               mode="nearest") * np.sqrt(sig)
-    body = SkierBody(height=1.80 * (1 + rng.normal(0, 0.03)))
-    k = body.height / 1.8
-    joints = pose_skier(
-        P, d, n, phi, body,
-        hip_height=k * (0.86 - 0.12 * turn + wobble(0.01, 8)),
-        trunk_flexion=0.55 + 0.12 * turn + wobble(0.02, 10),
-        fore_aft=0.05 * np.sin(6 * np.pi * t / T + 0.7) + wobble(0.01, 10),
-        arm_swing=0.25 * np.sin(6 * np.pi * t / T) + wobble(0.03, 6),
-        counter_rotation=-0.35 * phi)
+    joints, _ = pose_run(rng, P, d, n, phi, turn, t, T, turns=3)
     return joints, {"speed_profile": v, "lean_true": phi, "gate_distance": Gd, "amplitude": A}
 
 
 def _cameras(rng, com, alpha, centre, n_cameras, radius, fps):
     F = len(com)
-    e_fall, e_lat, n = _slope(alpha)
+    e_fall, e_lat, n = slope_axes(alpha)
     ang = np.deg2rad(30.0 + 360.0 / n_cameras * np.arange(n_cameras)
                      + rng.uniform(-5, 5, n_cameras))
     pq = centre[None, :] + radius * np.stack([np.cos(ang), np.sin(ang)], -1)
@@ -212,7 +227,7 @@ def simulate_session(seed: int = 8, n_runs: int = 1, frames_per_run: int = 279,
     xy = cams.project(joints)
     breaks = [frames_per_run * r for r in range(1, n_runs)]
     obs, outlier, swapped = _detections(rng, xy)
-    _, _, n = _slope(alpha)
+    _, _, n = slope_axes(alpha)
     return SkiSimulation(fps=fps, joints=joints, observations=obs, image_truth=xy,
                          cameras=cams, breaks=breaks, slope_normal=n, outlier=outlier,
                          swapped=swapped,
