@@ -23,3 +23,24 @@ def assert_gradient_is_minus_twice_rhs(jb, a, g, args, picks):
         fd = (ep - em) / (2 * h)
         assert abs(fd + 2 * rhs[0, i]) < 1e-5 * max(1.0, abs(fd)) + 1e-6 * abs(E[0])
     assert np.allclose(H[0], H[0].T)
+
+
+def assert_rotation_jacobians(R_ref, g, noisy, J0, J1, h=1e-6):
+    """The Jacobians ``J0``, ``J1`` of the rotation residuals (E_rot, eq.
+    (14)) of frames t, t+1 with respect to the Euler angles ``g`` (T, 3) of
+    frame t, against central differences."""
+    from photogram.mocap.motion.camera_motion import euler_matrices, rotation_residuals
+    T = g.shape[0]
+    for t in range(T):
+        for a in range(3):
+            gp, gm = g.copy(), g.copy()
+            gp[t, a] += h
+            gm[t, a] -= h
+            fd = (rotation_residuals(R_ref, euler_matrices(gp), None, noisy, False)
+                  - rotation_residuals(R_ref, euler_matrices(gm), None, noisy, False)) / (2 * h)
+            an = np.zeros_like(fd)
+            if t < T - 1:
+                an[t] += J0[t, :, a]
+            if t > 0:
+                an[t - 1] += J1[t - 1, :, a]
+            assert np.max(np.abs(fd - an)) < 1e-6 * max(1.0, np.max(np.abs(an)))
