@@ -30,7 +30,7 @@ MOCAP_KEYS = ("fps", "skeleton", "calibration", "camera_frames", "frames", "up",
 OFFSET_MODES = ("estimate", "report")
 ROTATION_MODES = ("known", "estimate")
 HOMOGRAPHY_KEYS = ("n_features", "ransac_px", "min_inliers", "box_margin", "median", "sigma",
-                   "max_failed")
+                   "max_failed", "min_inlier_fraction")
 SOURCE_KINDS = ("openpose", "csv", "mediapipe", "plugin")
 SOURCE_KEYS = ("kind", "path", "cameras", "skeleton", "network", "wide")
 TRACKING_KEYS = ("scale", "wide_scale", "sigma_centre", "sigma_side", "sigma_refine",

@@ -30,8 +30,8 @@ so ``dR_cv = K_{t+1}^{-1} H K_t``. Per camera and pair of consecutive frames:
    ``dR = D dR_cv D``, ``D = diag(1, -1, -1)``, with ``R(t+1) = dR[t] R(t)``;
 5. a pair with fewer than ``min_inliers`` inliers failed (its dR is NaN).
 
-Filtering (median 7 and Gaussian sigma 3 of the rotation vectors, as in the
-paper), errors against the truth, the check of a camera and the CSV files
+Filtering (median 3 and Gaussian sigma 3 of the rotation vectors; the paper's
+median is 7), errors against the truth, the check of a camera and the CSV files
 are in :mod:`photogram.mocap.motion.rotation_series`.
 
 Assumed: the camera does not translate (pan-tilt head turning about the
@@ -77,15 +77,22 @@ class HomographySettings:
     predicted position (mutual best, Hamming distance <= ``max_hamming``);
     the first pair, a pair after a failure, or a guided pair with too few
     inliers is matched exhaustively (cross-checked); 0 disables guiding.
+    ``median``/``sigma``: the filter of the rotation vectors (median of 3
+    pairs, the paper's 7 clipped the peaks of fast pans and left a step of
+    up to 7 deg in the chain); ``min_inlier_fraction``: a pair with fewer
+    inliers than this fraction of the camera's median counts as failed in
+    the filter (a homography fitted to few background points, often a wrong
+    one; :func:`photogram.mocap.motion.rotation_series.confident_pairs`).
     """
 
     n_features: int = 1000
     ransac_px: float = 2.0
     min_inliers: int = 30
     box_margin: float = 0.25
-    median: int = 7
+    median: int = 3
     sigma: float = 3.0
     max_failed: float = 0.2
+    min_inlier_fraction: float = 0.3
     n_levels: int = 3
     scale_factor: float = 1.3
     fast_threshold: int = 12

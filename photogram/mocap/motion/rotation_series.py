@@ -25,9 +25,23 @@ from photogram.geometry import matrix_to_rodrigues, rodrigues_to_matrix
 from photogram.mocap.motion.homography import HomographySettings, RotationDifferences
 from photogram.project.atomic import give_file_mode
 
-__all__ = ["filter_rotation_differences", "rotation_difference_errors",
+__all__ = ["confident_pairs", "filter_rotation_differences", "rotation_difference_errors",
            "check_rotation_differences", "write_rotation_differences",
            "read_rotation_differences"]
+
+
+def confident_pairs(rd, fraction: float = 0.3) -> np.ndarray:
+    """(F-1,) bool: the pairs of ``rd`` (a
+    :class:`~photogram.mocap.motion.homography.RotationDifferences`) that
+    are ``ok`` and have at least ``fraction`` times the median inliers of
+    the camera's ok pairs. A homography fitted to few background points is
+    often wrong (0.5-3 deg); left to the filter's interpolation, it does not
+    enter the chain of differences (a random walk that keeps every error)."""
+    ok = np.asarray(rd.ok, bool) & np.all(np.isfinite(rd.dR), axis=(1, 2))
+    inliers = np.asarray(rd.inliers, float)
+    if fraction <= 0 or not ok.any():
+        return ok
+    return ok & (inliers >= fraction * np.median(inliers[ok]))
 
 
 def filter_rotation_differences(dR, ok, median: int = 7, sigma: float = 3.0,

@@ -119,7 +119,8 @@ def _from_images(ms, cameras, tracked, frame_range, settings, cache=None):
 
 def measure_differences(ms, cameras, tracked, frame_range, first_frame: int, warnings: list,
                         breaks=(), cache=None):
-    """Rotation differences (F-1, C, 3, 3) (filtered: median 7, Gaussian 3),
+    """Rotation differences (F-1, C, 3, 3) (filtered: median 3, Gaussian 3; pairs
+    with few inliers for their camera left out),
     weights (F-1, C) and the per-camera measurements (for the results
     folder) of the frames ``frame_range`` (start, stop; indices into the
     detections, whose first frame number is ``first_frame``). A table must
@@ -129,6 +130,7 @@ def measure_differences(ms, cameras, tracked, frame_range, first_frame: int, war
     interrupted run resumes with the next camera."""
     from photogram.mocap.motion.homography import HomographySettings
     from photogram.mocap.motion.rotation_series import (check_rotation_differences,
+                                                        confident_pairs,
                                                         filter_rotation_differences,
                                                         read_rotation_differences)
     settings = HomographySettings(**ms.homography)
@@ -154,7 +156,8 @@ def measure_differences(ms, cameras, tracked, frame_range, first_frame: int, war
                             "alone (no E_rot)")
             log.warning(warnings[-1])
             continue
-        dR[:, c] = filter_rotation_differences(rd.dR, rd.ok, settings.median, settings.sigma,
+        ok = confident_pairs(rd, settings.min_inlier_fraction)
+        dR[:, c] = filter_rotation_differences(rd.dR, ok, settings.median, settings.sigma,
                                                breaks)
         weights[:, c] = np.all(np.isfinite(dR[:, c]), axis=(1, 2))
         dR[~np.all(np.isfinite(dR), axis=(2, 3))] = np.eye(3)
