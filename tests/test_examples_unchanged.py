@@ -50,7 +50,13 @@ chain of the measured differences and one rotation track per camera
 0.022 -> 0.012 m/s; ski-ptz-estimate MPJPE 38.2 -> 29.2 mm, speed MAE 0.469
 -> 0.050 m/s, knee-flexion MAE 0.56 -> 0.59 deg; the demo's bone-length CV
 5.15 -> 5.12 %, cam_03's median reprojection error 21.3 -> 21.5 px; the
-last stages also report ``seam_disagreement_m``. The real-data steps (DBAT's CAMCAL and SXB, the
+last stages also report ``seam_disagreement_m``. And ski-ptz-estimate
+alone re-recorded on 2026-12-03 (issue 22; ``run_examples`` restricted to
+the mocap steps, the other two unchanged): the rotation differences
+median-filtered over 3 pairs instead of 7 and low-inlier pairs left out
+(``min_inlier_fraction``): MPJPE 29.04 -> 28.93 mm, speed MAE 0.0498 ->
+0.0494 m/s, knee 0.5897 -> 0.5891 deg, C1's median reprojection error
+3.411 -> 3.395 px. The real-data steps (DBAT's CAMCAL and SXB, the
 Pose2Sim demo) skip when ../shared/data is absent.
 """
 
