@@ -44,7 +44,7 @@ of a frame:
 4. **pan-tilt losses**: with ``image_centre`` a segment that *drifts off
    the centre* (median centre weight below :data:`WEIGHT_FLOOR` and median
    motion weight below :data:`DRIFT_WEIGHT` = 0.5) is chained only after a
-   gap of at most ``_MAX_EXTRAPOLATION`` (10) frames: it continues a track
+   gap of at most :data:`LONG_LOSS` (25) frames: it continues a track
    but does not bridge a long loss (a camera looking away from the athlete
    sees a bystander drift across the image, off its centre; an athlete off
    the centre of a lagging camera stays nearly still in the image).
@@ -67,7 +67,8 @@ from photogram.mocap.tracking.detections import CameraDetections
 __all__ = ["PersonTrack", "follow_person", "candidate_states", "TRACKED", "ACQUIRED", "LOST",
            "LINK_GAP", "SIZE_RATIO", "CHAIN_SIZE_RATIO", "GATE_GROWTH", "LINK_COST",
            "REACQUIRE_COST", "SWITCH_COST",
-           "CENTRE_SCALE", "MOTION_FRAMES", "MOTION_SCALE", "WEIGHT_FLOOR", "DRIFT_WEIGHT", "centre_weight"]
+           "CENTRE_SCALE", "MOTION_FRAMES", "MOTION_SCALE", "WEIGHT_FLOOR", "DRIFT_WEIGHT",
+           "LONG_LOSS", "centre_weight"]
 
 #: per-frame status (the codes of :mod:`photogram.mocap.tracking.crop_tracking`)
 TRACKED, ACQUIRED, LOST = 0, 1, 2
@@ -88,8 +89,9 @@ CENTRE_SCALE = 0.15
 WEIGHT_FLOOR = 0.05
 #: frames either side and scale (sizes per frame) of the motion weight
 MOTION_FRAMES, MOTION_SCALE = 5, 0.05
-#: median motion weight below which a segment off the centre drifts (step 4)
-DRIFT_WEIGHT = 0.5
+#: median motion weight below which a segment off the centre drifts, and the
+#: frames lost beyond which such a segment does not re-acquire (step 4)
+DRIFT_WEIGHT, LONG_LOSS = 0.5, 25
 _VELOCITY_FRAMES = 5        # frames of a tracklet's end its velocity is fitted to
 _MAX_EXTRAPOLATION = 10     # frames a velocity is extrapolated over a gap
 
@@ -276,7 +278,7 @@ def follow_person(det: CameraDetections, min_confidence: float = 0.1, gate: floa
     for j in np.argsort(start, kind="stable"):      # step 3: best chain ending with j
         before = np.flatnonzero(end < start[j])
         if drifting[j]:                             # step 4: no long loss bridged
-            before = before[start[j] - end[before] <= _MAX_EXTRAPOLATION]
+            before = before[start[j] - end[before] <= LONG_LOSS]
         if not len(before):
             continue
         g = (start[j] - end[before]).astype(float)
