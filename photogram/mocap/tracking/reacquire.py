@@ -40,7 +40,14 @@ of a frame:
    :data:`SWITCH_COST` (50) for leaving a tracklet that goes on for another
    one (an identity switch). The track is therefore re-acquired wherever it
    continues best after a loss, and its seed is the best whole sequence,
-   not the largest, surest detection of one frame.
+   not the largest, surest detection of one frame;
+4. **pan-tilt losses**: with ``image_centre`` a segment that *drifts off
+   the centre* (median centre weight below :data:`WEIGHT_FLOOR` and median
+   motion weight below :data:`DRIFT_WEIGHT` = 0.5) is chained only after a
+   gap of at most :data:`LONG_LOSS` (25) frames: it continues a track
+   but does not bridge a long loss (a camera looking away from the athlete
+   sees a bystander drift across the image, off its centre; an athlete off
+   the centre of a lagging camera stays nearly still in the image).
 
 Per frame the chain gives the chosen row (-1: none) and a status:
 :data:`TRACKED`, :data:`ACQUIRED` (the first frame of the track, the
@@ -60,7 +67,8 @@ from photogram.mocap.tracking.detections import CameraDetections
 __all__ = ["PersonTrack", "follow_person", "candidate_states", "TRACKED", "ACQUIRED", "LOST",
            "LINK_GAP", "SIZE_RATIO", "CHAIN_SIZE_RATIO", "GATE_GROWTH", "LINK_COST",
            "REACQUIRE_COST", "SWITCH_COST",
-           "CENTRE_SCALE", "MOTION_FRAMES", "MOTION_SCALE", "WEIGHT_FLOOR", "centre_weight"]
+           "CENTRE_SCALE", "MOTION_FRAMES", "MOTION_SCALE", "WEIGHT_FLOOR", "DRIFT_WEIGHT",
+           "LONG_LOSS", "centre_weight"]
 
 #: per-frame status (the codes of :mod:`photogram.mocap.tracking.crop_tracking`)
 TRACKED, ACQUIRED, LOST = 0, 1, 2
@@ -81,6 +89,9 @@ CENTRE_SCALE = 0.15
 WEIGHT_FLOOR = 0.05
 #: frames either side and scale (sizes per frame) of the motion weight
 MOTION_FRAMES, MOTION_SCALE = 5, 0.05
+#: median motion weight below which a segment off the centre drifts, and the
+#: frames lost beyond which such a segment does not re-acquire (step 4)
+DRIFT_WEIGHT, LONG_LOSS = 0.5, 25
 _VELOCITY_FRAMES = 5        # frames of a tracklet's end its velocity is fitted to
 _MAX_EXTRAPOLATION = 10     # frames a velocity is extrapolated over a gap
 
@@ -242,12 +253,16 @@ def follow_person(det: CameraDetections, min_confidence: float = 0.1, gate: floa
     tracks = _tracklets(frames, centre, size, usable, F, gate)
     if not tracks:
         return PersonTrack(rows_out, status, 0, [])
-    if image_centre is not None:
-        weight = centre_weight(centre, image_centre) * _motion_weight(tracks, frames, centre,
-                                                                      size, len(quality))
-        quality = quality * np.maximum(weight, WEIGHT_FLOOR)
     segs = _segments(tracks, frames)
     S = len(segs)
+    drifting = np.zeros(S, bool)
+    if image_centre is not None:
+        on_centre = centre_weight(centre, image_centre)
+        still = _motion_weight(tracks, frames, centre, size, len(quality))
+        quality = quality * np.maximum(on_centre * still, WEIGHT_FLOOR)
+        # step 4: off the centre and drifting across the image
+        drifting = np.array([np.median(on_centre[r]) < WEIGHT_FLOOR
+                             and np.median(still[r]) < DRIFT_WEIGHT for _, r in segs])
     owner = np.array([k for k, _ in segs])
     start = np.array([frames[r[0]] for _, r in segs])
     end = np.array([frames[r[-1]] for _, r in segs])
@@ -262,6 +277,8 @@ def follow_person(det: CameraDetections, min_confidence: float = 0.1, gate: floa
     prev = np.full(S, -1)
     for j in np.argsort(start, kind="stable"):      # step 3: best chain ending with j
         before = np.flatnonzero(end < start[j])
+        if drifting[j]:                             # step 4: no long loss bridged
+            before = before[start[j] - end[before] <= LONG_LOSS]
         if not len(before):
             continue
         g = (start[j] - end[before]).astype(float)
