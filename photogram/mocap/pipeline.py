@@ -182,7 +182,8 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     rs["fps"] = ms.fps
     rotation_info = {}
     if estimate:
-        from photogram.mocap.motion.unknown_rotations import measure_differences
+        from photogram.mocap.motion.unknown_rotations import (difference_sigmas,
+                                                              measure_differences)
         from photogram.mocap.reconstruction.estimate import (estimate_poses_and_rotations,
                                                              estimate_settings)
         t1 = time.perf_counter()
@@ -192,12 +193,14 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
             cache=project.output_folder() / PARTIAL / "rotation_differences")
         timings["rotation_differences_s"] = time.perf_counter() - t1
         settings = estimate_settings(**rs)
-        rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights, settings, breaks)
+        sig = difference_sigmas(per_camera, cameras.names, ms.homography)
+        rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights, settings, breaks,
+                                           sig)
         checked, rec, people = check_estimated(           # the multi-view check
             project, source, cameras, tracked, obs_source[lo:hi], skeleton, rec, frames, lo,
             breaks, sync_info, tracking_info,
             lambda o: estimate_poses_and_rotations(o, cameras, skeleton, dR, weights, settings,
-                                                   breaks))
+                                                   breaks, sig))
         obs = obs if checked is None else checked
         cameras = replace(cameras, R=rec.R)
         rotation_info = {"differences": per_camera, "weights": weights}

@@ -41,7 +41,8 @@ RECONSTRUCTION_KEYS = ("solver", "n_dct", "window", "overlap", "sigma2", "lambda
                        "symmetric_limbs", "min_confidence", "support_frames", "limb_unit",
                        "step_tol", "n_rotation_dct", "lambda_rot", "bootstrap_iterations",
                        "pose_basis", "rotation_basis", "rotation_prior", "cutoff_hz",
-                       "inlier_sigmas")
+                       "inlier_sigmas", "chain_offsets", "offset_knot_frames",
+                       "chain_sigma_deg")
 FILTER_KEYS = ("type", "order", "cutoff_hz")
 FILTER_TYPES = ("butterworth", "none")
 _FORBIDDEN = ("points", "observations", "constraints", "intersect", "montecarlo",
@@ -227,17 +228,19 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
                     values[key] = sub.string(key, choices=("gauss-newton", "lbfgs"))
                 elif key in ("pose_basis", "rotation_basis"):
                     values[key] = sub.string(key, choices=("dct", "free"))
-                elif key in ("symmetric_limbs", "rotation_prior", "multiview"):
+                elif key in ("symmetric_limbs", "rotation_prior", "multiview", "chain_offsets"):
                     values[key] = sub.boolean(key)
                 elif key in ("n_dct", "window", "overlap", "max_iterations", "crop_size",
                              "support_frames", "n_rotation_dct", "bootstrap_iterations",
+                             "offset_knot_frames",
                              "n_features", "min_inliers", "median"):
                     values[key] = sub.integer(key, minimum=0 if key in ("overlap",
                                                                         "support_frames") else 1)
                 else:
                     zero_ok = key in ("lambda_limbs", "min_confidence", "lambda_rot",
                                       "box_margin", "max_failed", "sigma",
-                                      "association_confidence", "inlier_sigmas")
+                                      "association_confidence", "inlier_sigmas",
+                                      "chain_sigma_deg")
                     values[key] = sub.number(key, nonnegative=zero_ok, positive=not zero_ok)
         subs[name] = values
     images = None

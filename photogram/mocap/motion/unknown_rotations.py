@@ -181,3 +181,21 @@ def differences_from_vectors(rvec_deg: np.ndarray) -> np.ndarray:
     """Rotation matrices (..., 3, 3) of rotation vectors in degrees."""
     r = np.radians(np.asarray(rvec_deg, float))
     return rodrigues_to_matrix(r.reshape(-1, 3)).reshape(r.shape[:-1] + (3, 3))
+
+
+def difference_sigmas(per_camera: dict, names, homography: dict) -> np.ndarray:
+    """(C,) error per pair and axis (rad) of every camera's raw measured
+    differences (``per_camera`` as returned by :func:`measure_differences`;
+    the confident pairs of ``[mocap.homography]``): the prior of the chain's
+    random walk in :mod:`photogram.mocap.reconstruction.chain_offsets`. NaN
+    for a camera without differences."""
+    from photogram.mocap.motion.homography import HomographySettings
+    from photogram.mocap.motion.rotation_series import confident_pairs
+    from photogram.mocap.reconstruction.chain_offsets import difference_noise
+    fraction = HomographySettings(**homography).min_inlier_fraction
+    out = np.full(len(names), np.nan)
+    for c, name in enumerate(names):
+        rd = per_camera.get(name)
+        if rd is not None and len(rd.dR):
+            out[c] = difference_noise(rd.dR, confident_pairs(rd, fraction))
+    return out

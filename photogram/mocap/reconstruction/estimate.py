@@ -30,7 +30,14 @@ eqs. (12)-(13)). Steps:
    warm-started): independent windows fix the absolute orientation each
    from their own frames and disagree in the overlaps (p95 23 cm on the
    simulated run of benchmarks/mocap_seams.py, 5.6 cm after), which the
-   blend turned into jumps of the centre of mass (docs/mocap.md section 12).
+   blend turned into jumps of the centre of mass (docs/mocap.md section 12);
+5. with measured differences and ``chain_offsets`` (default): before the
+   poses are solved again, the offsets ``Q(t)^T R(t)`` are fitted over the
+   whole run with a random-walk prior from the differences' own error and a
+   shift of the athlete per frame
+   (:mod:`photogram.mocap.reconstruction.chain_offsets`): the windows fix
+   the offsets each from their own frames, where a shift of the whole
+   athlete with every camera turned along costs almost nothing.
 
 Ablations (Table 2 of the paper): ``pose_basis = "free"`` (a position per
 joint and frame: Ours-A, Ours-B), ``rotation_basis = "free"`` (angles per
@@ -51,6 +58,7 @@ from photogram.mocap.body.skeleton import Skeleton
 from photogram.mocap.motion.camera_motion import euler_from_matrices
 from photogram.mocap.reconstruction.bootstrap import bootstrap_poses
 from photogram.mocap.reconstruction.cameras import MocapCameras
+from photogram.mocap.reconstruction.chain_offsets import refine_chain_offsets
 from photogram.mocap.reconstruction.dct import blend_weights, dct_basis
 from photogram.mocap.reconstruction.joint import JointBatch
 from photogram.mocap.reconstruction.joint_solver import solve_joint, solve_joint_lbfgs
@@ -142,6 +150,15 @@ def _window_rotation_data(idx, R_boot, dR, dR_weight, BG, Q=None):
             dR_weight[pairs].transpose(0, 2, 1))
 
 
+def _pair_sigma(s, difference_sigma, C):
+    """Error per pair and axis (rad) of every camera's differences."""
+    if s.chain_sigma_deg > 0:
+        return np.full(C, np.radians(s.chain_sigma_deg))
+    if difference_sigma is None:
+        return np.full(C, np.radians(0.05))
+    return np.asarray(difference_sigma, float)
+
+
 def _pose_on_anchor(batches, coeffs, R, X0, lengths, s, F, J):
     """The poses of every window again, the cameras held on the shared
     rotation track R (F, C, 3, 3) (the last stage of part 1, warm-started):
@@ -167,7 +184,7 @@ def _pose_on_anchor(batches, coeffs, R, X0, lengths, s, F, J):
 def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: Skeleton,
                                  rotation_differences=None, difference_weights=None,
                                  settings: ReconstructionSettings | None = None,
-                                 breaks=()) -> EstimatedRotations:
+                                 breaks=(), difference_sigma=None) -> EstimatedRotations:
     """Reconstruct poses and camera rotations (module doc).
 
     Parameters
@@ -183,6 +200,11 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
         0 for pairs without a measurement (default: all 1).
     settings : ReconstructionSettings
         :func:`estimate_settings` by default.
+    difference_sigma : (C,) or None
+        Error of the measured differences per pair and axis (rad), e.g.
+        :func:`photogram.mocap.reconstruction.chain_offsets.difference_noise`
+        of the raw measurements; ``settings.chain_sigma_deg`` wins when > 0,
+        0.05 deg where neither is known.
     """
     s = settings or estimate_settings()
     obs = np.asarray(observations, dtype=float)
@@ -251,11 +273,19 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
     t_joint = time.perf_counter() - t0 - t_boot
     joint_coeffs = [a.copy() for a in coeffs]
     carried = np.zeros((F, C), bool)
-    anchored = None
+    anchored = stages_offsets = None
     if Q is not None:       # one rotation track per camera, the poses again on it
         usable = np.any(weights > 0, axis=0)
         R = anchor_rotations(R, Q, observed, usable, breaks)
         carried = ~observed & usable[None, :]
+        if s.chain_offsets:     # the offsets over the whole run (module doc, step 5)
+            t2 = time.perf_counter()
+            R, offsets = refine_chain_offsets(
+                X, R, Q, t_obs, conf, cameras.pixel_scale(F), cameras.X0,
+                np.flatnonzero(usable), breaks, s.offset_knot_frames,
+                _pair_sigma(s, difference_sigma, C), s.sigma2)
+            stages_offsets = dict(step="chain offsets", seconds=time.perf_counter() - t2,
+                                  **offsets)
         X, views, anchored = _pose_on_anchor(batches, coeffs, R, cameras.X0, lengths, s, F, J)
     n_views = np.sum(np.isfinite(obs[..., 0]) & (np.nan_to_num(obs[..., 2]) >
                                                   s.min_confidence), axis=1)
@@ -272,6 +302,8 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
     if anchored is not None:
         anchored.update(seconds=seconds - t_boot - t_joint,
                         seam_disagreement_m=window_disagreement(batches, coeffs, F, J, valid))
+        if stages_offsets is not None:
+            stages.append(stages_offsets)
         stages.append(anchored)
     return EstimatedRotations(joints=X, n_views=n_views, limb_lengths=lengths, energy=energy,
                               iterations=iterations, seconds=seconds,
