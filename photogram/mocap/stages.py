@@ -337,9 +337,9 @@ def _leave_out_unconfirmed(project, source_skeleton, cameras, tracked, obs_sourc
             chosen[a:b + 1, c] = (np.nan, np.nan, 0.0)
             n += b - a + 1
         note = (f"camera {name}: with the estimated rotations the multi-view check finds the "
-                f"per-camera track inconsistent with the other cameras in most of frames "
-                f"{', '.join(f'{first + a}..{first + b}' for a, b in runs)}; "
-                f"these {n} frames were left out and the poses and rotations estimated again "
+                f"per-camera track inconsistent with the other cameras in at least a third of "
+                f"the frames of {', '.join(f'{first + a}..{first + b}' for a, b in runs)}; "
+                f"these {n} frame(s) were left out and the poses and rotations estimated again "
                 f"(docs/mocap.md section 5)")
         log.warning("warning: %s", note)
         project.warnings.append(note)
