@@ -125,3 +125,35 @@ def test_a_run_the_check_keeps_in_part_is_still_unconfirmed():
     assert [(r[0], r[1]) for r in runs] == [(441, 449)]
     status[387:430] = mv.UNDECIDED           # undecided frames are not judged: 6 judged
     assert [(r[0], r[1]) for r in unconfirmed_runs(rows, status)] == [(441, 449)]
+
+
+def test_the_second_pass_leaves_the_unconfirmed_frames_out():
+    """:func:`photogram.mocap.stages._leave_out_unconfirmed`: the run's
+    camera-frames become missing in the observations the estimate runs on
+    again (and only those), the warning and the reports say so."""
+    from types import SimpleNamespace
+
+    from photogram.mocap.stages import _leave_out_unconfirmed
+    F, C, J = 20, 3, SKI24.n_joints
+    obs = np.random.default_rng(1).uniform(0, 500, (F, C, J, 3))
+    seen = {}
+
+    def solve(o):
+        seen["obs"] = o
+        return "second"
+
+    project = SimpleNamespace(warnings=[])
+    cams = SimpleNamespace(index=lambda n: ["C1", "C2", "C3"].index(n))
+    tracked = [SimpleNamespace(person=np.arange(F) % 3) for _ in range(C)]
+    people = {"cameras": {n: {"unconfirmed_runs": [[110 + 5, 110 + 7]] if n == "C2" else []}
+                          for n in ("C1", "C2", "C3")}}
+    info = {n: {"persons": {"0": 20}} for n in ("C1", "C2", "C3")}
+    out, rec, report = _leave_out_unconfirmed(project, SKI24, cams, tracked, obs, SKI24, people,
+                                              {"C2": [[5, 7]]}, info, solve, first=110)
+    assert rec == "second" and seen["obs"] is out
+    gone = np.zeros((F, C), bool)
+    gone[5:8, 1] = True
+    assert np.all(out[gone][..., 2] == 0) and np.all(np.isnan(out[gone][..., :2]))
+    assert np.array_equal(out[~gone], obs[~gone])
+    assert info["C2"]["unconfirmed_runs"] == [[115, 117]] and "persons_first_pass" in info["C2"]
+    assert "115..117" in project.warnings[0] and "unconfirmed" in report["mode"]

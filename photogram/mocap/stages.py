@@ -81,7 +81,10 @@ def check_people(source, cameras: MocapCameras, tracked, n_frames: int,
     the observations (which it does not change): the report of
     :meth:`~photogram.mocap.tracking.multiview.Association.report` per
     camera (``other_person``: frames where it would take another candidate
-    than the per-camera track) and the warnings (None: not run)."""
+    than the per-camera track; ``unconfirmed_runs``: [first, last] runs of
+    the per-camera track it does not confirm,
+    :func:`~photogram.mocap.tracking.confirm.unconfirmed_runs`, counted from
+    the first reconstructed frame) and the warnings (None: not run)."""
     if not tracking.multiview or sum(t is not None for t in tracked) < 2:
         return None, []
     from photogram.mocap.tracking.multiview import associate, settings_from_tracking
@@ -250,7 +253,11 @@ def check_estimated(project, source, cameras, tracked, obs_source, skeleton, rec
     runs kept) and ``solve`` estimates the poses and rotations once more;
     the log, ``warnings`` and summary.json (``people.mode``,
     ``people.first_pass``, ``tracking``: ``persons`` of the second pass,
-    ``persons_first_pass``) say so.
+    ``persons_first_pass``) say so. If it takes nobody else but does not
+    confirm runs of a per-camera track
+    (:mod:`photogram.mocap.tracking.confirm`), their camera-frames are left
+    out and ``solve`` runs once more (``unconfirmed_runs`` per camera in
+    ``people.cameras`` and ``tracking``).
 
     Parameters
     ----------
@@ -286,6 +293,9 @@ def check_estimated(project, source, cameras, tracked, obs_source, skeleton, rec
     other = {n: d["other_person"] for n, d in people["cameras"].items() if d.get("other_person")}
     unconfirmed = {n: d["unconfirmed_runs"] for n, d in people["cameras"].items()
                    if d.get("unconfirmed_runs")}
+    for n, runs in unconfirmed.items():       # reported as frame numbers
+        people["cameras"][n]["unconfirmed_runs"] = [[int(frames[a]), int(frames[b])]
+                                                    for a, b in runs]
     if not other and unconfirmed:
         return _leave_out_unconfirmed(project, source.skeleton, cameras, tracked, obs_source,
                                       skeleton, people, unconfirmed, tracking_info, solve,
