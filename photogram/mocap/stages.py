@@ -81,7 +81,10 @@ def check_people(source, cameras: MocapCameras, tracked, n_frames: int,
     the observations (which it does not change): the report of
     :meth:`~photogram.mocap.tracking.multiview.Association.report` per
     camera (``other_person``: frames where it would take another candidate
-    than the per-camera track) and the warnings (None: not run)."""
+    than the per-camera track; ``unconfirmed_runs``: [first, last] runs of
+    the per-camera track it does not confirm,
+    :func:`~photogram.mocap.tracking.confirm.unconfirmed_runs`, counted from
+    the first reconstructed frame) and the warnings (None: not run)."""
     if not tracking.multiview or sum(t is not None for t in tracked) < 2:
         return None, []
     from photogram.mocap.tracking.multiview import associate, settings_from_tracking
@@ -90,6 +93,12 @@ def check_people(source, cameras: MocapCameras, tracked, n_frames: int,
     assoc = associate(candidates, cameras, n_frames, settings_from_tracking(tracking),
                       breaks=breaks)
     report = assoc.report(cameras.names, per_camera)
+    from photogram.mocap.tracking.confirm import unconfirmed_runs
+    for c, name in enumerate(cameras.names):
+        if per_camera[c] is not None:
+            runs = unconfirmed_runs(per_camera[c], assoc.status[:, c])
+            if runs:
+                report[name]["unconfirmed_runs"] = [[int(a), int(b)] for a, b, *_ in runs]
     notes = [f"camera {name}: with the estimated rotations the multi-view check takes another "
              f"person than the per-camera track in {d['other_person']} frames and finds "
              f"{d['per_camera_left_out']} more of its frames inconsistent or ambiguous; the "
@@ -244,7 +253,11 @@ def check_estimated(project, source, cameras, tracked, obs_source, skeleton, rec
     runs kept) and ``solve`` estimates the poses and rotations once more;
     the log, ``warnings`` and summary.json (``people.mode``,
     ``people.first_pass``, ``tracking``: ``persons`` of the second pass,
-    ``persons_first_pass``) say so.
+    ``persons_first_pass``) say so. If it takes nobody else but does not
+    confirm runs of a per-camera track
+    (:mod:`photogram.mocap.tracking.confirm`), their camera-frames are left
+    out and ``solve`` runs once more (``unconfirmed_runs`` per camera in
+    ``people.cameras`` and ``tracking``).
 
     Parameters
     ----------
@@ -278,6 +291,15 @@ def check_estimated(project, source, cameras, tracked, obs_source, skeleton, rec
     for line in describe(people["cameras"]):
         log.info("check with the estimated rotations: %s", line)
     other = {n: d["other_person"] for n, d in people["cameras"].items() if d.get("other_person")}
+    unconfirmed = {n: d["unconfirmed_runs"] for n, d in people["cameras"].items()
+                   if d.get("unconfirmed_runs")}
+    for n, runs in unconfirmed.items():       # reported as frame numbers
+        people["cameras"][n]["unconfirmed_runs"] = [[int(frames[a]), int(frames[b])]
+                                                    for a, b in runs]
+    if not other and unconfirmed:
+        return _leave_out_unconfirmed(project, source.skeleton, cameras, tracked, obs_source,
+                                      skeleton, people, unconfirmed, tracking_info, solve,
+                                      int(frames[0]))
     if not other:
         add_multiview(tracking_info, people["cameras"])
         return None, rec, people
@@ -306,3 +328,44 @@ def check_estimated(project, source, cameras, tracked, obs_source, skeleton, rec
             if len(ids):
                 tracking_info[name]["persons"] = {str(int(i)): int(v) for i, v in zip(ids, k)}
     return chosen, rec, second
+
+
+def _leave_out_unconfirmed(project, source_skeleton, cameras, tracked, obs_source, skeleton,
+                           people, unconfirmed, tracking_info, solve, first=0):
+    """The second pass of :func:`check_estimated` when the check takes no
+    other person but finds runs of per-camera tracks that the other cameras
+    do not confirm (:mod:`photogram.mocap.tracking.confirm`): their
+    camera-frames are left out of the observations and the poses and
+    rotations estimated once more."""
+    from photogram.mocap.body.skeleton import map_joints
+    from photogram.mocap.tracking.report import add_multiview
+    chosen = np.array(obs_source, float, copy=True)
+    for name, runs in unconfirmed.items():
+        c = cameras.index(name)
+        n = 0
+        for a, b in runs:
+            chosen[a:b + 1, c] = (np.nan, np.nan, 0.0)
+            n += b - a + 1
+        note = (f"camera {name}: with the estimated rotations the multi-view check finds the "
+                f"per-camera track inconsistent with the other cameras in at least a third of "
+                f"the frames of {', '.join(f'{first + a}..{first + b}' for a, b in runs)}; "
+                f"these {n} frame(s) were left out and the poses and rotations estimated again "
+                f"(docs/mocap.md section 5)")
+        log.warning("warning: %s", note)
+        project.warnings.append(note)
+        if name in tracking_info:
+            tracking_info[name]["unconfirmed_runs"] = [[first + a, first + b] for a, b in runs]
+            before = tracking_info[name].pop("persons", None)
+            if before is not None:
+                tracking_info[name]["persons_first_pass"] = before
+                p = np.asarray(tracked[c].person)[:len(chosen)].copy()
+                for a, b in runs:
+                    p[a:b + 1] = -2
+                ids, k = np.unique(p[p >= 0], return_counts=True)
+                tracking_info[name]["persons"] = {str(int(i)): int(v) for i, v in zip(ids, k)}
+    if source_skeleton.name != skeleton.name:
+        chosen = map_joints(chosen, source_skeleton, skeleton)
+    rec = solve(chosen)
+    people["mode"] = "check with the estimated rotations; unconfirmed runs left out (second pass)"
+    add_multiview(tracking_info, people["cameras"])
+    return chosen, rec, people
