@@ -52,7 +52,8 @@ from photogram.errors import InputError
 from photogram.geometry import camera_model
 from photogram.mocap.motion.lens import undistort_radius
 
-__all__ = ["HomographySettings", "RotationDifferences", "rotation_differences",
+__all__ = ["HomographySettings", "LaggedDifferences", "RotationDifferences",
+           "rotation_differences",
            "rotation_from_homography", "rotation_from_rays", "pinhole_matrices",
            "guided_matches", "undistort_points"]
 
@@ -102,13 +103,42 @@ class HomographySettings:
 
 
 @dataclass
+class LaggedDifferences:
+    """Rotation differences of one camera between frames further apart.
+
+    ``first``, ``second`` (M,) int: frame indices counted like the pairs of
+    :class:`RotationDifferences` (0 = the camera's first frame), ``second >
+    first + 1``; ``dR`` (M, 3, 3) with ``R(second) = dR R(first)``
+    (photogrammetric; NaN where the pair failed); ``inliers``, ``matches``
+    (M,) int; ``ok`` (M,) bool.
+    """
+
+    first: np.ndarray
+    second: np.ndarray
+    dR: np.ndarray
+    inliers: np.ndarray
+    matches: np.ndarray
+    ok: np.ndarray
+
+    @classmethod
+    def empty(cls) -> "LaggedDifferences":
+        """No lagged pair."""
+        z = np.zeros(0, int)
+        return cls(z, z.copy(), np.zeros((0, 3, 3)), z.copy(), z.copy(), np.zeros(0, bool))
+
+    def __len__(self) -> int:
+        return len(self.ok)
+
+
+@dataclass
 class RotationDifferences:
     """Rotation differences of one camera.
 
     ``dR[t]`` (F-1, 3, 3) maps frame t to t+1 (``R(t+1) = dR[t] R(t)``,
     photogrammetric; NaN where the pair failed); ``inliers``, ``matches``
     (F-1,) int; ``ok`` (F-1,) bool; ``seconds`` the processing time (CPU of
-    this process, images excluded); ``frames`` = F.
+    this process, images excluded); ``frames`` = F; ``lagged`` the pairs of
+    frames further apart (:class:`LaggedDifferences`), None: none measured.
     """
 
     dR: np.ndarray
@@ -117,6 +147,7 @@ class RotationDifferences:
     ok: np.ndarray
     seconds: float
     frames: int
+    lagged: LaggedDifferences | None = None
 
     @property
     def pairs(self) -> int:
