@@ -120,3 +120,176 @@ def test_bad_header(tmp_path):
     p.write_text("frame,camera,rx,ry,rz,inliers,matches,ok,to\n0,C1,0,0,0,1,1,1,1\n")
     with pytest.raises(InputError, match=r"rotations\.csv:1: expected the columns"):
         read_rotation_differences(p, ["C1"], 2)
+
+
+# -- measured on rendered SIMULATED frames ----------------------------------
+FRAMES = list(range(100, 130))          # 30 frames (as tests/test_mocap_homography.py)
+WIDE, ZOOMED = 2, 0
+
+
+@pytest.fixture(scope="module")
+def rendered():
+    from photogram.simulation.ski.render import build_scene, render_camera
+    from photogram.simulation.ski.simulate import simulate_session
+    sim = simulate_session(seed=8, n_runs=1)
+    xy = sim.image_truth
+    with np.errstate(invalid="ignore"):
+        boxes = np.stack([np.nanmin(xy[..., 0], 2), np.nanmin(xy[..., 1], 2),
+                          np.nanmax(xy[..., 0], 2), np.nanmax(xy[..., 1], 2)], -1)
+    scene = build_scene(sim)
+    images = {c: list(render_camera(scene, sim, c, FRAMES)) for c in (WIDE, ZOOMED)}
+    return sim, boxes, images
+
+
+def _measure(rendered, cam, **kw):
+    from photogram.mocap.motion.homography import HomographySettings, rotation_differences
+    sim, boxes, images = rendered
+    return rotation_differences(images[cam], "opencv", sim.cameras.io[cam][FRAMES], 0.5,
+                                boxes[FRAMES, cam], HomographySettings(**kw))
+
+
+def _angles(R, first, second):
+    """Angle (deg) of R(second) R(first)^T, and of est (n,3,3) against it."""
+    from photogram.geometry import matrix_to_rodrigues
+    true = R[second] @ np.swapaxes(R[first], -1, -2)
+    return true, np.degrees(np.linalg.norm(matrix_to_rodrigues(true), axis=1))
+
+
+def _errors(est, true):
+    from photogram.geometry import matrix_to_rodrigues
+    return np.degrees(np.linalg.norm(matrix_to_rodrigues(est @ np.swapaxes(true, -1, -2)),
+                                     axis=1))
+
+
+@pytest.mark.parametrize("cam", [WIDE, ZOOMED])
+def test_lagged_pairs_match_the_truth(rendered, cam):
+    sim = rendered[0]
+    rd = _measure(rendered, cam)
+    R = sim.cameras.R[FRAMES, cam]
+    lg = rd.lagged
+    assert set(np.unique(lg.second - lg.first)) <= {10, 25} and np.any(lg.second - lg.first == 10)
+    assert lg.ok.all() and np.all(lg.inliers >= 30)
+    true, angle = _angles(R, lg.first, lg.second)
+    assert np.median(angle) > 1.5            # 2-5 deg: far from the identity
+    e_lag = _errors(lg.dR, true)
+    steps = np.arange(rd.pairs)
+    e_one = _errors(rd.dR, _angles(R, steps, steps + 1)[0])
+    # measured (seed 8): consecutive median 0.005 deg, lagged 0.010-0.011 deg
+    assert np.median(e_lag) < 3 * np.median(e_one) and np.median(e_lag) < 0.02
+    assert np.percentile(e_lag, 95) < 0.1
+
+
+@pytest.mark.parametrize("cam", [WIDE, ZOOMED])
+def test_pairs_beyond_the_overlap_limit_are_not_attempted(rendered, cam):
+    from photogram.mocap.motion.homography import horizontal_fov, pinhole_matrices
+    sim, _, images = rendered
+    R = sim.cameras.R[FRAMES, cam]
+    K = pinhole_matrices("opencv", sim.cameras.io[cam][FRAMES], 0.5)
+    fov = np.degrees([horizontal_fov(k, images[cam][0].shape[1]) for k in K])
+    for fraction in (0.5, 0.2):
+        lg = _measure(rendered, cam, max_lag_fraction=fraction).lagged
+        first = np.concatenate([np.arange(30 - k) for k in (10, 25)])
+        second = np.concatenate([np.arange(k, 30) for k in (10, 25)])
+        _, angle = _angles(R, first, second)
+        limit = fraction * np.minimum(fov[first], fov[second])
+        tried = {(a, b) for a, b in zip(lg.first.tolist(), lg.second.tolist())}
+        # the prediction (chained measured differences) is within 0.05 deg of the truth
+        inside = {(a, b) for a, b, x, y in zip(first, second, angle, limit) if x < y - 0.05}
+        outside = {(a, b) for a, b, x, y in zip(first, second, angle, limit) if x > y + 0.05}
+        assert inside <= tried and not (outside & tried)
+        if cam == ZOOMED and fraction == 0.5:
+            assert len(outside) >= 5             # lag 25 of the zoomed camera: 4-6 deg turns
+        if fraction == 0.2:
+            assert len(outside) > 0
+
+
+def test_no_lags_gives_none(rendered):
+    rd = _measure(rendered, WIDE, lags=())
+    assert rd.lagged is None
+    with pytest.raises(InputError, match="lag must be an integer of at least 2"):
+        _measure(rendered, WIDE, lags=(1, 10))
+
+
+# -- through the pipeline's measurement: table, images cache, solver arrays --
+def _cameras(names):
+    from photogram.mocap.reconstruction.cameras import MocapCameras
+    C = len(names)
+    return MocapCameras(list(names), ["opencv"] * C,
+                        [np.array([1000., 1000, 4, 4, 0, 0, 0, 0, 0])] * C,
+                        np.zeros((C, 3)), np.repeat(np.eye(3)[None], C, 0), np.full((C, 2), 8.0))
+
+
+def test_lagged_pairs_flow_from_the_table(tmp_path):
+    import types
+
+    from photogram.mocap.motion.unknown_rotations import lagged_arrays, measure_differences
+    rd, R = _rd()
+    plain, _ = _rd(seed=1)
+    plain.lagged = None
+    path = write_rotation_differences(tmp_path / "r.csv", {"C1": plain, "C2": rd},
+                                      first_frame=3)
+    ms = types.SimpleNamespace(homography={}, rotation_differences=path, images=None)
+    warnings = []
+    _, weights, per = measure_differences(ms, _cameras(["C1", "C2"]), [None, None], (0, 30), 3,
+                                          warnings)
+    assert not warnings and per["C1"].lagged is None
+    assert len(per["C2"].lagged) == len(rd.lagged)
+    cam, first, second, dR = lagged_arrays(per, ["C1", "C2"], {})
+    assert np.all(cam == 1) and len(cam) == rd.lagged.ok.sum()     # the failed pair left out
+    np.testing.assert_allclose(dR, R[second] @ np.swapaxes(R[first], -1, -2), atol=1e-9)
+    # the camera order of the solver is the index
+    cam, *_ = lagged_arrays(per, ["C2", "C1"], {})
+    assert np.all(cam == 0)
+
+
+def test_lagged_arrays_keeps_confident_pairs_only():
+    from photogram.mocap.motion.unknown_rotations import lagged_arrays
+    rd, _ = _rd()                                    # consecutive inliers 300, lagged 90
+    cam, first, second, dR = lagged_arrays({"A": rd}, ["A"], {})
+    assert len(cam) == rd.lagged.ok.sum()            # 90 >= 0.3 * 300
+    few = rd.lagged.inliers.copy()
+    few[::2] = 80                                    # below 0.3 * 300 = 90
+    rd.lagged.inliers = few
+    cam, first, second, dR = lagged_arrays({"A": rd}, ["A"], {})
+    keep = rd.lagged.ok & (few >= 90)
+    assert np.array_equal(first, rd.lagged.first[keep])
+    assert np.array_equal(second, rd.lagged.second[keep])
+    cam, *_ = lagged_arrays({"A": rd}, ["A"], {"min_inlier_fraction": 0.0})
+    assert len(cam) == rd.lagged.ok.sum()
+    rd.ok[:10] = False                               # 10 of 29 failed: the camera is out
+    assert len(lagged_arrays({"A": rd}, ["A"], {})[0]) == 0
+    empty = lagged_arrays({}, ["A"], {})
+    assert [a.shape for a in empty] == [(0,), (0,), (0,), (0, 3, 3)]
+    assert empty[0].dtype.kind == "i"
+
+
+def test_the_images_cache_keeps_the_lagged_pairs(tmp_path, monkeypatch):
+    import types
+
+    from photogram.mocap.motion import homography, video
+    from photogram.mocap.motion.homography import HomographySettings
+    from photogram.mocap.motion.unknown_rotations import _from_images
+    rd, _ = _rd()
+    plain, _ = _rd(seed=1)
+    plain.lagged = None
+    made = {"A": rd, "B": plain}
+    (tmp_path / "A.avi").write_bytes(b"not read")
+    (tmp_path / "B.avi").write_bytes(b"not read")
+    monkeypatch.setattr(video, "read_frames",
+                        lambda path, frames=None: (np.zeros((8, 8, 3), np.uint8) for _ in frames))
+    order = iter(["A", "B"])
+    monkeypatch.setattr(homography, "rotation_differences", lambda *a, **k: made[next(order)])
+    ms = types.SimpleNamespace(images={n: tmp_path / f"{n}.avi" for n in made})
+    cache = tmp_path / "cache"
+    out = _from_images(ms, _cameras(["A", "B"]), [None, None], (0, 30), HomographySettings(),
+                       cache=cache)
+    assert out["A"] is rd
+    monkeypatch.setattr(homography, "rotation_differences",
+                        lambda *a, **k: pytest.fail("measured again"))
+    again = _from_images(ms, _cameras(["A", "B"]), [None, None], (0, 30), HomographySettings(),
+                         cache=cache)
+    assert again["B"].lagged is None
+    lg = again["A"].lagged
+    for key in ("first", "second", "inliers", "matches", "ok"):
+        np.testing.assert_array_equal(getattr(lg, key), getattr(rd.lagged, key))
+    np.testing.assert_array_equal(lg.dR, rd.lagged.dR)
