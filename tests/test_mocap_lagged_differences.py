@@ -293,3 +293,31 @@ def test_the_images_cache_keeps_the_lagged_pairs(tmp_path, monkeypatch):
     for key in ("first", "second", "inliers", "matches", "ok"):
         np.testing.assert_array_equal(getattr(lg, key), getattr(rd.lagged, key))
     np.testing.assert_array_equal(lg.dR, rd.lagged.dR)
+
+
+@pytest.mark.parametrize("block, expect", [
+    ("lags = []\nmax_lag_fraction = 0.3", {"lags": (), "max_lag_fraction": 0.3}),
+    ("lags = [5, 12]", {"lags": (5, 12)}),
+    ("lags = [1, 10]", "lags in [mocap.homography] must list frame distances of at least 2"),
+    ("lags = 10", "lags in [mocap.homography] must list frame distances of at least 2"),
+    ("max_lag_fraction = 0", "max_lag_fraction"),
+])
+def test_project_homography_lags(tmp_path, capsys, block, expect):
+    from photogram.project import read_project
+    from photogram.simulation.ski.simproject import (write_estimate_project,
+                                                     write_simulated_project)
+    from photogram.simulation.ski.simulate import simulate_session
+    from photogram_cli.main import main
+    sim = simulate_session(seed=5, n_runs=1, frames_per_run=30)
+    write_simulated_project(sim, tmp_path, name="ski")
+    prj = write_estimate_project(sim, tmp_path, name="ski")
+    (tmp_path / "rotation_differences.csv").write_text(
+        "frame,camera,rx,ry,rz,inliers,matches,ok\n")
+    prj.write_text(prj.read_text().replace(
+        "[mocap.source]", f"[mocap.homography]\n{block}\n\n[mocap.source]"))
+    if isinstance(expect, dict):
+        assert read_project(prj).mocap.homography == expect
+        return
+    assert main(["check", str(prj)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and expect in err[0] and "ski-estimate.prj" in err[0], err
