@@ -321,3 +321,48 @@ def test_project_homography_lags(tmp_path, capsys, block, expect):
     assert main(["check", str(prj)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and expect in err[0] and "ski-estimate.prj" in err[0], err
+
+
+# -- the SIMULATED harsh setting's lagged pairs ---------------------------------
+@pytest.fixture(scope="module")
+def harsh():
+    from photogram.simulation.ski.harsh import simulate_harsh
+    return simulate_harsh(seed=23)
+
+
+def test_simulated_lagged_pairs_follow_the_noise_model(harsh):
+    from dataclasses import replace
+
+    from photogram.geometry import matrix_to_rodrigues
+    from photogram.simulation.ski.harsh import simulated_rotation_differences
+    from photogram.simulation.ski.harsh_lagged import fields_of_view
+    st = harsh.settings
+    per = simulated_rotation_differences(harsh, st, 5)
+    off = simulated_rotation_differences(harsh, replace(st, dr_lags=()), 5)
+    R = harsh.cameras.R
+    slopes, attempted, failed = [], 0, 0
+    for c, (name, rd) in enumerate(per.items()):
+        # the consecutive pairs do not depend on the lagged ones (own random stream)
+        np.testing.assert_array_equal(rd.dR, off[name].dR)
+        np.testing.assert_array_equal(rd.inliers, off[name].inliers)
+        assert off[name].lagged is None
+        lg = rd.lagged
+        assert set(np.unique(lg.second - lg.first)) == {10, 25}
+        true = R[lg.second, c] @ np.swapaxes(R[lg.first, c], -1, -2)
+        rv = matrix_to_rodrigues(true)
+        fov = fields_of_view(harsh.cameras.io[c], harsh.cameras.image_size[c][0])
+        u = np.linalg.norm(rv, axis=1) / np.minimum(fov[lg.first], fov[lg.second])
+        assert u.max() < 0.5                         # only overlapping views
+        n_all = sum(len(R) - k for k in (10, 25))
+        attempted += len(lg)
+        failed += np.count_nonzero(~lg.ok)
+        good = lg.ok & (lg.inliers >= 40)            # not the wrong pairs
+        e = matrix_to_rodrigues(lg.dR[good] @ np.swapaxes(true[good], -1, -2))
+        # the scale error: pan and tilt errors proportional to the turn, one sign
+        x, y = rv[good, :2].ravel(), e[:, :2].ravel()
+        slopes.append(np.dot(x, y) / np.dot(x, x))
+        assert np.degrees(np.median(np.abs(e[:, 2]))) < 0.05      # roll: noise only
+        assert len(lg) <= n_all
+    slopes = np.array(slopes)
+    assert np.all(np.abs(np.abs(slopes) - 0.003) < 0.0015), slopes
+    assert 0.03 < failed / attempted < 0.2           # 2 % plus more near the limit
