@@ -206,6 +206,8 @@ def test_pairs_beyond_the_overlap_limit_are_not_attempted(rendered, cam):
 def test_no_lags_gives_none(rendered):
     rd = _measure(rendered, WIDE, lags=())
     assert rd.lagged is None
+    twice = _measure(rendered, WIDE, lags=(10, 10)).lagged
+    assert len(twice) == len(set(zip(twice.first.tolist(), twice.second.tolist()))) > 0
     with pytest.raises(InputError, match="lag must be an integer of at least 2"):
         _measure(rendered, WIDE, lags=(1, 10))
 

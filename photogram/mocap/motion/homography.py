@@ -338,7 +338,7 @@ def rotation_differences(images, model: str, io, image_scale: float = 0.5, boxes
             dR.append(R)
             inl.append(k_in)
             nm.append(k_m)
-        _lagged_pairs(n, cur, ring, dR, inl, matcher, st, grey.shape[1], lagged)
+        _lagged_pairs(n, cur, ring, dR, inl, matcher, st, lags, grey.shape[1], lagged)
         ring.append(cur)
         prev = cur
         n += 1
@@ -375,11 +375,11 @@ def horizontal_fov(K, width: int) -> float:
     return float(2.0 * np.arctan(0.5 * width / K[0, 0]))
 
 
-def _lagged_pairs(n, cur, ring, dR, inl, matcher, st, width, out):
-    """Attempt the lagged pairs (n-k, n) of the frame n (features ``cur``)
-    whose frame n-k is in ``ring``; appends (n-k, n, dR, inliers, matches)
-    to ``out``."""
-    for k in sorted(st.lags or ()):
+def _lagged_pairs(n, cur, ring, dR, inl, matcher, st, lags, width, out):
+    """Attempt the lagged pairs (n-k, n), k in ``lags``, of the frame n
+    (features ``cur``) whose frame n-k is in ``ring``; appends (n-k, n, dR,
+    inliers, matches) to ``out``."""
+    for k in lags:
         m = n - k
         if m < 0 or len(ring) < k or any(inl[j] < st.min_inliers for j in range(m, n)):
             continue

@@ -105,7 +105,7 @@ def simulated_lagged_differences(R, io, width: float, st, rng):
     if len(fov) == 1:
         fov = np.repeat(fov, len(R))
     scale = st.dr_lag_scale * (1.0 if rng.uniform() < 0.5 else -1.0)
-    parts = [_lag(R, fov, int(k), st, rng, scale) for k in st.dr_lags]
+    parts = [_lag(R, fov, k, st, rng, scale) for k in sorted({int(k) for k in st.dr_lags})]
     if not parts:
         return LaggedDifferences.empty()
     first, second, dR, inliers, matches, ok = (np.concatenate(v) for v in zip(*parts))
