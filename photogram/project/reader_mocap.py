@@ -30,7 +30,7 @@ MOCAP_KEYS = ("fps", "skeleton", "calibration", "camera_frames", "frames", "up",
 OFFSET_MODES = ("estimate", "report")
 ROTATION_MODES = ("known", "estimate")
 HOMOGRAPHY_KEYS = ("n_features", "ransac_px", "min_inliers", "box_margin", "median", "sigma",
-                   "max_failed", "min_inlier_fraction")
+                   "max_failed", "min_inlier_fraction", "lags", "max_lag_fraction")
 SOURCE_KINDS = ("openpose", "csv", "mediapipe", "plugin")
 SOURCE_KEYS = ("kind", "path", "cameras", "skeleton", "network", "wide")
 TRACKING_KEYS = ("scale", "wide_scale", "sigma_centre", "sigma_side", "sigma_refine",
@@ -161,6 +161,17 @@ def _numbers(sec: Section, key: str, length: int, default):
     return tuple(float(v) for v in value)
 
 
+def _lags(sub) -> tuple:
+    """``lags`` of [mocap.homography]: frame distances (integers >= 2) of the
+    lagged rotation differences; ``[]`` measures none."""
+    value = sub.data["lags"]
+    if not (isinstance(value, list) and all(isinstance(v, int) and not isinstance(v, bool)
+                                            and v >= 2 for v in value)):
+        raise sub.error("lags", f"lags in {sub.label} must list frame distances of at least 2",
+                        hint="e.g. lags = [10, 25]; lags = [] measures no lagged pairs")
+    return tuple(int(v) for v in value)
+
+
 def _check_cutoffs(sec: Section, subs: dict, fps: float) -> None:
     """``cutoff_hz`` of ``[mocap.reconstruction]``: below fps/2, not with ``n_dct``."""
     rec = subs["reconstruction"]
@@ -228,6 +239,8 @@ def _read_mocap(sec: Section, folder: Path, src: TomlSource) -> MocapSettings:
                     values[key] = sub.string(key, choices=("gauss-newton", "lbfgs"))
                 elif key in ("pose_basis", "rotation_basis"):
                     values[key] = sub.string(key, choices=("dct", "free"))
+                elif key == "lags":
+                    values[key] = _lags(sub)
                 elif key in ("symmetric_limbs", "rotation_prior", "multiview", "chain_offsets"):
                     values[key] = sub.boolean(key)
                 elif key in ("n_dct", "window", "overlap", "max_iterations", "crop_size",

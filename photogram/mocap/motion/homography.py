@@ -28,7 +28,17 @@ so ``dR_cv = K_{t+1}^{-1} H K_t``. Per camera and pair of consecutive frames:
    (about 0.5 deg per pair on the simulated zoomed cameras, against 0.001
    deg for the refit). The photogrammetric difference is
    ``dR = D dR_cv D``, ``D = diag(1, -1, -1)``, with ``R(t+1) = dR[t] R(t)``;
-5. a pair with fewer than ``min_inliers`` inliers failed (its dR is NaN).
+5. a pair with fewer than ``min_inliers`` inliers failed (its dR is NaN);
+6. lagged pairs (frames t-k and t for k in ``lags``, as panorama/keyframe
+   registration does): the features of the last ``max(lags)`` frames are kept
+   (a ring buffer); a pair is attempted when the consecutive pairs between
+   the two frames were all measured and the rotation of their chain is
+   below ``max_lag_fraction`` of the horizontal field of view of the
+   narrower of the two frames (the views still overlap); it is matched
+   guided by that chain (no exhaustive fallback) and fitted like a
+   consecutive pair, with the same ``min_inliers``. A chain of consecutive
+   differences is a random walk; a lagged pair measures the sum of k steps
+   at once, with about the error of one step.
 
 Filtering (median 3 and Gaussian sigma 3 of the rotation vectors; the paper's
 median is 7), errors against the truth, the check of a camera and the CSV files
@@ -43,6 +53,7 @@ read from the lens or estimated beforehand).
 from __future__ import annotations
 
 import time
+from collections import deque
 from dataclasses import dataclass
 
 import cv2
@@ -52,9 +63,10 @@ from photogram.errors import InputError
 from photogram.geometry import camera_model
 from photogram.mocap.motion.lens import undistort_radius
 
-__all__ = ["HomographySettings", "RotationDifferences", "rotation_differences",
+__all__ = ["HomographySettings", "LaggedDifferences", "RotationDifferences",
+           "rotation_differences",
            "rotation_from_homography", "rotation_from_rays", "pinhole_matrices",
-           "guided_matches", "undistort_points"]
+           "guided_matches", "undistort_points", "horizontal_fov"]
 
 D = np.diag([1.0, -1.0, -1.0])
 
@@ -83,6 +95,10 @@ class HomographySettings:
     inliers than this fraction of the camera's median counts as failed in
     the filter (a homography fitted to few background points, often a wrong
     one; :func:`photogram.mocap.motion.rotation_series.confident_pairs`).
+    ``lags``: the frame distances k > 1 of the lagged pairs (empty: none);
+    ``max_lag_fraction``: a lagged pair is attempted only when the rotation
+    predicted by the chained consecutive differences is below this fraction
+    of the horizontal field of view at the narrower of the two zooms.
     """
 
     n_features: int = 1000
@@ -99,6 +115,36 @@ class HomographySettings:
     method: str = "rays"
     search_px: float = 16.0
     max_hamming: int = 64
+    lags: tuple = (10, 25)
+    max_lag_fraction: float = 0.5
+
+
+@dataclass
+class LaggedDifferences:
+    """Rotation differences of one camera between frames further apart.
+
+    ``first``, ``second`` (M,) int: frame indices counted like the pairs of
+    :class:`RotationDifferences` (0 = the camera's first frame), ``second >
+    first + 1``; ``dR`` (M, 3, 3) with ``R(second) = dR R(first)``
+    (photogrammetric; NaN where the pair failed); ``inliers``, ``matches``
+    (M,) int; ``ok`` (M,) bool.
+    """
+
+    first: np.ndarray
+    second: np.ndarray
+    dR: np.ndarray
+    inliers: np.ndarray
+    matches: np.ndarray
+    ok: np.ndarray
+
+    @classmethod
+    def empty(cls) -> "LaggedDifferences":
+        """No lagged pair."""
+        z = np.zeros(0, int)
+        return cls(z, z.copy(), np.zeros((0, 3, 3)), z.copy(), z.copy(), np.zeros(0, bool))
+
+    def __len__(self) -> int:
+        return len(self.ok)
 
 
 @dataclass
@@ -108,7 +154,8 @@ class RotationDifferences:
     ``dR[t]`` (F-1, 3, 3) maps frame t to t+1 (``R(t+1) = dR[t] R(t)``,
     photogrammetric; NaN where the pair failed); ``inliers``, ``matches``
     (F-1,) int; ``ok`` (F-1,) bool; ``seconds`` the processing time (CPU of
-    this process, images excluded); ``frames`` = F.
+    this process, images excluded); ``frames`` = F; ``lagged`` the pairs of
+    frames further apart (:class:`LaggedDifferences`), None: none measured.
     """
 
     dR: np.ndarray
@@ -117,6 +164,7 @@ class RotationDifferences:
     ok: np.ndarray
     seconds: float
     frames: int
+    lagged: LaggedDifferences | None = None
 
     @property
     def pairs(self) -> int:
@@ -263,6 +311,9 @@ def rotation_differences(images, model: str, io, image_scale: float = 0.5, boxes
     K_all = pinhole_matrices(model, io, s)
     cpu = 0.0
     n = 0
+    lags = _check_lags(st)
+    ring = deque(maxlen=max(lags, default=1))
+    lagged = []
     for img in images:
         t0 = time.process_time()
         img = np.asarray(img)
@@ -287,6 +338,8 @@ def rotation_differences(images, model: str, io, image_scale: float = 0.5, boxes
             dR.append(R)
             inl.append(k_in)
             nm.append(k_m)
+        _lagged_pairs(n, cur, ring, dR, inl, matcher, st, lags, grey.shape[1], lagged)
+        ring.append(cur)
         prev = cur
         n += 1
         cpu += time.process_time() - t0
@@ -300,7 +353,61 @@ def rotation_differences(images, model: str, io, image_scale: float = 0.5, boxes
     ok = inl >= st.min_inliers
     dR = np.array(dR)
     dR[~ok] = np.nan
-    return RotationDifferences(dR, inl, nm, ok, cpu, n)
+    return RotationDifferences(dR, inl, nm, ok, cpu, n, _lagged_result(lagged, lags, st))
+
+
+def _check_lags(st) -> tuple:
+    """The settings' lags as ints > 1 (InputError otherwise)."""
+    lags = tuple(st.lags or ())
+    if any(isinstance(k, bool) or int(k) != k or k < 2 for k in lags):
+        raise InputError(f"lags {list(lags)}: each lag must be an integer of at least 2",
+                         hint="lags are frame distances of lagged pairs, e.g. [10, 25]; "
+                              "[] for none")
+    if not np.isfinite(st.max_lag_fraction) or st.max_lag_fraction <= 0:
+        raise InputError(f"max_lag_fraction {st.max_lag_fraction} is not positive",
+                         hint="a fraction of the field of view, e.g. 0.5")
+    return tuple(sorted({int(k) for k in lags}))
+
+
+def horizontal_fov(K, width: int) -> float:
+    """Horizontal field of view (rad) of an ideal pinhole K (3, 3) and an
+    image ``width`` px wide (the same scale as K)."""
+    return float(2.0 * np.arctan(0.5 * width / K[0, 0]))
+
+
+def _lagged_pairs(n, cur, ring, dR, inl, matcher, st, lags, width, out):
+    """Attempt the lagged pairs (n-k, n), k in ``lags``, of the frame n
+    (features ``cur``) whose frame n-k is in ``ring``; appends (n-k, n, dR,
+    inliers, matches) to ``out``."""
+    for k in lags:
+        m = n - k
+        if m < 0 or len(ring) < k or any(inl[j] < st.min_inliers for j in range(m, n)):
+            continue
+        chain = np.eye(3)
+        for j in range(m, n):
+            chain = dR[j] @ chain
+        first = ring[-k]
+        fov = min(horizontal_fov(first[2], width), horizontal_fov(cur[2], width))
+        angle = np.arccos(np.clip(0.5 * (np.trace(chain) - 1.0), -1.0, 1.0))
+        if angle >= st.max_lag_fraction * fov:
+            continue
+        R, k_in, k_m = _pair(first, cur, matcher, st, chain, fallback=st.search_px <= 0)
+        out.append((m, n, R, k_in, k_m))
+
+
+def _lagged_result(pairs, lags, st) -> LaggedDifferences | None:
+    """LaggedDifferences of the attempted pairs (None when no lags were asked)."""
+    if not lags:
+        return None
+    if not pairs:
+        return LaggedDifferences.empty()
+    first, second, R, k_in, k_m = (np.array(v) for v in zip(*pairs))
+    k_in = k_in.astype(int)
+    ok = k_in >= st.min_inliers
+    R = R.astype(float)
+    R[~ok] = np.nan
+    return LaggedDifferences(first.astype(int), second.astype(int), R, k_in,
+                             k_m.astype(int), ok)
 
 
 def guided_matches(p0, d0, p1, d1, H, radius: float, max_hamming: int):
@@ -346,9 +453,10 @@ def guided_matches(p0, d0, p1, d1, H, radius: float, max_hamming: int):
     return a[mutual], b[mutual]
 
 
-def _pair(prev, cur, matcher, st, predicted):
+def _pair(prev, cur, matcher, st, predicted, fallback: bool = True):
     """(dR, inliers, matches) of one pair; ``predicted`` is the previous
-    pair's dR (or None)."""
+    pair's dR (or None, or a lagged pair's chain). ``fallback``: match
+    exhaustively when guiding finds too few inliers."""
     (p0, d0, K0), (p1, d1, K1) = prev, cur
     nan = np.full((3, 3), np.nan)
     if d0 is None or d1 is None or len(d0) < 4 or len(d1) < 4:
@@ -357,7 +465,7 @@ def _pair(prev, cur, matcher, st, predicted):
         H = K1 @ (D @ predicted @ D) @ np.linalg.inv(K0)
         i0, i1 = guided_matches(p0, d0, p1, d1, H, st.search_px, st.max_hamming)
         result = _fit(p0[i0], p1[i1], K0, K1, st)
-        if result[1] >= st.min_inliers:
+        if result[1] >= st.min_inliers or not fallback:
             return result
     matches = matcher.match(d0, d1)
     i0 = np.fromiter((mt.queryIdx for mt in matches), int, len(matches))

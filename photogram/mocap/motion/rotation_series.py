@@ -22,7 +22,8 @@ from scipy.ndimage import gaussian_filter1d, median_filter
 
 from photogram.errors import GeometryError, InputError
 from photogram.geometry import matrix_to_rodrigues, rodrigues_to_matrix
-from photogram.mocap.motion.homography import HomographySettings, RotationDifferences
+from photogram.mocap.motion.homography import (HomographySettings, LaggedDifferences,
+                                               RotationDifferences)
 from photogram.project.atomic import give_file_mode
 
 __all__ = ["confident_pairs", "filter_rotation_differences", "rotation_difference_errors",
@@ -157,24 +158,34 @@ def write_rotation_differences(path, per_camera: dict, first_frame: int = 0,
     One row per camera and pair: ``frame`` (t; the difference maps frame t
     to t+1, numbered from ``first_frame``), ``camera``, ``rx, ry, rz`` (the
     rotation vector of ``dR``, photogrammetric, degrees; empty if the pair
-    failed), ``inliers``, ``matches``, ``ok`` (1/0). ``comment`` lines go
-    first, each prefixed with ``# `` (the reader skips them).
+    failed), ``inliers``, ``matches``, ``ok`` (1/0). When some camera has
+    lagged pairs (``RotationDifferences.lagged``, frames t and t+k, k > 1) a
+    ninth column ``to_frame`` follows: ``frame + 1`` on the consecutive
+    rows, the pair's second frame on the lagged rows (after the camera's
+    consecutive rows); without lagged pairs the file has the eight columns
+    only. ``comment`` lines go first, each prefixed with ``# `` (the reader
+    skips them).
     """
     path = Path(path)
     buf = _io.StringIO()
     for text in comment.splitlines():
         buf.write(f"# {text}\n")
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(_COLUMNS)
+    lagged = any(rd.lagged is not None and len(rd.lagged.ok) for rd in per_camera.values())
+    w.writerow(_COLUMNS + ["to_frame"] if lagged else _COLUMNS)
     for name, rd in per_camera.items():
-        good = np.all(np.isfinite(rd.dR), axis=(1, 2))
-        r = np.full((len(rd.dR), 3), np.nan)
-        if good.any():
-            r[good] = np.degrees(matrix_to_rodrigues(rd.dR[good]))
-        for t in range(len(rd.dR)):
-            vals = ["" if not np.isfinite(v) else f"{v:.9f}" for v in r[t]]
-            w.writerow([first_frame + t, name, *vals, int(rd.inliers[t]), int(rd.matches[t]),
-                        int(bool(rd.ok[t]))])
+        steps = np.arange(len(rd.dR))
+        rows = [(steps, steps + 1, rd.dR, rd.inliers, rd.matches, rd.ok)]
+        lg = rd.lagged
+        if lg is not None and len(lg.ok):
+            rows.append((lg.first, lg.second, lg.dR, lg.inliers, lg.matches, lg.ok))
+        for first, second, dR, inl, nm, ok in rows:
+            r = _degrees(dR)
+            for i in range(len(dR)):
+                vals = ["" if not np.isfinite(v) else f"{v:.9f}" for v in r[i]]
+                row = [first_frame + int(first[i]), name, *vals, int(inl[i]), int(nm[i]),
+                       int(bool(ok[i]))]
+                w.writerow(row + [first_frame + int(second[i])] if lagged else row)
     if not path.parent.is_dir():
         raise InputError("the folder does not exist", file=path.parent)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -194,6 +205,16 @@ def write_rotation_differences(path, per_camera: dict, first_frame: int = 0,
     return path
 
 
+def _degrees(dR) -> np.ndarray:
+    """(n, 3) rotation vectors (deg) of (n, 3, 3) matrices, NaN where not finite."""
+    dR = np.asarray(dR, float).reshape(-1, 3, 3)
+    good = np.all(np.isfinite(dR), axis=(1, 2))
+    r = np.full((len(dR), 3), np.nan)
+    if good.any():
+        r[good] = np.degrees(matrix_to_rodrigues(dR[good]))
+    return r
+
+
 def _integer(text: str) -> int:
     """An integer cell: digits with an optional sign (not '1_0', not '1e3')."""
     text = text.strip()
@@ -208,17 +229,21 @@ def read_rotation_differences(path, camera_names, n_frames: int,
 
     Every camera of ``camera_names`` needs the ``n_frames - 1`` pairs
     ``first_frame .. first_frame + n_frames - 2``; other cameras are an error.
+    With the ninth column ``to_frame``, a row whose ``to_frame`` is empty or
+    ``frame + 1`` is such a consecutive pair, a row with ``to_frame >
+    frame + 1`` a lagged pair (at most one per camera and frames).
 
     Returns
     -------
     dict
-        ``{camera: RotationDifferences}`` (``seconds`` 0).
+        ``{camera: RotationDifferences}`` (``seconds`` 0; ``lagged`` None
+        for a camera without lagged rows).
 
     Raises
     ------
     InputError
         Missing file, missing columns, malformed row (``file:line``), unknown
-        camera, frame out of range, duplicate or missing pairs.
+        camera, frame or to_frame out of range, duplicate or missing pairs.
     """
     path = Path(path)
     if not path.is_file():
@@ -228,6 +253,7 @@ def read_rotation_differences(path, camera_names, n_frames: int,
     P = n_frames - 1
     data = {c: (np.full((P, 3), np.nan), np.zeros(P, int), np.zeros(P, int),
                 np.zeros(P, bool), np.zeros(P, bool)) for c in names}
+    lagged = {c: {} for c in names}
     from photogram.project.text_input import read_text
     lines = read_text(path, "rotation differences table").splitlines()
     skip = 0
@@ -238,48 +264,35 @@ def read_rotation_differences(path, camera_names, n_frames: int,
         header = next(rows, None)
     except csv.Error:       # a cell over 128 KiB (csv.field_size_limit) in the header
         header = None
-    if header is None or [h.strip() for h in header] != _COLUMNS:
-        raise InputError("expected the columns " + ",".join(_COLUMNS), file=path,
-                         line=skip + 1, hint="the header names exactly these columns")
+    header = None if header is None else [h.strip() for h in header]
+    if header not in (_COLUMNS, _COLUMNS + ["to_frame"]):
+        raise InputError("expected the columns " + ",".join(_COLUMNS) + "[,to_frame]",
+                         file=path, line=skip + 1,
+                         hint="the header names exactly these columns (to_frame optional)")
+    columns = header
     first_line = {}
     from photogram.project.tables import csv_records
     numbers = list(range(skip + 1, len(lines) + 1))
     for line, row in enumerate(csv_records(rows, numbers, path), start=skip + 2):
         if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
             continue
-        if len(row) != len(_COLUMNS):
-            raise InputError(f"{len(row)} fields, expected {len(_COLUMNS)}", file=path,
-                             line=line, hint="one cell per column: " + ",".join(_COLUMNS))
-        cam = row[1].strip()
-        if cam not in data:
-            raise InputError(f"unknown camera {cam!r}", file=path, line=line,
-                             hint="cameras: " + ", ".join(names))
-        try:
-            t = _integer(row[0]) - first_frame
-            r = [float(v) if v.strip() else np.nan for v in row[2:5]]
-            k_in, k_m, flag = _integer(row[5]), _integer(row[6]), _integer(row[7])
-        except ValueError:
-            raise InputError("malformed number in " + ",".join(row), file=path,
-                             line=line, hint="frame, inliers, matches and ok are integers; "
-                             "rx, ry, rz numbers (deg) or empty") from None
-        if not 0 <= t < P:
-            raise InputError(f"frame {row[0]} outside {first_frame}.."
-                             f"{first_frame + P - 1}", file=path, line=line,
-                             hint="frame is the first frame of each pair of the detections")
-        if np.any(np.abs(np.asarray(r)) > 360.0):          # inf included, NaN not
-            raise InputError("a rotation difference of more than 360 deg", file=path,
-                             line=line, hint="rx, ry, rz: the rotation vector from this frame "
-                             "to the next one, in degrees")
-        if flag not in (0, 1) or (flag and not np.all(np.isfinite(r))):
-            raise InputError("ok must be 0 or 1, and 1 needs rx, ry, rz", file=path,
-                             line=line, hint="finite rx, ry, rz (deg) where ok is 1")
-        rv, inl, nm, ok, seen = data[cam]
-        if seen[t]:
-            raise InputError(f"duplicate frame {row[0]} of camera {cam} (first on line "
-                             f"{first_line[cam, t]})", file=path, line=line,
+        cam, t, t2, r, k_in, k_m, flag = _row(row, columns, data, names, first_frame,
+                                              n_frames, path, line)
+        if t2 > t + 1:
+            key, store = (cam, t, t2), lagged[cam]
+        else:
+            key, store = (cam, t), None
+        if key in first_line:
+            what = f"frames {row[0]}-{row[8].strip()}" if store is not None else f"frame {row[0]}"
+            raise InputError(f"duplicate {what} of camera {cam} (first on line "
+                             f"{first_line[key]})", file=path, line=line,
                              hint="give each camera one row per frame pair")
+        first_line[key] = line
+        if store is not None:
+            store[t, t2] = (r, k_in, k_m, bool(flag))
+            continue
+        rv, inl, nm, ok, seen = data[cam]
         rv[t], inl[t], nm[t], ok[t], seen[t] = r, k_in, k_m, bool(flag), True
-        first_line[cam, t] = line
     out = {}
     for cam, (rv, inl, nm, ok, seen) in data.items():
         if not seen.all():
@@ -287,8 +300,70 @@ def read_rotation_differences(path, camera_names, n_frames: int,
             raise InputError(f"camera {cam} lacks {np.count_nonzero(~seen)} frame pair(s)",
                              file=path, hint="first missing frames: "
                              + ", ".join(str(v) for v in missing))
-        dR = np.full((P, 3, 3), np.nan)
-        good = np.all(np.isfinite(rv), axis=1)
-        dR[good] = rodrigues_to_matrix(np.radians(rv[good]))
-        out[cam] = RotationDifferences(dR, inl, nm, ok, 0.0, n_frames)
+        out[cam] = RotationDifferences(_matrices(rv), inl, nm, ok, 0.0, n_frames,
+                                       _lagged(lagged[cam]))
     return out
+
+
+def _matrices(rv) -> np.ndarray:
+    """(n, 3, 3) rotations of (n, 3) rotation vectors in degrees, NaN rows NaN."""
+    rv = np.asarray(rv, float).reshape(-1, 3)
+    dR = np.full((len(rv), 3, 3), np.nan)
+    good = np.all(np.isfinite(rv), axis=1)
+    if good.any():
+        dR[good] = rodrigues_to_matrix(np.radians(rv[good]))
+    return dR
+
+
+def _lagged(pairs: dict) -> LaggedDifferences | None:
+    """LaggedDifferences of ``{(t, t2): (r, inliers, matches, ok)}``, sorted."""
+    if not pairs:
+        return None
+    keys = sorted(pairs)
+    vals = [pairs[k] for k in keys]
+    return LaggedDifferences(np.array([k[0] for k in keys], int),
+                             np.array([k[1] for k in keys], int),
+                             _matrices([v[0] for v in vals]),
+                             np.array([v[1] for v in vals], int),
+                             np.array([v[2] for v in vals], int),
+                             np.array([v[3] for v in vals], bool))
+
+
+def _row(row, columns, data, names, first_frame, n_frames, path, line):
+    """(camera, t, t2, r, inliers, matches, ok) of one record (0-based frames),
+    InputError with ``file:line`` for a faulty one."""
+    P = n_frames - 1
+    if len(row) != len(columns):
+        raise InputError(f"{len(row)} fields, expected {len(columns)}", file=path,
+                         line=line, hint="one cell per column: " + ",".join(columns))
+    cam = row[1].strip()
+    if cam not in data:
+        raise InputError(f"unknown camera {cam!r}", file=path, line=line,
+                         hint="cameras: " + ", ".join(names))
+    try:
+        t = _integer(row[0]) - first_frame
+        r = [float(v) if v.strip() else np.nan for v in row[2:5]]
+        k_in, k_m, flag = _integer(row[5]), _integer(row[6]), _integer(row[7])
+        t2 = (_integer(row[8]) - first_frame if len(row) > 8 and row[8].strip()
+              else t + 1)
+    except ValueError:
+        raise InputError("malformed number in " + ",".join(row), file=path,
+                         line=line, hint="frame, inliers, matches, ok and to_frame are "
+                         "integers; rx, ry, rz numbers (deg) or empty") from None
+    if not 0 <= t < P:
+        raise InputError(f"frame {row[0]} outside {first_frame}.."
+                         f"{first_frame + P - 1}", file=path, line=line,
+                         hint="frame is the first frame of each pair of the detections")
+    if not t < t2 <= P:
+        raise InputError(f"to_frame {row[8].strip()} outside {first_frame + t + 1}.."
+                         f"{first_frame + P}", file=path, line=line,
+                         hint="to_frame is the pair's second frame: after frame, at most "
+                         "the last frame of the detections")
+    if np.any(np.abs(np.asarray(r)) > 360.0):          # inf included, NaN not
+        raise InputError("a rotation difference of more than 360 deg", file=path,
+                         line=line, hint="rx, ry, rz: the rotation vector from frame "
+                         "to to_frame (the next frame), in degrees")
+    if flag not in (0, 1) or (flag and not np.all(np.isfinite(r))):
+        raise InputError("ok must be 0 or 1, and 1 needs rx, ry, rz", file=path,
+                         line=line, hint="finite rx, ry, rz (deg) where ok is 1")
+    return cam, t, t2, r, k_in, k_m, flag

@@ -22,7 +22,7 @@ import numpy as np
 from photogram.errors import GeometryError
 from photogram.geometry.rotations import rodrigues_to_matrix
 
-__all__ = ["measure_differences", "rotation_errors"]
+__all__ = ["measure_differences", "rotation_errors", "lagged_arrays"]
 
 log = logging.getLogger(__name__)
 
@@ -48,15 +48,20 @@ def _cache_key(path, c, cameras, frame_range, boxes, settings) -> str:
     return h.hexdigest()
 
 
+_LAGGED = ("first", "second", "dR", "inliers", "matches", "ok")
+
+
 def _load_cached(file: Path, key: str):
-    from photogram.mocap.motion.homography import RotationDifferences
+    from photogram.mocap.motion.homography import LaggedDifferences, RotationDifferences
     try:
         with np.load(file, allow_pickle=False) as z:
             if str(z["key"]) != key:
                 return None
+            lagged = (LaggedDifferences(*(z["lagged_" + k] for k in _LAGGED))
+                      if bool(z["has_lagged"]) else None)
             return RotationDifferences(dR=z["dR"], inliers=z["inliers"], matches=z["matches"],
                                        ok=z["ok"], seconds=float(z["seconds"]),
-                                       frames=int(z["frames"]))
+                                       frames=int(z["frames"]), lagged=lagged)
     except (OSError, KeyError, ValueError):
         return None
 
@@ -66,8 +71,11 @@ def _save_cached(file: Path, key: str, rd) -> None:
 
     from photogram.project.atomic import atomic_write_bytes
     buf = _io.BytesIO()
+    lagged = {} if rd.lagged is None else {
+        "lagged_" + k: np.asarray(getattr(rd.lagged, k)) for k in _LAGGED}
     np.savez(buf, key=np.array(key), dR=rd.dR, inliers=rd.inliers, matches=rd.matches,
-             ok=rd.ok, seconds=np.array(rd.seconds), frames=np.array(rd.frames))
+             ok=rd.ok, seconds=np.array(rd.seconds), frames=np.array(rd.frames),
+             has_lagged=np.array(rd.lagged is not None), **lagged)
     file.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(file, buf.getvalue())
 
@@ -127,7 +135,10 @@ def measure_differences(ms, cameras, tracked, frame_range, first_frame: int, war
     hold exactly the pairs of these frames. With ``cache`` (a folder) every
     camera's measurement from images is saved there as soon as it is done
     and reused by a later run with the same images and settings: an
-    interrupted run resumes with the next camera."""
+    interrupted run resumes with the next camera. The lagged pairs of the
+    measurements (``RotationDifferences.lagged``, from the table's
+    ``to_frame`` rows or the images) are in the per-camera measurements as
+    measured (unfiltered); :func:`lagged_arrays` gathers them."""
     from photogram.mocap.motion.homography import HomographySettings
     from photogram.mocap.motion.rotation_series import (check_rotation_differences,
                                                         confident_pairs,
@@ -162,6 +173,60 @@ def measure_differences(ms, cameras, tracked, frame_range, first_frame: int, war
         weights[:, c] = np.all(np.isfinite(dR[:, c]), axis=(1, 2))
         dR[~np.all(np.isfinite(dR), axis=(2, 3))] = np.eye(3)
     return dR, weights, per
+
+
+def lagged_arrays(per_camera: dict, names, homography: dict) -> tuple:
+    """The confident lagged pairs of all cameras, for the solver.
+
+    Parameters
+    ----------
+    per_camera : dict
+        ``{camera: RotationDifferences}`` (as returned by
+        :func:`measure_differences`); cameras without lagged pairs, or missing,
+        contribute none.
+    names : sequence of str
+        The cameras in solver order (the camera index).
+    homography : dict
+        ``[mocap.homography]`` (``min_inlier_fraction``, ``max_failed``,
+        ``min_inliers``).
+
+    Returns
+    -------
+    camera, first, second : (M,) int
+        Camera index and the frames (0 = the first frame of the measured
+        range) of each pair, ``R(second) = dR R(first)``.
+    dR : (M, 3, 3)
+
+    Notes
+    -----
+    A pair is kept when it is ``ok``, finite and has at least
+    ``min_inlier_fraction`` times the median inliers of the camera's ok
+    consecutive pairs (the rule of
+    :func:`~photogram.mocap.motion.rotation_series.confident_pairs`); a
+    camera whose consecutive pairs failed the check (more than
+    ``max_failed`` failed: its differences get weight 0) gives none.
+    """
+    from photogram.mocap.motion.homography import HomographySettings
+    st = HomographySettings(**homography)
+    parts = []
+    for c, name in enumerate(names):
+        rd = per_camera.get(name)
+        lg = None if rd is None else rd.lagged
+        if lg is None or not len(lg.ok) or (rd.pairs and rd.failed > st.max_failed * rd.pairs):
+            continue
+        keep = np.asarray(lg.ok, bool) & np.all(np.isfinite(lg.dR), axis=(1, 2))
+        ok = np.asarray(rd.ok, bool) & np.all(np.isfinite(rd.dR), axis=(1, 2))
+        if st.min_inlier_fraction > 0 and ok.any():
+            median = np.median(np.asarray(rd.inliers, float)[ok])
+            keep &= np.asarray(lg.inliers, float) >= st.min_inlier_fraction * median
+        idx = np.flatnonzero(keep)
+        parts.append((np.full(len(idx), c), np.asarray(lg.first)[idx],
+                      np.asarray(lg.second)[idx], np.asarray(lg.dR, float)[idx]))
+    if not parts:
+        z = np.zeros(0, int)
+        return z, z.copy(), z.copy(), np.zeros((0, 3, 3))
+    cam, first, second, dR = (np.concatenate(v) for v in zip(*parts))
+    return cam.astype(int), first.astype(int), second.astype(int), dR
 
 
 def rotation_errors(R, R_true, names) -> dict:

@@ -36,7 +36,13 @@ leaves unchanged):
   :mod:`photogram.simulation.ski.harsh_detector`.
 * **rotation differences** (estimate mode): the true differences with
   0.03 deg of noise per axis, 2 % failed pairs (empty, ``ok`` 0) in runs
-  of 1-8, and 1 % wrong but accepted pairs (0.5-3 deg off).
+  of 1-8, and 1 % wrong but accepted pairs (0.5-3 deg off); **lagged
+  pairs** (frames t and t+10, t+25 whose true rotation is below half the
+  horizontal field of view) from a separate random stream, with 0.03 deg
+  per axis (growing as the overlap shrinks), a per-camera zoom scale error
+  of +-0.3 % of the pan and tilt (correlated over the run), wrong pairs at
+  the same rate and more failures near the overlap limit
+  (:mod:`photogram.simulation.ski.harsh_lagged`).
 
 Two cameras (:func:`two_cameras`, the projects' ``two-cameras/``): ``C3`` and ``C5``.
 """
@@ -120,6 +126,11 @@ class HarshSettings:
     dr_noise_deg: float = 0.03
     dr_failed: float = 0.02
     dr_wrong: float = 0.01
+    # lagged rotation differences (harsh_lagged)
+    dr_lags: tuple = (10, 25)
+    dr_lag_max_fraction: float = 0.5   # of the horizontal field of view
+    dr_lag_scale: float = 0.003        # zoom calibration error, per camera
+    dr_lag_fail: float = 0.3           # more failures at the overlap limit
 
 
 @dataclass
@@ -336,9 +347,14 @@ def two_cameras(sim: SkiSimulation, names=TWO_CAMERAS) -> SkiSimulation:
 
 def simulated_rotation_differences(sim: SkiSimulation, st: HarshSettings, seed: int):
     """Per camera name a :class:`photogram.mocap.motion.homography.RotationDifferences`:
-    the true differences with noise, failed and wrong pairs (module doc)."""
+    the true differences with noise, failed and wrong pairs (module doc),
+    and lagged pairs (``lagged``; :mod:`photogram.simulation.ski.harsh_lagged`,
+    drawn from ``default_rng(seed + 7919)``; None when ``st.dr_lags`` is
+    empty)."""
     from photogram.mocap.motion.homography import RotationDifferences
+    from photogram.simulation.ski.harsh_lagged import simulated_lagged_differences
     rng = np.random.default_rng(seed)
+    lag_rng = np.random.default_rng(seed + 7919)
     R = sim.cameras.R
     F = R.shape[0]
     out = {}
@@ -359,5 +375,8 @@ def simulated_rotation_differences(sim: SkiSimulation, st: HarshSettings, seed: 
                            np.where(wrong, rng.integers(15, 40, F - 1),
                                     (matches * rng.uniform(0.6, 0.95, F - 1)).astype(int)))
         dR[failed] = np.nan
-        out[name] = RotationDifferences(dR, inliers, matches, ~failed, 0.0, F)
+        lagged = (simulated_lagged_differences(R[:, c], sim.cameras.io[c],
+                                               sim.cameras.image_size[c][0], st, lag_rng)
+                  if st.dr_lags else None)
+        out[name] = RotationDifferences(dR, inliers, matches, ~failed, 0.0, F, lagged)
     return out

@@ -117,6 +117,18 @@ def _detections(sim, folder, head):
     return out
 
 
+def _lagged_comment(st) -> list[str]:
+    """Comment lines of the lagged rows (none without lags)."""
+    if not st.dr_lags:
+        return []
+    lags = ", ".join(str(k) for k in st.dr_lags)
+    return [f"lagged pairs frame t -> to_frame = t+k (k = {lags}; R(to_frame) = dR R(t)) "
+            f"where the true turn is below {st.dr_lag_max_fraction:g} of the field of view:",
+            f"{st.dr_noise_deg:g} deg noise / (1 - turn/fov), zoom scale error "
+            f"+-{100 * st.dr_lag_scale:g} % of pan and tilt per camera, more failures near "
+            f"the limit (photogram.simulation.ski.harsh_lagged)"]
+
+
 def write_harsh_project(sim: HarshSimulation, folder: Path, name: str = "ski-ptz-harsh",
                         command: str = "projects/ski-ptz-harsh/generate.py") -> list[Path]:
     """Write the folder (module doc); returns the files written."""
@@ -135,7 +147,7 @@ def write_harsh_project(sim: HarshSimulation, folder: Path, name: str = "ski-ptz
         folder / "rotation_differences.csv", per, comment="\n".join(head + [
             "rotation differences frame t -> t+1 (rotation vector of dR, R(t+1) = dR R(t), "
             "deg): the truth with 0.03 deg noise,", "2 % failed pairs (ok 0), 1 % wrong "
-            "pairs (0.5-3 deg off, ok 1)"])))
+            "pairs (0.5-3 deg off, ok 1)"] + _lagged_comment(sim.settings))))
     written.append(write_joints(folder / "truth" / "joints3d.csv", np.arange(F),
                                 np.arange(F) / sim.fps, sim.joints, SKI24,
                                 comment="\n".join(head + ["true joints of the athlete (m, Z up)"])))
