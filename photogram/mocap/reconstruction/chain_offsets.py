@@ -53,7 +53,7 @@ from scipy.sparse.linalg import spsolve
 from photogram.geometry.rotations import matrix_to_rodrigues, rodrigues_to_matrix, skew
 
 __all__ = ["OffsetTrack", "offset_knots", "interpolate_offsets", "observation_jacobians",
-           "difference_noise", "correlation_inflation", "refine_chain_offsets"]
+           "difference_noise", "lagged_noise", "correlation_inflation", "refine_chain_offsets"]
 
 
 @dataclass
@@ -194,22 +194,21 @@ def _solve_stage(track, delta, rotations, links, Xf, tob, use, scale, X0,
         AiB = np.einsum("fab,fblc->falc", Ai, B)
         S_loc = Dl - np.einsum("falc,fame->flcme", B, AiB)
         rhs_loc = -np.einsum("falc,fa->flc", AiB, gd)       # - B^T A^-1 g_delta
-        H = np.zeros((K, 3, K, 3))
         rhs = -g.copy()
         fi, li, mi = np.nonzero((loc[:, :, None] >= 0) & (loc[:, None, :] >= 0))
-        np.add.at(H, (loc[fi, li], slice(None), loc[fi, mi]),
-                  S_loc[fi, li, :, mi, :])
         np.add.at(rhs, loc[fl, ll], -rhs_loc[fl, ll])
         # the chain's links between knots: r0 + sum_i coef_i theta_knot_i
         r0 = links.residuals(track)
         iv = 1.0 / links.var
+        rows, cols, vals = [loc[fi, li]], [loc[fi, mi]], [S_loc[fi, li, :, mi, :]]
         for i in range(links.knots.shape[1]):
             np.add.at(rhs, links.knots[:, i], -(links.coefs[:, i] * iv)[:, None] * r0)
             for k in range(links.knots.shape[1]):
-                np.add.at(H, (links.knots[:, i], slice(None), links.knots[:, k]),
-                          (links.coefs[:, i] * links.coefs[:, k] * iv)[:, None, None]
-                          * np.eye(3))
-        Hm = sparse.csc_matrix(H.reshape(3 * K, 3 * K))      # banded in time: sparse LU
+                rows.append(links.knots[:, i])
+                cols.append(links.knots[:, k])
+                vals.append((links.coefs[:, i] * links.coefs[:, k] * iv)[:, None, None]
+                            * np.eye(3))
+        Hm = _block_matrix(np.concatenate(rows), np.concatenate(cols), np.concatenate(vals), K)
         diag = sparse.diags(Hm.diagonal() + 1e-12, format="csc")
         improved = False
         for _ in range(10):
@@ -234,6 +233,15 @@ def _solve_stage(track, delta, rotations, links, Xf, tob, use, scale, X0,
         if not improved or change < tolerance:
             break
     return track, delta, cost, its
+
+
+def _block_matrix(rows, cols, blocks, K):
+    """Sparse (3K, 3K) matrix summing the 3 x 3 ``blocks`` (n, 3, 3) at
+    block positions (``rows``, ``cols``) (duplicates added)."""
+    a, b = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+    r = (3 * rows[:, None, None] + a).ravel()
+    c = (3 * cols[:, None, None] + b).ravel()
+    return sparse.coo_matrix((blocks.ravel(), (r, c)), shape=(3 * K, 3 * K)).tocsc()
 
 
 def _normal_blocks(f, c, r, Jd, Jt, w, knot, alpha, K):
@@ -332,7 +340,11 @@ class ChainLinks:
         self.lagged = None
         if lagged is not None and len(lagged[0]):
             cam, a, b, dR, sig = (np.asarray(v) for v in lagged)
-            ok = (track.knot[a, cam, 0] >= 0) & np.isfinite(dR).all(axis=(1, 2)) & (sig > 0)
+            F = track.knot.shape[0]
+            inside = (a >= 0) & (b < F) & (a < b)
+            a, b = np.where(inside, a, 0), np.where(inside, b, 0)
+            ok = inside & (track.knot[a, cam, 0] >= 0) & np.isfinite(dR).all(axis=(1, 2)) \
+                & (sig > 0) & (_segment(track, a, cam) == _segment(track, b, cam))
             cam, a, b, dR, sig = cam[ok], a[ok], b[ok], dR[ok], sig[ok]
             P = np.swapaxes(Q[b, cam], -1, -2) @ dR @ Q[a, cam]
             self.lagged = (cam, a, b, P)
@@ -358,6 +370,39 @@ class ChainLinks:
         return np.concatenate(out)
 
 
+def _segment(track, t, cam):
+    """Run segment (an index) of frames ``t`` of cameras ``cam``: knots are
+    numbered camera by camera and segment by segment (:func:`offset_knots`),
+    and a knot starts a segment where it is not linked to the one before."""
+    k0, k1 = _knot_pairs(track)
+    linked = np.zeros(len(track.frame), bool)
+    linked[k1[k1 == k0 + 1]] = True
+    seg = np.cumsum(~linked)
+    return seg[track.knot[t, cam, 0]]
+
+
+def lagged_noise(Q, lagged, sigma_pair) -> np.ndarray:
+    """Error per axis (rad) of every camera's lagged differences, from their
+    disagreement with the chain of consecutive ones over the same frames:
+    ``e = log((Q(b) Q(a)^T)^T dR)`` has variance ``sigma_lag^2 + (b - a)
+    sigma_pair^2`` per axis (the chain's random walk over b - a pairs);
+    robustly (1.4826 MAD), floored at ``sigma_pair / 2``. ``lagged`` =
+    (camera, a, b, dR); returns (C,) (NaN for cameras without)."""
+    cam, a, b, dR = (np.asarray(v) for v in lagged[:4])
+    C = Q.shape[1]
+    out = np.full(C, np.nan)
+    if not len(cam):
+        return out
+    pred = Q[b, cam] @ np.swapaxes(Q[a, cam], -1, -2)
+    e = matrix_to_rodrigues(np.swapaxes(pred, -1, -2) @ dR)
+    for c in np.unique(cam):
+        m = cam == c
+        ec = e[m] - np.median(e[m], axis=0)
+        var = (1.4826 * np.median(np.abs(ec))) ** 2 - np.median(b[m] - a[m]) * sigma_pair[c] ** 2
+        out[c] = np.sqrt(max(var, (sigma_pair[c] / 2) ** 2))
+    return out
+
+
 def _bridge(track, k, alpha):
     """Frames' worth of random-walk variance between a frame and the
     interpolation of its two knots ``k`` (n, 2) at ``alpha`` (the Brownian
@@ -374,7 +419,7 @@ def _knot_pairs(track):
 
 
 def refine_chain_offsets(X, R, Q, t_obs, conf, scale, X0, cameras, breaks=(),
-                         knot_frames: int = 10, sigma_pair=None, sigma2: float = 400.0,
+                         knot_frames: int = 2, sigma_pair=None, sigma2: float = 400.0,
                          max_iterations: int = 30, tolerance: float = 1e-6, lagged=None):
     """The offsets ``O(t)`` of every camera in ``cameras`` (module doc).
 

@@ -58,7 +58,7 @@ from photogram.mocap.body.skeleton import Skeleton
 from photogram.mocap.motion.camera_motion import euler_from_matrices
 from photogram.mocap.reconstruction.bootstrap import bootstrap_poses
 from photogram.mocap.reconstruction.cameras import MocapCameras
-from photogram.mocap.reconstruction.chain_offsets import refine_chain_offsets
+from photogram.mocap.reconstruction.chain_offsets import lagged_noise, refine_chain_offsets
 from photogram.mocap.reconstruction.dct import blend_weights, dct_basis
 from photogram.mocap.reconstruction.joint import JointBatch
 from photogram.mocap.reconstruction.joint_solver import solve_joint, solve_joint_lbfgs
@@ -159,6 +159,17 @@ def _pair_sigma(s, difference_sigma, C):
     return np.asarray(difference_sigma, float)
 
 
+def _with_noise(lagged, Q, sigma_pair):
+    """The lagged differences with their estimated error per pair (rad),
+    those of cameras without an estimate left out; None without any."""
+    if lagged is None or not len(lagged[0]):
+        return None
+    cam, a, b, dR = (np.asarray(v) for v in lagged[:4])
+    sig = lagged_noise(Q, (cam, a, b, dR), sigma_pair)[cam]
+    keep = np.isfinite(sig)
+    return cam[keep], a[keep], b[keep], dR[keep], sig[keep]
+
+
 def _pose_on_anchor(batches, coeffs, R, X0, lengths, s, F, J):
     """The poses of every window again, the cameras held on the shared
     rotation track R (F, C, 3, 3) (the last stage of part 1, warm-started):
@@ -184,7 +195,8 @@ def _pose_on_anchor(batches, coeffs, R, X0, lengths, s, F, J):
 def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: Skeleton,
                                  rotation_differences=None, difference_weights=None,
                                  settings: ReconstructionSettings | None = None,
-                                 breaks=(), difference_sigma=None) -> EstimatedRotations:
+                                 breaks=(), difference_sigma=None,
+                                 lagged=None, chain=None) -> EstimatedRotations:
     """Reconstruct poses and camera rotations (module doc).
 
     Parameters
@@ -205,6 +217,16 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
         :func:`photogram.mocap.reconstruction.chain_offsets.difference_noise`
         of the raw measurements; ``settings.chain_sigma_deg`` wins when > 0,
         0.05 deg where neither is known.
+    lagged : tuple or None
+        Differences measured over more than one frame, (camera (M,), first
+        frame (M,), second frame (M,), dR (M, 3, 3)) with ``R(second) = dR
+        R(first)`` (frames of ``observations``); their error is estimated
+        against the chain (:func:`photogram.mocap.reconstruction.chain_offsets.lagged_noise`).
+    chain : (F-1, C, 3, 3) or None
+        The differences for the chain of the offsets stage: outliers removed
+        but not smoothed
+        (:func:`photogram.mocap.motion.unknown_rotations.chain_differences`);
+        None: ``rotation_differences`` (as given, not smoothed again).
     """
     s = settings or estimate_settings()
     obs = np.asarray(observations, dtype=float)
@@ -280,10 +302,14 @@ def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: 
         carried = ~observed & usable[None, :]
         if s.chain_offsets:     # the offsets over the whole run (module doc, step 5)
             t2 = time.perf_counter()
+            sig = _pair_sigma(s, difference_sigma, C)
+            Qc = difference_chain(dR if chain is None else np.asarray(chain, float), weights,
+                                  breaks, sigma=0.0)          # not smoothed (chain_differences)
             R, offsets = refine_chain_offsets(
-                X, R, Q, t_obs, conf, cameras.pixel_scale(F), cameras.X0,
-                np.flatnonzero(usable), breaks, s.offset_knot_frames,
-                _pair_sigma(s, difference_sigma, C), s.sigma2)
+                X, R, Qc, t_obs, conf,
+                cameras.pixel_scale(F), cameras.X0,
+                np.flatnonzero(usable), breaks, s.offset_knot_frames, sig, s.sigma2,
+                lagged=_with_noise(lagged, Qc, sig))
             stages_offsets = dict(step="chain offsets", seconds=time.perf_counter() - t2,
                                   **offsets)
         X, views, anchored = _pose_on_anchor(batches, coeffs, R, cameras.X0, lengths, s, F, J)

@@ -116,7 +116,7 @@ class ReconstructionSettings:
     rotation_basis: str = "dct"     # or "free" (ablation: angles per frame)
     rotation_prior: bool = True     # False: no E_rot (ablation)
     chain_offsets: bool = True      # fit the chain's offsets over the whole run (chain_offsets)
-    offset_knot_frames: int = 10    # knots of the offset tracks every this many frames
+    offset_knot_frames: int = 2     # knots of the offset tracks every this many frames
     chain_sigma_deg: float = 0.0    # error of the differences per pair and axis; 0: measured
 
     def __post_init__(self):
