@@ -7,7 +7,8 @@ import pytest
 from photogram.geometry.aiming import look_at
 from photogram.geometry.rotations import matrix_to_rodrigues, rodrigues_to_matrix
 from photogram.mocap.reconstruction.bootstrap import chain_rotations
-from photogram.mocap.reconstruction.chain_offsets import (OffsetTrack, difference_noise,
+from photogram.mocap.motion.rotation_series import difference_noise
+from photogram.mocap.reconstruction.chain_offsets import (OffsetTrack,
                                                           interpolate_offsets,
                                                           observation_jacobians, offset_knots,
                                                           refine_chain_offsets)
@@ -149,7 +150,7 @@ def test_refine_without_detections_keeps_the_start(knot_frames):
 def test_correlation_inflation_of_white_and_smoothed_errors():
     """White errors: about 1; errors smoothed over frames (a moving average
     of m frames: 1 + 2 sum rho_k = m): about m."""
-    from photogram.mocap.reconstruction.chain_offsets import correlation_inflation
+    from photogram.mocap.reconstruction.chain_links import correlation_inflation
     rng = np.random.default_rng(11)
     F, C, J = 400, 3, 8
     f, c, j = [a.ravel() for a in np.meshgrid(np.arange(F), np.arange(C), np.arange(J),
@@ -210,7 +211,7 @@ def test_differences_over_many_frames_hold_the_chain_s_drift():
 
 
 def test_lagged_links_across_a_run_break_are_left_out_and_noise_is_estimated():
-    from photogram.mocap.reconstruction.chain_offsets import ChainLinks, lagged_noise
+    from photogram.mocap.reconstruction.chain_links import ChainLinks, lagged_noise
     F, C = 40, 1
     frames, cams, knot, alpha = offset_knots(F, [0], breaks=(20,), knot_frames=10, n_cameras=C)
     track = OffsetTrack(frames, cams, np.broadcast_to(np.eye(3), (len(frames), 3, 3)).copy(),

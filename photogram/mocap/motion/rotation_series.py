@@ -26,7 +26,8 @@ from photogram.mocap.motion.homography import (HomographySettings, LaggedDiffere
                                                RotationDifferences)
 from photogram.project.atomic import give_file_mode
 
-__all__ = ["confident_pairs", "filter_rotation_differences", "rotation_difference_errors",
+__all__ = ["confident_pairs", "difference_noise", "filter_rotation_differences",
+           "rotation_difference_errors",
            "check_rotation_differences", "write_rotation_differences",
            "read_rotation_differences"]
 
@@ -367,3 +368,21 @@ def _row(row, columns, data, names, first_frame, n_frames, path, line):
         raise InputError("ok must be 0 or 1, and 1 needs rx, ry, rz", file=path,
                          line=line, hint="finite rx, ry, rz (deg) where ok is 1")
     return cam, t, t2, r, k_in, k_m, flag
+
+
+def difference_noise(dR, ok) -> float:
+    """The error per pair and axis of measured rotation differences (rad),
+    robustly from consecutive usable pairs: ``1.4826 MAD(e(t+1) - e(t)) /
+    sqrt(2)`` of their rotation vectors ``e``. The camera's own changes of
+    angular speed count as error too (a conservative estimate); NaN without
+    two consecutive usable pairs."""
+    dR = np.asarray(dR, float)
+    ok = np.asarray(ok, bool) & np.all(np.isfinite(dR), axis=(1, 2))
+    both = ok[1:] & ok[:-1]
+    if not both.any():
+        return float("nan")
+    e = np.zeros((len(dR), 3))
+    e[ok] = matrix_to_rodrigues(dR[ok])
+    de = (e[1:] - e[:-1])[both]
+    mad = np.median(np.abs(de - np.median(de, axis=0)))
+    return float(1.4826 * mad / np.sqrt(2.0))

@@ -284,7 +284,7 @@ def difference_sigmas(per_camera: dict, names, homography: dict) -> np.ndarray:
     for a camera without differences."""
     from photogram.mocap.motion.homography import HomographySettings
     from photogram.mocap.motion.rotation_series import confident_pairs
-    from photogram.mocap.reconstruction.chain_offsets import difference_noise
+    from photogram.mocap.motion.rotation_series import difference_noise
     fraction = HomographySettings(**homography).min_inlier_fraction
     out = np.full(len(names), np.nan)
     for c, name in enumerate(names):

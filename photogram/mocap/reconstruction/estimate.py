@@ -58,7 +58,8 @@ from photogram.mocap.body.skeleton import Skeleton
 from photogram.mocap.motion.camera_motion import euler_from_matrices
 from photogram.mocap.reconstruction.bootstrap import bootstrap_poses
 from photogram.mocap.reconstruction.cameras import MocapCameras
-from photogram.mocap.reconstruction.chain_offsets import lagged_noise, refine_chain_offsets
+from photogram.mocap.reconstruction.chain_links import lagged_noise
+from photogram.mocap.reconstruction.chain_offsets import refine_chain_offsets
 from photogram.mocap.reconstruction.dct import blend_weights, dct_basis
 from photogram.mocap.reconstruction.joint import JointBatch
 from photogram.mocap.reconstruction.joint_solver import solve_joint, solve_joint_lbfgs
