@@ -89,8 +89,11 @@ def _trim_mocap(folder: Path, n: int) -> None:
             continue
         lines = path.read_text(encoding="utf-8").split("\n")
         head = next(i for i, ln in enumerate(lines) if ln and not ln.startswith("#"))
+        lagged = lines[head].rstrip().endswith(",to_frame")    # lagged pairs: both ends kept
         keep = lines[:head + 1] + [ln for ln in lines[head + 1:]
-                                   if ln and int(ln.split(",")[0]) < limit]
+                                   if ln and int(ln.split(",")[0]) < limit
+                                   and not (lagged and ln.split(",")[-1].strip()
+                                            and int(ln.split(",")[-1]) > n - 1)]
         path.write_text("\n".join(keep) + "\n", encoding="utf-8")
 
 
