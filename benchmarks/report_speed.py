@@ -1,0 +1,147 @@
+"""Report speed (issue 23, item 1): CPU time of report.pdf against the
+whole `photogram calibrate` command, in process.
+
+Two networks:
+
+* CAMCAL (DBAT's camera-calibration demo, REAL data: 21 images, 2074 image
+  points), ``projects/camcal/camcal.prj``; needs ../shared/data/dbat/camcal
+  beside the repository, otherwise skipped with a message.
+* a SIMULATED wall network (:func:`photogram.simulation.network.wall_network`,
+  60 stations, 26,000 points, about 7 rays per point: about 181,000 image
+  observations, the size of DBAT's ROMA network), interior fixed, 10 control
+  points. ``--no-large`` skips it; ``--large-points`` changes its size.
+
+CPU seconds (``time.process_time``, so the shared machine's load does not
+matter) of the whole command (adjustment, results folder, report) and of the
+report step alone (:func:`photogram.report.write_report`, wrapped where the
+command calls it). CAMCAL runs twice: the first run is cold (it pays the
+imports of matplotlib and the report's page modules, as a fresh command
+process does), the second warm (figures under camcal_*; with ``--profile``
+the warm run is profiled and its times include the profiler's overhead).
+The large network runs once, after CAMCAL (warm; cold when CAMCAL is
+skipped). Goal: report <= 15 % of the command and <= 2 s for
+CAMCAL, <= 6 s for the large network.
+
+Run: .venv/bin/python benchmarks/report_speed.py [--no-large] [--profile N]
+Ends with one line ``RESULT key=value ...``.
+"""
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+# benchmarks/profile.py would shadow the standard library's profile module
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import cProfile  # noqa: E402
+import pstats  # noqa: E402
+
+import photogram  # noqa: F401  (single-threaded BLAS before numpy)
+import numpy as np
+
+import photogram.report as report_pkg
+from photogram.commands.bundle import calibrate
+
+ROOT = Path(__file__).resolve().parents[1]
+CAMCAL = ROOT / "projects" / "camcal" / "camcal.prj"
+DATA = ROOT.parent / "shared" / "data" / "dbat" / "camcal"
+
+
+class ReportTimer:
+    """Wrap :func:`photogram.report.write_report` (the command imports it
+    from the package at call time) and add up its CPU seconds."""
+
+    def __init__(self, profile=None):
+        self.cpu = 0.0
+        self.profile = profile
+        self._orig = report_pkg.write_report
+
+    def __enter__(self):
+        def timed(*args, **kwargs):
+            t = time.process_time()
+            try:
+                if self.profile is not None:
+                    return self.profile.runcall(self._orig, *args, **kwargs)
+                return self._orig(*args, **kwargs)
+            finally:
+                self.cpu += time.process_time() - t
+        report_pkg.write_report = timed
+        return self
+
+    def __exit__(self, *exc):
+        report_pkg.write_report = self._orig
+
+
+def run_command(project, profile=None):
+    """``(command CPU s, report CPU s, folder)`` of calibrate on ``project``."""
+    out = Path(tempfile.mkdtemp(prefix="report-speed-")) / "results"
+    with ReportTimer(profile) as timer:
+        t = time.process_time()
+        folder, _ = calibrate(project, output=out)
+        total = time.process_time() - t
+    return total, timer.cpu, folder
+
+
+def camcal_project():
+    from photogram.project.reader import read_project
+    return read_project(CAMCAL)
+
+
+def large_project(n_points, seed=0):
+    from photogram.simulation.network import to_project, wall_network
+    net = wall_network(n_stations=60, n_points=n_points, rays=7, seed=seed)
+    prj = to_project(net, control=range(10), perturb_points=0.05, perturb_stations=0.005,
+                     sigma_image=0.5, rng=np.random.default_rng(seed), name="wall")
+    prj.adjustment.datum = "control"
+    # written and read back, as `photogram calibrate wall.prj` would read it
+    from photogram.project.reader import read_project
+    from photogram.project.writer import write_project
+    path = write_project(prj, Path(tempfile.mkdtemp(prefix="report-speed-wall-")) / "wall.prj")
+    return read_project(path), len(net.station)
+
+
+def show(label, total, rep, goal):
+    share = rep / total if total > 0 else float("nan")
+    print(f"{label}: command {total:.2f} s CPU, report {rep:.2f} s CPU "
+          f"({100 * share:.1f} %), goal report <= {goal:.0f} s and <= 15 %")
+    return share
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--no-large", action="store_true", help="skip the simulated large network")
+    ap.add_argument("--large-points", type=int, default=26_000)
+    ap.add_argument("--profile", type=int, default=0, metavar="N",
+                    help="print the N costliest calls of the CAMCAL report (cumulative)")
+    args = ap.parse_args()
+    fields = {}
+    if DATA.is_dir():
+        # first run: cold, as a fresh `photogram calibrate` process pays it (imports of
+        # matplotlib and the page modules, fonts, numba's cached kernels); then warm
+        total, rep, _ = run_command(camcal_project())
+        share = show("CAMCAL (real data, 2074 image points), first run (cold)", total, rep, 2)
+        fields.update(camcal_cold_cmd=f"{total:.2f}", camcal_cold_report=f"{rep:.2f}",
+                      camcal_cold_share=f"{share:.3f}")
+        prof = cProfile.Profile() if args.profile else None
+        total, rep, _ = run_command(camcal_project(), prof)
+        share = show("CAMCAL (real data, 2074 image points), second run (warm)", total, rep, 2)
+        fields.update(camcal_cmd=f"{total:.2f}", camcal_report=f"{rep:.2f}",
+                      camcal_share=f"{share:.3f}")
+        if prof is not None:
+            pstats.Stats(prof).sort_stats("cumulative").print_stats(args.profile)
+    else:
+        print(f"CAMCAL skipped: no data at {DATA} (DBAT's camcal folder beside the repository)")
+        fields["camcal"] = "skipped"
+    if not args.no_large:
+        prj, n_obs = large_project(args.large_points)
+        total, rep, _ = run_command(prj)
+        share = show(f"wall network (SIMULATED, {args.large_points} points, {n_obs} observations)",
+                     total, rep, 6)
+        fields.update(large_points=args.large_points, large_obs=n_obs, large_cmd=f"{total:.2f}",
+                      large_report=f"{rep:.2f}", large_share=f"{share:.3f}")
+    print("RESULT " + " ".join(f"{k}={v}" for k, v in fields.items()))
+
+
+if __name__ == "__main__":
+    main()
