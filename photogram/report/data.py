@@ -150,21 +150,21 @@ class ReportData:
         (largest angle between two of its rays, degrees)."""
         import pandas as pd
 
+        from photogram.report.shapes import largest_ray_angles
+
         r = self.residuals[self.residuals["used"]]
-        pts, rows = self.points, []
-        for pid, group in r.groupby("point", sort=True):
-            if pid not in pts.index:
-                continue
-            X = pts.loc[pid, ["X", "Y", "Z"]].to_numpy(float)
-            C = np.array([self.centres[s] for s in group["station"] if s in self.centres])
-            ang = np.nan
-            if len(C) >= 2 and np.all(np.isfinite(X)):
-                u = C - X
-                u /= np.linalg.norm(u, axis=1, keepdims=True)
-                cos = np.clip(u @ u.T, -1.0, 1.0)
-                ang = float(np.degrees(np.arccos(cos.min())))
-            rows.append({"point": pid, "rays": len(group), "angle": ang})
-        return pd.DataFrame(rows, columns=["point", "rays", "angle"]).set_index("point")
+        pts = self.points
+        r = r[r["point"].isin(pts.index)]
+        rays = r.groupby("point", sort=True).size()
+        seen = r[r["station"].isin(list(self.centres))]
+        centres = np.array([self.centres[s] for s in seen["station"]]).reshape(-1, 3)
+        X = pts.loc[seen["point"], ["X", "Y", "Z"]].to_numpy(float).reshape(-1, 3)
+        code = rays.index.get_indexer(seen["point"])
+        angle = largest_ray_angles(centres - X, code, len(rays))
+        out = pd.DataFrame({"rays": rays.to_numpy(int), "angle": angle},
+                           index=rays.index, columns=["rays", "angle"])
+        out.index.name = "point"
+        return out
 
     @cached_property
     def point_sigma(self):

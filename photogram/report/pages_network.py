@@ -8,6 +8,7 @@ from matplotlib.ticker import MaxNLocator
 
 from photogram.report.layout import decorate, equal_limits
 from photogram.report.registry import section
+from photogram.report.shapes import dense
 
 _STYLE = {"control": ("^", "tab:red", 14), "check": ("s", "tab:orange", 12),
           "tie": ("o", "0.3", 3)}
@@ -19,7 +20,7 @@ def _points(data):
     ok = np.all(np.isfinite(xyz), axis=1)
     if data.has_residuals:
         seen = set(data.residuals["point"])
-        ok &= np.array([i in seen for i in p.index])
+        ok &= p.index.isin(seen)
     kinds = p["kind"].astype(str).to_numpy() if "kind" in p.columns else np.full(len(p), "tie")
     return xyz[ok], kinds[ok]
 
@@ -59,7 +60,7 @@ def build(doc, data):
         m = kinds == kind
         if m.any():
             ax3.scatter(*xyz[m].T, marker=marker, color=colour, s=ms, depthshade=False,
-                        label=kind)
+                        label=kind, rasterized=dense(int(m.sum())))
     if len(C):
         ax3.scatter(*C.T, marker="^", color="black", s=25, depthshade=False, label="camera")
         E = C + 0.12 * size * D
@@ -87,11 +88,12 @@ def build(doc, data):
         a = C[[idx[s] for s in r.loc[ok, "station"]], :2]
         b = pts.loc[r.loc[ok, "point"], ["X", "Y"]].to_numpy(float)
         ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors="tab:blue",
-                                         lw=0.3, alpha=0.15))
+                                         lw=0.3, alpha=0.15, rasterized=dense(len(a))))
     for kind, (marker, colour, ms) in _STYLE.items():
         m = kinds == kind
         if m.any():
-            ax.scatter(*xyz[m, :2].T, marker=marker, color=colour, s=ms, zorder=3)
+            ax.scatter(*xyz[m, :2].T, marker=marker, color=colour, s=ms, zorder=3,
+                       rasterized=dense(int(m.sum())))
     if len(C):
         ax.scatter(*C[:, :2].T, marker="^", color="black", s=25, zorder=4)
         ax.quiver(C[:, 0], C[:, 1], D[:, 0], D[:, 1], angles="xy", scale_units="xy",

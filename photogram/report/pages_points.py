@@ -10,7 +10,7 @@ from matplotlib.collections import EllipseCollection
 from photogram.report.layout import decorate, equal_limits
 from photogram.report.numbers import finite, num, sig
 from photogram.report.registry import section
-from photogram.report.shapes import ellipse, nice
+from photogram.report.shapes import dense, ellipses, nice
 
 _KIND_STYLE = {"control": ("^", "tab:red"), "check": ("s", "tab:orange"),
                "tie": (".", "0.2")}
@@ -18,7 +18,9 @@ _KIND_STYLE = {"control": ("^", "tab:red"), "check": ("s", "tab:orange"),
 
 def _kinds(data, ids):
     p = data.points
-    return [str(p.loc[i, "kind"]) if "kind" in p.columns else "tie" for i in ids]
+    if "kind" not in p.columns:
+        return ["tie"] * len(ids)
+    return p.loc[list(ids), "kind"].astype(str).tolist()
 
 
 @section("points", "Point precision", 50, applies=lambda d: len(d.point_sigma[0]) > 0)
@@ -71,15 +73,17 @@ def _covariances(data, ids):
 
 
 def _ellipse_panel(ax, xy, C2, k, kinds, labels):
-    abt = np.array([ellipse(c) for c in C2]).reshape(-1, 3)
+    abt = ellipses(C2)
     ax.add_collection(EllipseCollection(2 * k * abt[:, 0], 2 * k * abt[:, 1], abt[:, 2],
                                         units="xy", offsets=xy, offset_transform=ax.transData,
-                                        facecolors="none", edgecolors="tab:blue", lw=0.7))
+                                        facecolors="none", edgecolors="tab:blue", lw=0.7,
+                                        rasterized=dense(len(xy))))
+    kinds = np.asarray(kinds, dtype=str)
     for kind, (marker, colour) in _KIND_STYLE.items():
-        m = np.array([kd == kind for kd in kinds])
+        m = kinds == kind
         if m.any():
             ax.plot(xy[m, 0], xy[m, 1], marker, color=colour, ms=3 if kind == "tie" else 4,
-                    ls="none", label=kind)
+                    ls="none", label=kind, rasterized=dense(int(m.sum())))
     placed = []
     near = 0.06 * float(np.ptp(xy, axis=0).max() or 1.0)
     for i in labels:                         # skip labels that would overlap
@@ -119,7 +123,7 @@ def build_ellipses(doc, data):
     fit = min(1.0, (doc.remaining - 0.1) / sum(heights))
     for (title, cols), height in zip(panels, heights):
         xy, C2 = xyz[:, cols], C[:, cols][:, :, cols]
-        a = np.array([ellipse(c)[0] for c in C2])
+        a = ellipses(C2)[:, 0]
         k = nice(0.025 * extent / max(float(np.median(a)), 1e-300))
         worst = {int(i): ids[i] for i in np.argsort(-a)[:5]}
         ax, = doc.axes(max(2.0, height * fit), pad_left=0.9, pad_right=1.3)

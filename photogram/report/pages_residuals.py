@@ -11,7 +11,7 @@ from matplotlib.patches import Rectangle
 from photogram.report.layout import decorate
 from photogram.report.numbers import finite, num
 from photogram.report.registry import section
-from photogram.report.shapes import convex_hull, nice
+from photogram.report.shapes import convex_hull, dense, nice
 
 _INTRO = ("Residuals are the measured minus the adjusted image coordinates. The RMS is "
           "over the used observations; 'RMS' alone is the RMS of the residual vector length "
@@ -155,9 +155,9 @@ def _vector_plot(ax, data, station, g, k, iu):
         ax.fill(hull[:, 0], hull[:, 1], color="tab:green", alpha=0.12, lw=0)
     u = g["used"].to_numpy()
     v = g[["vx", "vy"]].to_numpy(float)[u]
-    ax.plot(xy[u, 0], xy[u, 1], ".", ms=2, color="0.2")
+    ax.plot(xy[u, 0], xy[u, 1], ".", ms=2, color="0.2", rasterized=dense(int(u.sum())))
     ax.add_collection(LineCollection(np.stack([xy[u], xy[u] + k * v], axis=1),
-                                     colors="tab:blue", lw=0.9))
+                                     colors="tab:blue", lw=0.9, rasterized=dense(int(u.sum()))))
     if (~u).any():
         ax.plot(xy[~u, 0], xy[~u, 1], "x", color="tab:red", ms=4, label="rejected")
     w, h = fmt if fmt else (xy[:, 0].max(), xy[:, 1].max())

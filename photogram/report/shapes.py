@@ -65,6 +65,61 @@ def ellipse(cov2) -> tuple[float, float, float]:
     return a, b, math.degrees(math.atan2(vecs[1, 1], vecs[0, 1]))
 
 
+def ellipses(cov2) -> np.ndarray:
+    """:func:`ellipse` of many 2x2 covariances at once: ``(n, 3)`` rows of
+    ``a, b, angle`` (the same numbers, one batched eigen-decomposition)."""
+    cov2 = np.asarray(cov2, float).reshape(-1, 2, 2)
+    vals, vecs = np.linalg.eigh(0.5 * (cov2 + np.swapaxes(cov2, 1, 2)))
+    vals = np.clip(vals, 0, None)
+    return np.stack([np.sqrt(vals[:, 1]), np.sqrt(vals[:, 0]),
+                     np.degrees(np.arctan2(vecs[:, 1, 1], vecs[:, 0, 1]))], axis=1)
+
+
+def largest_ray_angles(rays, point, n_points) -> np.ndarray:
+    """Largest angle (degrees) between two rays of each point.
+
+    Parameters
+    ----------
+    rays : (m, 3) array
+        Ray directions (camera centre minus point; any length).
+    point : (m,) int array
+        Index of each ray's point, 0 .. ``n_points - 1``.
+    n_points : int
+
+    Returns
+    -------
+    (n_points,) array
+        NaN for points with fewer than two rays or non-finite rays. Points
+        are taken together by their number of rays (one batched product per
+        ray count instead of a loop over points).
+    """
+    out = np.full(n_points, np.nan)
+    if not len(rays):
+        return out
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+    order = np.argsort(point, kind="stable")
+    u, point = u[order], np.asarray(point)[order]
+    count = np.bincount(point, minlength=n_points)
+    start = np.concatenate([[0], np.cumsum(count)[:-1]])
+    for n in np.unique(count[count >= 2]):
+        pts = np.flatnonzero(count == n)
+        U = u[start[pts, None] + np.arange(n)]                    # (k, n, 3)
+        cos = np.clip(np.einsum("kid,kjd->kij", U, U), -1.0, 1.0)
+        out[pts] = np.degrees(np.arccos(cos.reshape(len(pts), -1).min(axis=1)))
+    return out
+
+
+#: layers with more elements than this are rasterized in the PDF (one image
+#: instead of thousands of vector paths); smaller ones stay vector graphics
+DENSE = 2500
+
+
+def dense(n: int) -> bool:
+    """Whether a layer of ``n`` elements is drawn rasterized (see DENSE)."""
+    return n > DENSE
+
+
 def nice(x: float) -> float:
     """The number 1, 2 or 5 x 10^k closest below ``x`` (> 0)."""
     if not (x > 0 and math.isfinite(x)):
