@@ -11,8 +11,8 @@ Two networks:
   observations, the size of DBAT's ROMA network), interior fixed, 10 control
   points. ``--no-large`` skips it; ``--large-points`` changes its size.
 
-CPU seconds (``time.process_time``, so the shared machine's load does not
-matter) of the whole command (adjustment, results folder, report) and of the
+CPU seconds (``time.process_time``, less sensitive than wall time to the
+shared machine's load, though still about +-20 % from run to run) of the whole command (adjustment, results folder, report) and of the
 report step alone (:func:`photogram.report.write_report`, wrapped where the
 command calls it). CAMCAL runs twice: the first run is cold (it pays the
 imports of matplotlib and the report's page modules, as a fresh command
@@ -27,6 +27,7 @@ Ends with one line ``RESULT key=value ...``.
 """
 
 import argparse
+import shutil
 import sys
 import tempfile
 import time
@@ -74,13 +75,14 @@ class ReportTimer:
 
 
 def run_command(project, profile=None):
-    """``(command CPU s, report CPU s, folder)`` of calibrate on ``project``."""
-    out = Path(tempfile.mkdtemp(prefix="report-speed-")) / "results"
-    with ReportTimer(profile) as timer:
-        t = time.process_time()
-        folder, _ = calibrate(project, output=out)
-        total = time.process_time() - t
-    return total, timer.cpu, folder
+    """``(command CPU s, report CPU s)`` of calibrate on ``project`` (the
+    results folder is written to a temporary folder and removed)."""
+    with tempfile.TemporaryDirectory(prefix="report-speed-") as tmp:
+        with ReportTimer(profile) as timer:
+            t = time.process_time()
+            calibrate(project, output=Path(tmp) / "results")
+            total = time.process_time() - t
+    return total, timer.cpu
 
 
 def camcal_project():
@@ -98,7 +100,7 @@ def large_project(n_points, seed=0):
     from photogram.project.reader import read_project
     from photogram.project.writer import write_project
     path = write_project(prj, Path(tempfile.mkdtemp(prefix="report-speed-wall-")) / "wall.prj")
-    return read_project(path), len(net.station)
+    return read_project(path), len(net.station), path.parent
 
 
 def show(label, total, rep, goal):
@@ -119,12 +121,12 @@ def main():
     if DATA.is_dir():
         # first run: cold, as a fresh `photogram calibrate` process pays it (imports of
         # matplotlib and the page modules, fonts, numba's cached kernels); then warm
-        total, rep, _ = run_command(camcal_project())
+        total, rep = run_command(camcal_project())
         share = show("CAMCAL (real data, 2074 image points), first run (cold)", total, rep, 2)
         fields.update(camcal_cold_cmd=f"{total:.2f}", camcal_cold_report=f"{rep:.2f}",
                       camcal_cold_share=f"{share:.3f}")
         prof = cProfile.Profile() if args.profile else None
-        total, rep, _ = run_command(camcal_project(), prof)
+        total, rep = run_command(camcal_project(), prof)
         share = show("CAMCAL (real data, 2074 image points), second run (warm)", total, rep, 2)
         fields.update(camcal_cmd=f"{total:.2f}", camcal_report=f"{rep:.2f}",
                       camcal_share=f"{share:.3f}")
@@ -134,8 +136,11 @@ def main():
         print(f"CAMCAL skipped: no data at {DATA} (DBAT's camcal folder beside the repository)")
         fields["camcal"] = "skipped"
     if not args.no_large:
-        prj, n_obs = large_project(args.large_points)
-        total, rep, _ = run_command(prj)
+        prj, n_obs, folder = large_project(args.large_points)
+        try:
+            total, rep = run_command(prj)
+        finally:
+            shutil.rmtree(folder, ignore_errors=True)
         share = show(f"wall network (SIMULATED, {args.large_points} points, {n_obs} observations)",
                      total, rep, 6)
         fields.update(large_points=args.large_points, large_obs=n_obs, large_cmd=f"{total:.2f}",
