@@ -114,6 +114,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-large", action="store_true", help="skip the simulated large network")
     ap.add_argument("--large-points", type=int, default=26_000)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the simulated network")
     ap.add_argument("--profile", type=int, default=0, metavar="N",
                     help="print the N costliest calls of the CAMCAL report (cumulative)")
     args = ap.parse_args()
@@ -136,14 +137,14 @@ def main():
         print(f"CAMCAL skipped: no data at {DATA} (DBAT's camcal folder beside the repository)")
         fields["camcal"] = "skipped"
     if not args.no_large:
-        prj, n_obs, folder = large_project(args.large_points)
+        prj, n_obs, folder = large_project(args.large_points, args.seed)
         try:
             total, rep = run_command(prj)
         finally:
             shutil.rmtree(folder, ignore_errors=True)
         share = show(f"wall network (SIMULATED, {args.large_points} points, {n_obs} observations)",
                      total, rep, 6)
-        fields.update(large_points=args.large_points, large_obs=n_obs, large_cmd=f"{total:.2f}",
+        fields.update(seed=args.seed, large_points=args.large_points, large_obs=n_obs, large_cmd=f"{total:.2f}",
                       large_report=f"{rep:.2f}", large_share=f"{share:.3f}")
     print("RESULT " + " ".join(f"{k}={v}" for k, v in fields.items()))
 
