@@ -5,7 +5,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv test demo clean montecarlo bench
+.PHONY: venv test test-fast demo clean montecarlo bench
 
 venv: $(STAMP)
 
@@ -23,6 +23,17 @@ test: $(STAMP)
 	$(PY) -m pytest -q; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests"; exit 1; fi; \
 	if [ $$lint -ne 0 ]; then echo "make test: the layers contract is broken (lint-imports)"; exit 1; fi; \
+	exit $$rc
+
+# For development: the layers contract, then the suite without the tests
+# marked `slow` (pytest -m "not slow"; the marker is registered in setup.cfg
+# [tool:pytest], the slow files and tests are listed in docs/benchmarks.md).
+# `make test` still runs everything.
+test-fast: $(STAMP)
+	@$(VENV)/bin/lint-imports; lint=$$?; \
+	$(PY) -m pytest -q -m "not slow"; rc=$$?; \
+	if [ $$rc -eq 5 ]; then echo "make test-fast: pytest collected no tests"; exit 1; fi; \
+	if [ $$lint -ne 0 ]; then echo "make test-fast: the layers contract is broken (lint-imports)"; exit 1; fi; \
 	exit $$rc
 
 demo: $(STAMP)

@@ -19,6 +19,9 @@ from photogram.io.bal import (BALProblem, bal_cost, bal_residuals, behind_camera
                               write_bal)
 from photogram.stats.covariance import cofactors
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bal"
 
 PATHS = ["numpy"] + (["numba"] if kernels.HAVE_NUMBA else [])

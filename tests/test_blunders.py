@@ -16,6 +16,9 @@ from photogram.stats.covariance import camera_covariances, cofactors, point_cova
 from photogram.stats.reliability import data_snooping
 from photogram.stats.robust import loss_weights, robust_cleaning
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 CAMCAL = ROOT.parent / "shared" / "data" / "dbat" / "camcal"
 ALPHA = 0.001

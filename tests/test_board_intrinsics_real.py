@@ -32,6 +32,8 @@ NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2")
 
 pytestmark = pytest.mark.skipif(not (CALIB / "intrinsics").is_dir(),
                                 reason="/work/shared/data (Pose2Sim demo) not present")
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = [*(pytestmark if isinstance(pytestmark, list) else [pytestmark]), pytest.mark.slow]
 
 
 def qualisys():

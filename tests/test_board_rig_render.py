@@ -20,6 +20,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 cv2 = pytest.importorskip("cv2")
 
 from photogram.io.targets import detect, parse_target          # noqa: E402

@@ -9,6 +9,9 @@ from photogram.geometry import (CAMERA_MODELS, camera_model, ideal_projection,
                                 matrix_to_opk, opencv_pose, opk_to_matrix,
                                 photogrammetric_pose, rescale_parameters, small_rotation)
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 RNG = np.random.default_rng(7)
 N = 50
 SIZE = (640, 480)

@@ -16,6 +16,9 @@ from photogram_cli.main import COMMANDS, Command, main
 
 from project_cases import DATA, make_project
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 def test_version(capsys):
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"photogram {photogram.__version__}"

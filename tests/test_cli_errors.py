@@ -13,6 +13,9 @@ from photogram_cli.main import COMMANDS, main
 
 from project_cases import CASES, expected_line, make_project
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
 def test_check_reports_bad_input_in_one_line(tmp_path, capsys, case):

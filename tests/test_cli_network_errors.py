@@ -10,6 +10,9 @@ from photogram.project import write_project
 from photogram.simulation.network import frame_network, to_project
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 def write(tmp_path, prj):
     prj.adjustment.datum = "control"

@@ -30,6 +30,9 @@ from photogram.geometry import aspect_first_to_brown, camera_model, rescale_para
 from photogram.project import read_project
 from test_dbat_reference import DBAT, DBAT_NAMES, PROJECTS, dbat_report, pixel_size, printed
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 REPORTS = DBAT / "dbatexports"
 if not REPORTS.is_dir():
     pytest.skip(f"DBAT's reports not found at {REPORTS}", allow_module_level=True)

@@ -28,6 +28,9 @@ from photogram.geometry import camera_model, rescale_parameters
 from photogram.project import read_project, read_results
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 DBAT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "dbat"
 CAMCAL = DBAT / "camcal"

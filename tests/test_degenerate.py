@@ -24,6 +24,9 @@ from photogram.stats.geometry import (
     WEAK_ANGLE_DEG, intersection_angles, weak_angle_warning, weak_points)
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 IO = np.array((1420.0, 320.0, 240.0, -5e-8, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
 
 

@@ -19,6 +19,9 @@ from photogram.simulation.designs import (
     CAMERAS, CONTROL_SIGMA, FIELD_SEED, IMAGE_SIZE, LAB_SEED, SIGMA_IMAGE, field_design,
     lab_design, slope_height)
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 PROJECTS = Path(__file__).resolve().parents[1] / "projects"
 LAB_PRJ = PROJECTS / "lab" / "lab-typed.prj"      # the typed observations of the design
 LAB_MEASURED_PRJ = PROJECTS / "lab" / "lab.prj"   # the same, measured from images/

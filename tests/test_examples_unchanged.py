@@ -70,6 +70,9 @@ import pytest
 
 from examples_run import STEPS, have_shared_data, load_record, run_examples
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 RECORD = load_record()
 
 

@@ -23,6 +23,9 @@ import pytest
 
 from fuzz.corpus import build_cases, run_case, stage
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 # the example projects, copied once (the cases are built from them at collection)
 BASE = stage(Path(tempfile.mkdtemp(prefix="fuzz-corpus-")))
 atexit.register(shutil.rmtree, BASE, ignore_errors=True)

@@ -17,6 +17,9 @@ from photogram.project.results import RESULT_FILES
 
 from project_cases import DATA
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 # ---------------------------------------------------------------- item 16
 

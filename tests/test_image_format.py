@@ -11,6 +11,9 @@ import pytest
 from field_copy import field_copy
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 def _scaled(factor):
     def change(text):

@@ -17,6 +17,9 @@ from photogram.init.intersection import project_ideal
 from photogram.project.model import Camera, ImagePoints, Parameter, Points, Project, Stations
 from photogram.simulation.network import look_at as simulated_look_at
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 DBAT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "dbat"
 CAMCAL = DBAT / "camcal"
 

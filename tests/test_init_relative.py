@@ -13,6 +13,9 @@ from photogram.init.relative import (decompose_essential, eight_point, relative_
                                      rotation_only_fit)
 from photogram.simulation.network import look_at as simulated_look_at
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 C = 1420.0
 TARGET = np.array([0.25, 0.25, 0.15])
 

@@ -24,6 +24,9 @@ from photogram.io.colmap_cameras import model_to_colmap
 from photogram.io.exchange import View
 from photogram.io.formats import export_results, import_project
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 IDS = {"SIMPLE_PINHOLE": 0, "PINHOLE": 1, "SIMPLE_RADIAL": 2, "RADIAL": 3, "OPENCV": 4,
        "OPENCV_FISHEYE": 5, "FULL_OPENCV": 6, "SIMPLE_RADIAL_FISHEYE": 8, "RADIAL_FISHEYE": 9}
 #: generic parameters of every model (COLMAP's pixel frame, centre of pixel 0 at 0.5)

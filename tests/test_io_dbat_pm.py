@@ -17,6 +17,9 @@ from photogram.project import read_project
 
 from io_fixtures import SHARED
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 DBAT = SHARED / "dbat"
 ROOT = Path(__file__).resolve().parents[1]
 

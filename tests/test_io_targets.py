@@ -17,6 +17,9 @@ from photogram_cli.main import main
 
 from target_images import render, texture, views
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 K = np.array([[800.0, 0.0, 322.3], [0.0, 803.0, 236.8], [0.0, 0.0, 1.0]])
 DIST = np.array([-0.21, 0.09, 0.0012, -0.0008, -0.02])
 SIZE = (640, 480)

@@ -21,6 +21,9 @@ from lab_stage import stage_lab
 import photogram
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 PROJECTS = Path(photogram.__file__).resolve().parents[1] / "projects"
 
 

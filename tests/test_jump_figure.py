@@ -8,6 +8,9 @@ from photogram.errors import InputError
 from photogram.jump import stick_model
 from photogram.jump.synthetic import synthetic_jumper
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 pytest.importorskip("matplotlib")
 from photogram.jump.figure import plot_stick_figure, time_series_figure  # noqa: E402
 

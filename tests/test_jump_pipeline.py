@@ -6,6 +6,9 @@ import pytest
 from photogram.jump.pipeline import intersect_jump
 from photogram.simulation.jump import jump_project
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def exact():

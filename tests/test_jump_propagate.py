@@ -154,6 +154,7 @@ def random_spd(rng, n, k, sigma):
     return sigma ** 2 * (B @ np.swapaxes(B, 1, 2) / k + 0.3 * np.eye(k))
 
 
+@pytest.mark.slow
 def test_propagated_sigmas_match_monte_carlo():
     rng = np.random.default_rng(2024)
     s = synthetic_jumper(n=10)

@@ -17,6 +17,9 @@ from photogram.simulation.jump_video import (
 from photogram.simulation.jump_video.actors import MARKER_GREY
 from photogram.simulation.ski_lines import field_cameras
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 LEAD = 1
 EXPOSURES = (0, 11, 20)                   # checked exposures (0-based)
 FRAMES = [LEAD + e for e in EXPOSURES]

@@ -15,6 +15,9 @@ from photogram.lines import (
 from photogram.simulation.ski_lines import field_cameras, measure_segment
 from photogram.simulation.network import look_at
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 CAMS = field_cameras()
 CENTRE = np.array([470.0, 7.0, -250.0])          # in the flight zone (dm)
 

@@ -19,6 +19,9 @@ from photogram_cli.main import main
 
 from test_measure_space import EYES
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 RADIUS = 0.03
 
 

@@ -22,6 +22,10 @@ from photogram.simulation.network import SyntheticNetwork, to_project
 
 from test_measure_eccentric_bundle import (CONTROL, COLS, F, FREE, K1, RADIUS, ROWS, SIZE,
                                            SPACING, VIEWS)
+import pytest
+
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
 
 FAINT = [3, 10, 14, 20, 25, 33, 38, 41, 47, 50, 57, 60]
 

@@ -31,6 +31,9 @@ from photogram.bundle import adjust
 from photogram.project import read_project
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 CAMCAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "dbat" / "camcal"
 SHEET = ROOT / "projects" / "camcal" / "sheet.toml"

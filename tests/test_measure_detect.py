@@ -18,6 +18,9 @@ from photogram.measure.ellipse import (conic_axes, conic_centre, conic_from_matr
                                        conic_matrix, fit_ellipse, fit_ellipses)
 from photogram.measure.render import grid_scene
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 GOOD = dict(size=(640, 480), f=720.0)
 HARSH = dict(size=(640, 480), f=720.0, radius=0.014, blur=1.3, noise=5.0, jpeg=50,
              gradient=0.5, seed=7)

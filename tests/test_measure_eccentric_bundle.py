@@ -22,6 +22,9 @@ from photogram.measure.render import PlaneCamera, draw_sheet, look_at, render_pl
 from photogram.project.model import TargetSettings
 from photogram.simulation.network import SyntheticNetwork, to_project
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 COLS, ROWS, SPACING, RADIUS = 9, 7, 0.1, 0.02
 SIZE, F, K1 = (640, 480), 720.0, -0.08
 VIEWS = [((0.4, -0.5, 0.8), (0, 1, 0)), ((1.2, 0.3, 0.75), (1, 0.3, 0)),

@@ -15,6 +15,9 @@ from photogram.measure.field import read_field
 from photogram.measure.render import field_scene, grid_scene
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 SHEET = Path(__file__).resolve().parents[1] / "projects" / "camcal" / "sheet.toml"
 
 

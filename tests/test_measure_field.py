@@ -13,6 +13,9 @@ from photogram.measure.render import field_scene
 
 from pathlib import Path
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 SHEET = Path(__file__).resolve().parents[1] / "projects" / "camcal" / "sheet.toml"
 
 VIEWS = {

@@ -23,6 +23,9 @@ from photogram_cli.main import main
 from test_measure_bundle_guided import CONTROL, FREE, RADIUS, _scene, _true_ellipse_centres
 from test_measure_eccentric_bundle import SIZE
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 FIELD = """[field]
 name = "rendered sheet"
 images = "images"

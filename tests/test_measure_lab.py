@@ -47,6 +47,7 @@ def test_frame_description_gives_the_approximate_points_not_the_truth():
     assert f"xyz = [{approx['T01']!r}," in text and approx["T01"] != true["T01"]
 
 
+@pytest.mark.slow
 def test_measured_against_the_true_image_points(measured):
     c = compare_tables(measured / "image_points.csv", LAB / "truth" / "image_points.csv")
     print(c.line(), f"max |z| {c.max_z:.1f}", c.beyond)

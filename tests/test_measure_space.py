@@ -12,6 +12,9 @@ from photogram.measure.pipeline import PIXEL_OFFSET, measure_image
 from photogram.measure.render import PlaneCamera, look_at
 from photogram.measure.render3d import corner_frame, project3, render_plates
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 EYES = {"a": (2.2, 1.8, 1.6), "b": (2.6, 0.9, 1.2), "c": (1.0, 2.5, 1.8)}
 
 

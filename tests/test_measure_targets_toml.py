@@ -24,6 +24,9 @@ from photogram.measure.scenes import _rows
 from photogram.project import read_project
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory):

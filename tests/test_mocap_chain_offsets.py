@@ -13,6 +13,9 @@ from photogram.mocap.reconstruction.chain_offsets import (OffsetTrack,
                                                           observation_jacobians, offset_knots,
                                                           refine_chain_offsets)
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 def _angle_deg(A, B):
     return np.degrees(np.linalg.norm(matrix_to_rodrigues(np.swapaxes(A, -1, -2) @ B), axis=-1))

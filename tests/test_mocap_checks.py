@@ -16,6 +16,9 @@ from photogram.errors import InputError
 from photogram.mocap.evaluation.checks import POOR_FIT, check_angle_unit, check_coverage, check_fit
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):

@@ -21,6 +21,9 @@ from photogram.simulation.ski.simproject import write_estimate_project, write_si
 from photogram.simulation.ski.simulate import simulate_session
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 FRAMES = 30
 DETECTION_KEYS = ("pck_detections", "mpjpe_2d_px_detections", "mpjpe_2d_normalized_detections")
 REPROJECTED_KEYS = ("pck_reprojected", "mpjpe_2d_px_reprojected",

@@ -15,6 +15,9 @@ from photogram.simulation.ski.simproject import write_estimate_project, write_si
 from photogram.simulation.ski.simulate import simulate_session
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 FEATURELESS = 1          # camera C2 films uniform snow and sky
 
 

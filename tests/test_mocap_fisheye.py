@@ -89,6 +89,7 @@ def test_fisheye_distortions_must_be_four(tmp_path):
                                   if s.startswith("fisheye")) + 1
 
 
+@pytest.mark.slow
 def test_skier_reconstructed_through_fisheye_cameras():
     """Noise-free detections projected through wide fisheye cameras give
     the same skier as the same cameras made pinhole (the rays are the

@@ -19,6 +19,9 @@ from photogram.mocap.motion.video import count_frames, read_frames
 from photogram.simulation.ski.render import build_scene, render_camera, write_video
 from photogram.simulation.ski.simulate import simulate_session
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 FRAMES = list(range(100, 130))          # 30 frames
 WIDE, ZOOMED = 2, 0                     # C3 (f ~ 4000 px) and C1 (f ~ 13000 px)
 

@@ -11,6 +11,9 @@ from photogram.mocap.motion.homography import LaggedDifferences, RotationDiffere
 from photogram.mocap.motion.rotation_series import (read_rotation_differences,
                                                     write_rotation_differences)
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 def _rd(n=30, lags=(10, 25), seed=0, fail=3):
     """Consecutive differences of a random pan (n frames) and exact lagged ones."""

@@ -22,6 +22,9 @@ from photogram.simulation.ski.simproject import write_simulated_project
 from photogram.simulation.ski.simulate import simulate_session
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 def _camera(pan, tilt, roll):
     """World-to-camera R of a camera with the given yaw (pan), pitch (tilt,

@@ -18,6 +18,9 @@ from photogram.mocap.tracking.athlete import select_person
 from photogram.mocap.tracking.crowd import compose, copied_bystander, projected_bystander
 from photogram.simulation.ski.simulate import simulate_session
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 POSE2SIM = ROOT.parent / "shared" / "data" / "pose2sim-demo"
 F = 100

@@ -16,6 +16,9 @@ from photogram.simulation.ski.simproject import write_simulated_project
 from photogram.simulation.ski.simulate import simulate_session
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 POSE2SIM = ROOT.parent / "shared" / "data" / "pose2sim-demo"
 

@@ -28,6 +28,9 @@ from photogram.mocap.tracking.reacquire import ACQUIRED, LOST, TRACKED, follow_p
 from photogram.mocap.tracking.report import runs_of, tracking_report
 from photogram.simulation.ski.simulate import simulate_session
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 F = 450
 LOSS = (100, 195)                 # C1 loses the athlete in frames 100..194 (95 frames)
 CENTRE = (960.0, 540.0)

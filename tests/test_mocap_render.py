@@ -14,6 +14,9 @@ from photogram.mocap.motion.lens import pixel_rays, scaled_parameters, undistort
 from photogram.simulation.ski.render import build_scene, ideal_offsets, render_frame
 from photogram.simulation.ski.simulate import simulate_session
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 SIZE = (960, 540)
 FLIP = np.diag([1.0, -1.0, -1.0])
 

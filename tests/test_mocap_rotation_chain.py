@@ -25,6 +25,9 @@ from photogram.simulation.ski.simulate import simulate_session
 
 from mocap_gradients import assert_gradient_is_minus_twice_rhs, assert_rotation_jacobians
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 def _angle_deg(A, B):
     E = np.einsum("...ab,...db->...ad", A, B)

@@ -16,6 +16,9 @@ from photogram.errors import InputError
 from photogram.mocap.sources.plugin import load_function
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 MODULE = "untrusted_net_i16"          # a name no other test imports
 
 NETWORK = '''

@@ -18,6 +18,9 @@ from photogram.mocap.evaluation.sync import (apply_offsets, estimate_offsets, sh
                                              shift_series)
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "projects" / "pose2sim-demo" / "demo.prj"
 DATA = ROOT.parent / "shared" / "data" / "pose2sim-demo"

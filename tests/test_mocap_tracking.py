@@ -17,6 +17,9 @@ from photogram.mocap.tracking.athlete import (TrackingSettings, clean_boxes, cro
 from photogram.mocap.tracking.crop_tracking import track_images
 from photogram.mocap.tracking.detections import CameraDetections
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 def _person(cx, cy, h, conf, J=17):
     j = np.zeros((J, 3))

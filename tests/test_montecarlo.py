@@ -18,6 +18,9 @@ from photogram.errors import InputError
 from photogram.project import read_project, write_project
 from photogram.simulation.network import frame_network, to_project
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 def _network(folder):
     net = frame_network(n_stations=4, n_points=14, sigma=0.3, seed=3)

@@ -29,6 +29,9 @@ from photogram.errors import InputError
 from photogram.project import read_project
 from test_montecarlo import _network
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -15,6 +15,9 @@ from photogram_cli.main import main
 
 from lab_stage import stage_lab
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -28,6 +28,9 @@ from photogram_cli.main import main
 
 from project_cases import make_project
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 DATA = Path(__file__).parent / "data"
 PROJECTS = Path(photogram.__file__).resolve().parents[1] / "projects"
 MIB = 1 << 20

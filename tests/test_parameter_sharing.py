@@ -27,6 +27,9 @@ from photogram.bundle import adjust
 from photogram.project.model import Camera, Parameter
 from photogram.simulation.network import observe, ring_stations, to_project
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 BROWN = ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2")
 
 

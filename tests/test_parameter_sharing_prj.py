@@ -21,6 +21,9 @@ from photogram.project.results_read import read_covariance
 
 from project_cases import make_project, replace
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 sys.path.insert(0, str(Path(__file__).parent))
 from test_parameter_sharing import _per_station_project  # noqa: E402
 

@@ -127,6 +127,7 @@ def test_written_project_keeps_the_targets(tmp_path):
         np.testing.assert_array_equal(a[1], b[1])
 
 
+@pytest.mark.slow
 def test_calibrate_command_with_targets(tmp_path, capsys):
     """End to end through the command: exit 0, residuals in the order of
     the image points table although the observations were split into

@@ -17,6 +17,9 @@ import photogram
 from photogram.report import write_report
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 pypdf = pytest.importorskip("pypdf")
 
 DATA = Path(__file__).parent / "data"

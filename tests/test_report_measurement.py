@@ -14,6 +14,9 @@ from photogram.commands.bundle import calibrate
 from photogram.project import read_project
 from photogram.report import write_report
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 pypdf = pytest.importorskip("pypdf")
 
 

@@ -26,6 +26,9 @@ from photogram.project.results_folder import (
     INCOMPLETE, MANIFEST, final_folder, output_lock, staged_results, staging_path)
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

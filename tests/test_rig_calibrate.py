@@ -16,6 +16,9 @@ from photogram.io.targets import parse_target
 from photogram.rig import calibrate_rig
 from photogram.rig.initial import chordal_mean
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 TARGET = parse_target("chessboard:8x6:0.08")
 
 

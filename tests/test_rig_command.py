@@ -16,6 +16,9 @@ from photogram.io.targets import parse_target
 from photogram.geometry import rodrigues_to_matrix
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 SPEC = "charuco:7x5:0.08:0.06:DICT_5X5_100"
 SIZE = (800, 600)
 

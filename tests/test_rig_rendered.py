@@ -15,6 +15,9 @@ from photogram.io.targets import parse_target
 from photogram.rig import calibrate_rig
 from photogram.simulation import board_rig as br
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 TARGET = parse_target(br.TARGET_SPEC)
 
 

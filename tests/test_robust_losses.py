@@ -16,6 +16,9 @@ from photogram.project.model import ROBUST_FUNCTIONS
 from photogram.stats.robust import LOSSES, loss_weights
 from photogram_cli.main import main
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 
 # three blunders of 13, 25 and 17 sigma (sigma 0.33 px) in station S3

@@ -32,6 +32,7 @@ def _athlete_errors(sim):
     return np.linalg.norm(o[..., :2] - xy, axis=-1)[seen], seen
 
 
+@pytest.mark.slow
 def test_shipped_project_is_reproducible(tmp_path):
     """projects/ski-ptz-harsh is exactly what generate.py writes (every file)."""
     written = runpy.run_path(str(SHIPPED / "generate.py"), run_name="gen")

@@ -18,6 +18,9 @@ import pytest
 from photogram.track.bindings import (MIDPOINT_COLUMNS, _tophat, fit_spot_shape, fit_two_spots,
                                       label_pairs, split_merged_bindings)
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 # ------------------------------------------------------------ synthetic blobs
 

@@ -14,6 +14,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 JUMPS = ROOT / "projects" / "jumps"
 

@@ -146,6 +146,7 @@ def rendered_normal():
     return jv.render_jump_videos(jv.VideoSettings())
 
 
+@pytest.mark.slow
 def test_rendered_isolated_markers_centres(rendered_normal):
     """P1 and P2 (isolated discs of 2.4-3.1 px) against the truth: the goal
     is 0.2 px RMS; the Gaussian-weighted centroid does better than the

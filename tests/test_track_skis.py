@@ -14,6 +14,9 @@ import pytest
 from photogram.track.ski_edges import BarLine, fit_ski_pair, noise_sigma, sample_axis
 from photogram.track.skis import track_skis
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 SNOW, SKI, SUIT = 205.0, 88.0, 35.0
 
 

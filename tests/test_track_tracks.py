@@ -10,6 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 pytest.importorskip("cv2")
 
 from track_scenes import blob_image, jump_markers, render_views  # noqa: E402

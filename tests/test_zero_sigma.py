@@ -16,6 +16,9 @@ from photogram.geometry import opk_to_matrix
 from photogram.project import read_project
 from photogram.simulation.network import frame_network, to_project
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 def _stations_fixed_by_sigma_zero():
     net = frame_network(sigma=0.3, n_stations=8, n_points=40, seed=4)
