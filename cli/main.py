@@ -103,6 +103,9 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
     if name in WRITERS:
         sub.add_argument("--force", action="store_true",
                          help="replace the results of an earlier run in the output folder")
+    if name in WRITERS and name != "track":
+        sub.add_argument("--no-report", action="store_true",
+                         help="no report.pdf (build it later with `photogram report FOLDER`)")
     if name == "mocap":
         sub.add_argument("--allow-plugin", action="store_true",
                          help="allow a [mocap.source] of kind \"plugin\" to import and run its "

@@ -22,8 +22,10 @@ from photogram.errors import GeometryError
 log = logging.getLogger("photogram")
 
 
-def run(project, *, command, output=None, fix_interior=False):
-    """Adjust a (validated) project and write its results folder.
+def run(project, *, command, output=None, fix_interior=False, report=True):
+    """Adjust a (validated) project and write its results folder (without
+    report.pdf when ``report`` is false: ``--no-report``; `photogram report`
+    builds it later from the folder).
 
     Returns ``(folder, BundleResult)``.
     """
@@ -45,7 +47,8 @@ def run(project, *, command, output=None, fix_interior=False):
                       point_extra=result.point_extra,
                       log_text=_log_text(command, project.path, result.summary))
         _write_covariance(stage.path / "covariance.npz", result)
-        write_report(stage.path)
+        if report:
+            write_report(stage.path)
     if result.summary["status"] != "converged":
         raise GeometryError(f"{result.summary['message']}; the unconverged results are in {folder}",
                             hint="raise [adjustment] max_iterations or improve the approximate values")
@@ -71,6 +74,11 @@ def _write_covariance(path, result):
     atomic_write_bytes(path, buf.getvalue())
 
 
+def wants_report(args) -> bool:
+    """False when the command line says ``--no-report``."""
+    return not getattr(args, "no_report", False)
+
+
 def announce(command, folder, summary, args=None):
     """The one line a successful command prints (unless ``--quiet``)."""
     if not getattr(args, "quiet", False):
@@ -89,13 +97,13 @@ def _log_text(command, path, summary):
     return "\n".join(lines) + "\n"
 
 
-def calibrate(project, output=None):
+def calibrate(project, output=None, report=True):
     """`photogram calibrate`: self-calibrating bundle adjustment (interior
     parameters free as the project says)."""
-    return run(project, command="calibrate", output=output)
+    return run(project, command="calibrate", output=output, report=report)
 
 
-def orient(project, output=None):
+def orient(project, output=None, report=True):
     """`photogram orient`: exterior orientation with the interior
     orientation held fixed."""
-    return run(project, command="orient", output=output, fix_interior=True)
+    return run(project, command="orient", output=output, fix_interior=True, report=report)

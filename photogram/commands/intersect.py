@@ -164,8 +164,9 @@ def write_jump(folder, result, project):
     time_series_figure(table, folder / "timeseries.png")
 
 
-def intersect_and_write(project, output=None):
-    """Intersect the project and write its results folder; returns
+def intersect_and_write(project, output=None, report=True):
+    """Intersect the project and write its results folder (report.pdf
+    unless ``report`` is false); returns
     ``(folder, result)`` with ``result.summary`` as in summary.json."""
     from photogram.project.output_policy import project_inputs
     from photogram.project.results import write_results
@@ -185,7 +186,8 @@ def intersect_and_write(project, output=None):
                       residuals=result.residuals,
                       log_text=json.dumps(summary, indent=1, default=str) + "\n")
         write_jump(stage.path, result, project)
-        write_report(stage.path)
+        if report:
+            write_report(stage.path)
     result.summary = summary
     return folder, result
 
@@ -193,7 +195,7 @@ def intersect_and_write(project, output=None):
 def run(project, args=None):
     """Command-line entry: intersect, write, print one line (and one warning
     line on stderr when the jumper is implausible: size, speed, height)."""
-    folder, result = intersect_and_write(project)
+    folder, result = intersect_and_write(project, report=not getattr(args, "no_report", False))
     odd = [w for w in result.summary["warnings"] if w.startswith("implausible")]
     if odd:
         more = f" (and {len(odd) - 1} more in summary.json)" if len(odd) > 1 else ""

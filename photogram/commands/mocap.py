@@ -48,7 +48,7 @@ class _Tee(logging.Handler):
 
 
 def mocap(project, output: str | Path | None = None, *, allow_plugin: bool = False,
-          live: bool = False):
+          live: bool = False, report: bool = True):
     """Run the pipeline on ``project`` and write its results folder.
 
     Parameters
@@ -63,6 +63,9 @@ def mocap(project, output: str | Path | None = None, *, allow_plugin: bool = Fal
     live : bool
         Progress messages at once (``-v``); otherwise they are held back and
         shown when the run has succeeded (a failing run: one error line).
+    report : bool
+        Write report.pdf (``--no-report``: not; `photogram report` builds it
+        later from the folder).
 
     Returns
     -------
@@ -88,14 +91,14 @@ def mocap(project, output: str | Path | None = None, *, allow_plugin: bool = Fal
                         inputs=project_inputs(project)) as stage:
         project.output.folder = str(stage.path)
         try:
-            result, tee = _run_into(project, stage.path, allow_plugin, live)
+            result, tee = _run_into(project, stage.path, allow_plugin, live, report)
         finally:
             project.output.folder = str(final)
     tee.pass_on()                         # the progress messages, now that nothing failed
     return final, result
 
 
-def _run_into(project, folder, allow_plugin: bool, live: bool):
+def _run_into(project, folder, allow_plugin: bool, live: bool, report: bool = True):
     """The pipeline, its results files and report in ``folder``; returns the
     result and the handler holding the progress messages back."""
     from photogram.mocap.outputs import write_outputs
@@ -117,8 +120,9 @@ def _run_into(project, folder, allow_plugin: bool, live: bool):
         logger.setLevel(saved[0])
         logger.propagate = saved[1]
     write_outputs(result, project, folder, stream.getvalue())
-    from photogram.report import write_report
-    write_report(folder)                  # report.pdf, as every command
+    if report:                            # report.pdf, as every command (not with --no-report)
+        from photogram.report import write_report
+        write_report(folder)
     import shutil
 
     from photogram.project.output_policy import PARTIAL
@@ -129,7 +133,8 @@ def _run_into(project, folder, allow_plugin: bool, live: bool):
 def run(project, args=None) -> int:
     """Command-line entry: run, write, print one line."""
     folder, result = mocap(project, allow_plugin=bool(getattr(args, "allow_plugin", False)),
-                           live=bool(getattr(args, "verbose", 0)))
+                           live=bool(getattr(args, "verbose", 0)),
+                           report=not getattr(args, "no_report", False))
     if not getattr(args, "quiet", False):
         rec = result.reconstruction
         rp = [v["median_px"] for v in result.reprojection.values() if v["median_px"] is not None]

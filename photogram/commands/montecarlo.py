@@ -6,7 +6,7 @@ from __future__ import annotations
 from photogram.montecarlo import run_montecarlo
 
 
-def montecarlo(project, **options):
+def montecarlo(project, report=True, **options):
     """Run (or resume) :func:`run_montecarlo` into the project's results
     folder through its staging folder, where the finished trials
     (``samples/``) of an interrupted run wait for the rerun
@@ -16,7 +16,8 @@ def montecarlo(project, **options):
     with staged_results(project.output_folder(), command="montecarlo", resumable=True,
                         inputs=project_inputs(project)) as stage:
         _, summary = run_montecarlo(project, output=stage.path, **options)
-        write_pdf(stage.path)
+        if report:
+            write_pdf(stage.path)
     return stage.final, summary
 
 
@@ -31,7 +32,8 @@ def run(project, args=None):
     folder, summary = montecarlo(
         project, runs=getattr(args, "runs", None), seed=getattr(args, "seed", None),
         workers=getattr(args, "workers", None), scheduler=getattr(args, "scheduler", None),
-        force=bool(getattr(args, "force", False)))
+        force=bool(getattr(args, "force", False)),
+        report=not getattr(args, "no_report", False))
     if not getattr(args, "quiet", False):
         parts = [f"{g} {h['ratio']['median']:.2f}" for g, h in summary["headline"].items()]
         ex = summary["execution"]
