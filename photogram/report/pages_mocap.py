@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+# the generic hooks register first, whatever imports this module first: the
+# section below replaces theirs under the same name
+from photogram.report import hooks as _hooks  # noqa: F401
 from photogram.report.layout import decorate
 from photogram.report.numbers import finite, num
 from photogram.report.registry import section
@@ -235,6 +238,15 @@ def _cameras(doc, data, s, rp, flagged):
         ax2.set_aspect("equal")
         decorate(ax2, "median residual vector", "dx [px]", "dy [px] (down)")
         ax2.grid(True, lw=0.3)
+    ref = (s.get("reference") or {}).get("reprojection") or {}
+    if ref:
+        doc.table(["camera", "ours median", "reference median", "detections"],
+                  [(c, num(v.get("ours_median_px"), 3), num(v.get("reference_median_px"), 3),
+                    v.get("n")) for c, v in ref.items()],
+                  title="Against the reference's 3D points (summary.json reference; same "
+                        "detections, confidence >= "
+                        f"{(s.get('reference') or {}).get('confidence_threshold')}), px",
+                  size=7.5)
     tracking = s.get("tracking") or {}
     if tracking:
         doc.table(["camera", "frames", "tracked", "lost", "longest loss", "re-acquired",

@@ -23,6 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
+# the generic hooks register first, whatever imports this module first: the
+# section below replaces theirs under the same name
+from photogram.report import hooks as _hooks  # noqa: F401
 from photogram.report.layout import decorate
 from photogram.report.numbers import num
 from photogram.report.registry import section
