@@ -88,7 +88,8 @@ def camera_rows(reprojection, detections, n_frames: int, flagged: dict) -> list[
 def _vector(dx, dy) -> str:
     if not (finite(dx) and finite(dy)):
         return "-"
-    return f"({float(dx):+.1f}, {float(dy):+.1f})"
+    dx, dy = (round(float(v), 1) + 0.0 for v in (dx, dy))     # no "-0.0"
+    return f"({dx:+.1f}, {dy:+.1f})"
 
 
 # ---------------------------------------------------------------- bones

@@ -164,8 +164,10 @@ def _table2(doc, frame, data):
     rows = table2_rows(frame)
     if rows:
         unit = frame.loc[frame.group == "jumper", "unit"].iloc[0]
-        doc.subheading(f"Table 2: jumper points per exposure (the paper's Table 2: mean sigma "
-                       f"of P1..P4 at three positions), {unit}")
+        doc.subheading(f"Table 2: sigma of the jumper points per exposure [{unit}]")
+        doc.text("The paper's Table 2 gives the mean sigma_X, sigma_Y, sigma_Z of P1..P4 at "
+                 "three jumper positions (t1, t9, t17); here every exposure, Monte Carlo (MC) "
+                 "and propagated (prop).", size=7.5, color="0.3")
         doc.table(["exposure", "points", "MC sX", "MC sY", "MC sZ", "prop sX", "prop sY",
                    "prop sZ", "ratio"], rows, size=7.5,
                   note=f"RMS over the jumper points of each exposure; all {len(rows)} "
