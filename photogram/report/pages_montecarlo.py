@@ -44,7 +44,7 @@ def _frame(data, name):
     return pd.read_csv(data.folder / name, comment="#") if data.has(name) else None
 
 
-def band_of(summary: dict, n_ok: int) -> tuple[float, float]:
+def band_of(n_ok: int) -> tuple[float, float]:
     """The 95 % band of ``sigma_mc / sigma_prop`` for ``n_ok`` runs."""
     from photogram.montecarlo.report import ratio_band
 
@@ -117,11 +117,11 @@ def build(doc, data):
     s = data.summary
     frame = _frame(data, "summary.csv")
     n = _n_ok(s)
-    lo, hi = band_of(s, n)
+    lo, hi = band_of(n)
     chain = s.get("chain") or {}
     doc.start_section("Monte Carlo", intro=(
-        f"{s.get('runs')} runs ({s.get('failed')} failed), seed {s.get('seed')}: each run perturbs "
-        f"{', '.join(s.get('perturb') or [])} and repeats the chain; sigma_mc is the "
+        f"{s.get('runs')} runs ({s.get('failed')} failed), seed {s.get('seed')}: each run "
+        f"perturbs {', '.join(s.get('perturb') or [])} and repeats the chain; sigma_mc is the "
         "empirical standard deviation of the runs (n - 1), sigma_prop the first-order "
         "propagated one through the same chain. Units: lengths in the project's length unit, "
         "angles in its angle unit, image quantities in px (column 'unit' of summary.csv)."))
