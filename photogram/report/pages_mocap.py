@@ -233,7 +233,10 @@ def _cameras(doc, data, s, rp, flagged):
             if np.isfinite(dx) and np.isfinite(dy):
                 ax2.annotate("", (dx, dy), (0, 0), arrowprops=dict(
                     arrowstyle="->", color="tab:red" if n in flagged else "tab:blue"))
-                ax2.text(dx, dy, f" {n}", fontsize=7)
+                ax2.annotate(n, (dx, dy), textcoords="offset points", fontsize=7,
+                             xytext=(4 if dx >= 0 else -4, -4 if dy >= 0 else 4),
+                             ha="left" if dx >= 0 else "right",
+                             va="top" if dy >= 0 else "bottom")
         ax2.set_xlim(-lim, lim)
         ax2.set_ylim(lim, -lim)                     # image y down
         ax2.set_aspect("equal")
