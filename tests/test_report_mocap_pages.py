@@ -14,6 +14,9 @@ from photogram.mocap.evaluation.checks import (OUTLIER_FACTOR, OUTLIER_MIN_PX,
                                                check_outliers, outlier_cameras)
 from photogram.report import write_report
 
+# `make test-fast` leaves this module out (about 12-15 s: every test builds a report.pdf).
+pytestmark = pytest.mark.slow
+
 pypdf = pytest.importorskip("pypdf")
 
 NAME = "mocap-pages-test"

@@ -19,6 +19,9 @@ from photogram.report import write_report as write_pdf
 from photogram.report.numbers import num
 from photogram.report.pages_montecarlo import MAX_ROWS
 
+# `make test-fast` leaves this module out (about 12-15 s: every test builds a report.pdf).
+pytestmark = pytest.mark.slow
+
 pypdf = pytest.importorskip("pypdf")
 
 RUNS, EXPOSURES, POINTS = 400, 40, 4
