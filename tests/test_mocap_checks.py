@@ -132,9 +132,9 @@ def test_radians_declared_as_degrees_are_warned_and_the_misfit_named(project, ca
     _edit_rows(project.parent / "camera_frames.csv", _to_radians)
     assert main(["mocap", str(project)]) == 0
     out = capsys.readouterr().out
-    assert "6 warning(s) in summary.json" in out
+    assert "7 warning(s) in summary.json" in out
     w = json.loads((project.parent / "results" / "summary.json").read_text())["warnings"]
-    assert len(w) == 6
+    assert len(w) == 7
     assert w[0].startswith("every angle of the stations table is within 2 pi") and \
         "look like radians" in w[0]
     assert w[1].startswith("every angle of camera_frames.csv (omega, phi, kappa) is within 2 pi")
@@ -145,6 +145,7 @@ def test_radians_declared_as_degrees_are_warned_and_the_misfit_named(project, ca
     assert w[4].startswith(f"median reprojection error above {100 * POOR_FIT:g} % of the image "
                            f"width: C1 ")
     assert w[5].startswith("static bias")
+    assert w[6].startswith("camera residuals stand out") and "C1 " in w[6]   # check_outliers
 
 
 def test_coverage_counts_a_pair_of_cameras_above_min_confidence():

@@ -65,7 +65,10 @@ def summary(result, project) -> dict:
     ms = project.mocap
     b = result.biomechanics
     out = {
-        "status": "ok", "project": project.name, "software_version": photogram.__version__,
+        "status": "ok", "software_version": photogram.__version__,
+        "project": {"name": project.name, "path": str(project.path) if project.path else None,
+                    "length_unit": project.units.length, "angle_unit": "deg",
+                    "image_unit": "px"},
         "command": "mocap", "skeleton": result.skeleton.name, "source": result.info["source"],
         "fps": result.fps, "frames": [int(result.frames[0]), int(result.frames[-1])],
         "counts": {"frames": len(result.frames), "cameras": result.cameras.n_cameras,
@@ -187,7 +190,7 @@ def write_outputs(result, project, folder: Path, log_text: str = "") -> list[Pat
             from photogram.mocap.motion.rotation_series import write_rotation_differences
             written.append(write_rotation_differences(folder / "rotation_differences.csv",
                                                       per, first_frame=int(result.frames[0])))
-    written += _plots(result, folder)
+    written += _plots(result, folder, unit)
     written.append(atomic_write_text(folder / "summary.json", json.dumps(
         summary(result, project), indent=2, allow_nan=False) + "\n"))
     written.append(atomic_write_text(folder / "log.txt", log_text))
@@ -226,18 +229,18 @@ def _write_c3d(path: Path, X, sk, fps, unit):
 
 
 # --------------------------------------------------------------------------
-def _plots(result, folder: Path) -> list[Path]:
+def _plots(result, folder: Path, unit: str = "m") -> list[Path]:
     import matplotlib.style
     out = []
     with matplotlib.style.context("default"):
-        out.append(_plot_trajectory(result, folder / "trajectory.png"))
-        out.append(_plot_series(result, folder / "angles.png"))
+        out.append(_plot_trajectory(result, folder / "trajectory.png", unit))
+        out.append(_plot_series(result, folder / "angles.png", unit))
         out.append(_plot_reprojection(result, folder / "reprojection.png"))
         out.append(_plot_skeletons(result, folder / "skeletons.png"))
     return out
 
 
-def _plot_trajectory(result, path):
+def _plot_trajectory(result, path, unit="m"):
     b, tb = result.biomechanics, result.truth_biomechanics
     fig = _fig((8, 6))
     ax = fig.add_subplot(111)
@@ -249,22 +252,22 @@ def _plot_trajectory(result, path):
     for name, p in zip(result.cameras.names, X0):
         ax.annotate(name, p[:2], textcoords="offset points", xytext=(4, 4), fontsize=8)
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("X")
-    ax.set_ylabel("Y")
+    ax.set_xlabel(f"X ({unit})")
+    ax.set_ylabel(f"Y ({unit})")
     ax.set_title("plan view")
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     return _save(fig, path)
 
 
-def _plot_series(result, path):
+def _plot_series(result, path, unit="m"):
     b, tb = result.biomechanics, result.truth_biomechanics
     t = result.times
     fig = _fig((9, 9))
     panels = [("knee flexion (deg)", ("knee_flexion_r", "knee_flexion_l")),
               ("hip flexion (deg)", ("hip_flexion_r", "hip_flexion_l")),
               ("lean (deg) / fore-aft (deg)", ("lean", "fore_aft_angle")),
-              ("CoM speed (m/s)", ("speed",))]
+              (f"CoM speed ({unit}/s)", ("speed",))]
     colors = ("tab:red", "tab:blue")
     for i, (title, keys) in enumerate(panels):
         ax = fig.add_subplot(len(panels), 1, i + 1)

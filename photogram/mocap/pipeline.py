@@ -230,9 +230,9 @@ def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
               **({"sync": sync_info} if sync_info else {}),
               **({"people": people} if people else {})})
     from photogram.mocap.evaluation.checks import check_fit
-    from photogram.mocap.evaluation.checks import check_bias
+    from photogram.mocap.evaluation.checks import check_bias, check_outliers
     for note in (check_fit(result.reprojection, cameras.image_size[:, 0])
-                 + check_bias(result.reprojection)):
+                 + check_bias(result.reprojection) + check_outliers(result.reprojection)):
         log.warning("warning: %s", note)
         project.warnings.append(note)
     true_cameras = None if estimate else cameras       # the truth's 2D projections

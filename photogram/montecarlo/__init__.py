@@ -105,7 +105,8 @@ def run_montecarlo(project, *, runs=None, seed=None, workers=None, scheduler=Non
                     force=force)
     samples, failed, info = runner.run()
     info.update({"seed": s.seed, "setup_seconds": t_setup})
-    summary = write_report(folder, chain, samples, failed, sigma_prop, sigma_cmd, info)
+    summary = write_report(folder, chain, samples, failed, sigma_prop, sigma_cmd, info,
+                           project=project)
     lines = [f"photogram montecarlo {project.path}",
              f"runs: {summary['runs']} ({summary['failed']} failed), seed {s.seed}, "
              f"perturb {', '.join(s.perturb)}, truth {s.truth}",

@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 from scipy.special import chdtri
 
+import photogram
 from photogram.project.atomic import atomic_write_text
 
 __all__ = ["statistics", "write_report", "ratio_band"]
@@ -104,9 +105,19 @@ def _csv(frame):
     return frame.to_csv(index=False, float_format="%.6g")
 
 
-def write_report(folder, chain, samples, failed, sigma_prop, sigma_cmd, info):
+def project_info(project) -> dict:
+    """summary.json's ``project`` entry (as the other commands write it)."""
+    if project is None:
+        return {}
+    return {"name": project.name, "path": str(project.path) if project.path else None,
+            "length_unit": project.units.length, "angle_unit": project.units.angle,
+            "image_unit": project.units.image}
+
+
+def write_report(folder, chain, samples, failed, sigma_prop, sigma_cmd, info, project=None):
     """Write summary.csv, table1.csv, table2.csv, samples.csv, summary.json;
-    return the summary dict."""
+    return the summary dict. ``project`` (the Monte-Carlo project) gives
+    summary.json its ``project`` entry, which the report's header reads."""
     folder = Path(folder)
     frame = statistics(chain, samples, failed, sigma_prop, sigma_cmd)
     t1 = frame[frame.group.isin(["station", "interior", "point"])]
@@ -123,7 +134,10 @@ def write_report(folder, chain, samples, failed, sigma_prop, sigma_cmd, info):
     s = chain.settings
     n_ok = int((~failed).sum())
     summary = {
-        "command": "montecarlo", "runs": int(len(samples)), "failed": int(failed.sum()),
+        "command": "montecarlo", "status": "ok", "software_version": photogram.__version__,
+        "project": project_info(project),
+        "warnings": list(getattr(project, "warnings", None) or []),
+        "runs": int(len(samples)), "failed": int(failed.sum()),
         "seed": int(info.get("seed", 0)), "perturb": list(s.perturb), "truth": s.truth,
         "chain": {"orient": s.orient, "calibrate": s.calibrate, "intersect": s.intersect,
                   "interior_covariance": s.interior_covariance, "points": list(s.points),

@@ -221,9 +221,12 @@ def _project_path(folder: Path, text) -> Path | None:
 def _read_project(folder: Path, summary: dict):
     from photogram.project import read_project
 
-    path = _project_path(folder, _project_of(summary).get("path"))
+    named = _project_of(summary).get("path")
+    if not named:
+        return None, "summary.json names no project file"
+    path = _project_path(folder, named)
     if path is None:
-        return None, "the project file named in summary.json was not found"
+        return None, f"the project file named in summary.json ({named}) was not found"
     logger = logging.getLogger("photogram")
     level = logger.level
     logger.setLevel(logging.ERROR)

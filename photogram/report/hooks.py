@@ -3,8 +3,10 @@
 Each is a registered section that applies to a results folder whose
 summary.json says ``"command": "montecarlo"`` (or ``"mocap"``), that has a
 ``"montecarlo"`` / ``"mocap"`` entry in summary.json, or that holds files
-named ``montecarlo*`` / ``mocap*`` (.csv, .json, .png). Until those commands
-define their pages, the hook shows what it finds generically: the summary's
+named ``montecarlo*`` / ``mocap*`` (.csv, .json, .png). Both commands now
+have their own pages (photogram/report/pages_montecarlo.py, pages_mocap.py),
+registered under the same names, which replace these; the generic view
+remains the pattern for a command without pages. It shows what it finds: the summary's
 numbers, the first rows of their tables (Monte Carlo: table1.csv,
 table2.csv; mocap: metrics.csv, reprojection.csv, bones.csv; and the
 prefixed CSV files), the prefixed JSON files and PNG figures.

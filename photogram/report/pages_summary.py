@@ -64,6 +64,14 @@ def _input_files(data):
     return files or [("tables", "(all in the project file)")]
 
 
+def _computed_by(s) -> str:
+    """Which photogram wrote the results and which the report."""
+    report = f"report by photogram {photogram.__version__}"
+    if s.get("software_version"):
+        return f"photogram {s['software_version']}, {report}"
+    return f"(version not recorded in summary.json: an older results folder), {report}"
+
+
 def _counts(s):
     c = s.get("counts") or {}
     if "unknowns" in c:
@@ -91,13 +99,13 @@ def build(doc, data):
     info = data.info
     rows = [("project", data.name), ("project file", str(info.get("path", "-"))),
             ("results folder", str(final_folder(Path(data.folder).resolve()))),
-            ("computed by", f"photogram {s.get('software_version', '?')}, report by photogram "
-                            f"{photogram.__version__}")]
-    if info:
-        rows += [("units", f"length {data.length_unit}, angles {data.angle_unit}, image "
-                           f"{data.image_unit}"),
-                 ("rotation", f"{info.get('rotation', 'omega-phi-kappa')}, "
-                              f"{info.get('rotation_direction', 'world_to_camera')}")]
+            ("computed by", _computed_by(s))]
+    if info.get("length_unit"):
+        rows.append(("units", f"length {data.length_unit}, angles {data.angle_unit}, image "
+                              f"{data.image_unit}"))
+    if info.get("rotation_direction"):
+        rows.append(("rotation", f"{info.get('rotation', 'omega-phi-kappa')}, "
+                                 f"{info['rotation_direction']}"))
     if s.get("datum"):
         rows.append(("datum", f"{s['datum']} ({_DATUM.get(s['datum'], '')})"))
     if s.get("orientation_covariance"):

@@ -27,7 +27,8 @@ MODULES = ("photogram.report.pages_summary", "photogram.report.pages_cameras",
            "photogram.report.pages_residuals",
            "photogram.report.pages_points", "photogram.report.pages_geometry",
            "photogram.report.pages_network",
-           "photogram.report.pages_intersect", "photogram.report.hooks")
+           "photogram.report.pages_intersect", "photogram.report.hooks",
+           "photogram.report.pages_montecarlo", "photogram.report.pages_mocap")
 
 
 @dataclass(frozen=True)

@@ -43,7 +43,8 @@ def build_report(data: ReportData):
     """Lay out the pages of ``data``; returns ``(figures, outline)`` with
     ``outline`` a list of ``(section title, number of pages)``. Call inside
     the report's style (see :func:`write_report`)."""
-    doc = Document(header=f"photogram {data.command} report: {data.name}")
+    doc = Document(header=f"photogram {photogram.__version__} {data.command} report: "
+                          f"{data.name}")
     outline = []
     for sec in sections(data):
         before = len(doc.pages)

@@ -27,6 +27,11 @@ that look like the wrong unit (issue 16, item 10).
   bias (noise alone leaves a vector near zero): a warning naming it and
   the vector (principal point, rotation, a shifted image, or a frame
   offset while the athlete crosses the image steadily).
+* :func:`check_outliers`: a camera whose median reprojection error is more
+  than :data:`OUTLIER_FACTOR` (2.5) times the median of the other cameras'
+  medians and at least :data:`OUTLIER_MIN_PX` (5 px) above it stands out:
+  a warning naming it (its calibration, synchronisation or detections
+  differ from the others').
 """
 
 from __future__ import annotations
@@ -39,13 +44,18 @@ from photogram.errors import GeometryError, InputError
 
 __all__ = ["check_coverage", "check_angle_unit", "check_energy", "check_fit", "check_bias",
            "TWO_PI",
-           "POOR_FIT", "BIAS_SHARE"]
+           "POOR_FIT", "BIAS_SHARE", "check_outliers", "outlier_cameras", "OUTLIER_FACTOR",
+           "OUTLIER_MIN_PX"]
 
 TWO_PI = 2 * math.pi
 #: a camera whose median reprojection error exceeds this fraction of its image width
 POOR_FIT = 0.05
 #: a median residual vector longer than this share of the median error is a static bias
 BIAS_SHARE = 0.5
+#: a camera whose median error exceeds this many times the other cameras' median ...
+OUTLIER_FACTOR = 2.5
+#: ... and is at least this many px above it stands out
+OUTLIER_MIN_PX = 5.0
 
 
 def _names(items, limit: int = 8) -> str:
@@ -240,3 +250,44 @@ def check_bias(reprojection: dict, min_px: float = 2.0) -> list[str]:
             f"(principal point, rotation) or image is offset, or its frames are (an athlete "
             f"moving steadily across the image; offsets = \"report\" in [mocap] measures "
             f"that)"]
+
+
+def outlier_cameras(medians: dict) -> dict:
+    """The cameras whose median reprojection error stands out.
+
+    Parameters
+    ----------
+    medians : dict
+        Camera name -> median reprojection error (px; None or NaN: unknown).
+
+    Returns
+    -------
+    dict
+        Camera name -> ``(median, others)`` for every camera whose median
+        exceeds ``OUTLIER_FACTOR`` times ``others``, the median of the other
+        cameras' medians, and ``others + OUTLIER_MIN_PX``; needs at least
+        two other cameras with a median.
+    """
+    known = {n: float(m) for n, m in medians.items() if m is not None and np.isfinite(m)}
+    out = {}
+    for name, med in known.items():
+        rest = [m for n, m in known.items() if n != name]
+        if len(rest) < 2:
+            continue
+        others = float(np.median(rest))
+        if med > OUTLIER_FACTOR * others and med > others + OUTLIER_MIN_PX:
+            out[name] = (med, others)
+    return out
+
+
+def check_outliers(reprojection: dict) -> list[str]:
+    """Warnings for the cameras of :func:`outlier_cameras` (``reprojection``:
+    per camera a dict with ``median_px``)."""
+    flagged = outlier_cameras({n: r.get("median_px") for n, r in reprojection.items()})
+    if not flagged:
+        return []
+    names = [f"{n} {m:.1f} px (others {o:.1f} px)" for n, (m, o) in flagged.items()]
+    return [f"camera residuals stand out (median reprojection error above "
+            f"{OUTLIER_FACTOR:g} x the other cameras' median and {OUTLIER_MIN_PX:g} px above "
+            f"it): {_names(names)}; its calibration, synchronisation or detections do not "
+            f"agree with the other cameras'"]
