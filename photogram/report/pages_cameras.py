@@ -4,6 +4,8 @@ image format."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from photogram.errors import PhotogramError
@@ -133,7 +135,7 @@ def _plot_distortion(doc, data, cam, fmt, field):
         ax_rad.set_visible(False)
 
 
-def _heatmap(doc, data, name, title="correlations (interior)"):
+def _heatmap(doc, data, name):
     cov = data.covariance
     if cov is None or "labels" not in cov:
         return
@@ -157,7 +159,7 @@ def _heatmap(doc, data, name, title="correlations (interior)"):
                     color="white" if abs(C[i, j]) > 0.6 else "black")
     cb = doc.page.figure.colorbar(im, ax=ax, fraction=0.05, pad=0.03)
     cb.set_label("correlation [-]")
-    decorate(ax, title)
+    decorate(ax, "correlations (interior)")
 
 
 def is_fixed(cam) -> bool:
@@ -172,7 +174,8 @@ def _input_covariance(data, name):
     if not isinstance(ic, dict):
         return None
     own = [p for p in ic.get("parameters") or [] if str(p).split(".")[0] == name]
-    return str(ic.get("from") or "an earlier calibration") if own else None
+    return os.path.normpath(str(ic["from"])) if own and ic.get("from") else (
+        "an earlier calibration" if own else None)
 
 
 def camera_source(data, name, cam):
@@ -190,8 +193,8 @@ def _fixed_note(data, name, cam, source):
             "sigma, t or p here.")
     if source:
         return text + (" The correlations below are those of the calibration the values come "
-                       f"from ({source}), whose covariance was propagated into this "
-                       "adjustment; they are not estimated here.")
+                       f"from ({source}; its report shows them all), whose covariance was "
+                       "propagated into this adjustment; they are not estimated here.")
     return text + " A fixed camera has no estimated correlations."
 
 
@@ -259,9 +262,8 @@ def build(doc, data):
         doc.table(["parameter", "unit", "value", "sigma", "", "t", "p", "significant"], rows,
                   align="llrrlrrl", title="Parameters")
         shared_table(doc, data, name, cam)
-        if not fixed or source:
-            _heatmap(doc, data, name, "correlations (interior" + (", input calibration)"
-                                                                   if fixed else ")"))
+        if not fixed:            # a fixed camera's matrix is its calibration's (see there)
+            _heatmap(doc, data, name)
         _correlation_table(doc, data, name, fixed, source)
         _distortion(doc, data, cam, fmt)
         doc.clear_float()

@@ -67,8 +67,9 @@ def build_series(doc, data):
         "Every stick-model parameter against time; the band is ±1 sigma (propagated from "
         "the image measurements and, if given, the orientation's covariance). alpha legs and "
         "beta trunk against the ski axis, gamma hip angle, delta_phi V angle of the skis, phi "
-        "ski slope, heading, Z0 height of O (world Z), H height of O above the landing "
-        "slope (if a profile is given), v speed of O (docs/stick-model.md)."))
+        "ski slope, heading, Z0 height of O (world Z), "
+        + ("H height of O above the landing slope, " if HEIGHT in names else "")
+        + "v speed of O (docs/stick-model.md)."))
     t = e["time"].to_numpy(float) if "time" in e.columns else np.arange(len(e), dtype=float)
     rows = (len(names) + 1) // 2
     height = min(2.3, (doc.remaining - 0.2) / max(rows, 1))
@@ -92,8 +93,9 @@ def build_table(doc, data):
     e = _table(data)
     names = _params(data)
     doc.start_section("Stick model per exposure", intro=(
-        "Value ± sigma of every parameter at every exposure (exposures.csv holds them "
-        "with all digits). Units: " + ", ".join(f"{n} [{_unit(data, n)}]" for n in names)
+        "Value ± sigma of every parameter at every exposure ("
+        + ("coach.csv holds them in these units" if _units(data) == "coach" else
+           "exposures.csv holds them") + " with all digits). Units: " + ", ".join(f"{n} [{_unit(data, n)}]" for n in names)
         + "."))
     rows = []
     for _, x in e.iterrows():

@@ -105,6 +105,7 @@ def draw_figure(doc, data, units: str) -> bool:
     pad = 0.04 * (hi[0] - lo[0] + 1e-9)
     lo, hi = lo - pad, hi + pad
     hi[2] += 2.5 * pad                       # room for the speeds above the heads
+    hi[0] += pad                             # and for the last one's right half
     xr, yr, zr = hi - lo
     if yr < 0.12 * xr:
         mid = 0.5 * (lo[1] + hi[1])
