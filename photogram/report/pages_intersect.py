@@ -164,14 +164,16 @@ def build_quality(doc, data):
         rows = []
         for name, g in p3.groupby("point", sort=True):
             n, a = geo.loc[geo["point"] == name, "rays"], geo.loc[geo["point"] == name, "angle"]
+            g = g[np.isfinite(g["X"].to_numpy(float))]          # measured exposures only
+            total = np.sqrt((g[["sX", "sY", "sZ"]] ** 2).to_numpy(float).mean(axis=1))
             rows.append([name, str(len(g)), _span(n), num(a.min(), 3), num(a.mean(), 3)]
                         + [sig(g[c].mean()) for c in ("sX", "sY", "sZ")]
-                        + [sig(np.sqrt((g[["sX", "sY", "sZ"]] ** 2).to_numpy().mean(axis=1))
-                               .max())])
+                        + [sig(np.nanmax(total)) if np.isfinite(total).any() else "-"])
         doc.table(["point", "exp.", "rays", "min angle", "mean angle", f"sX [{lu}]",
                    f"sY [{lu}]", f"sZ [{lu}]", f"max total [{lu}]"], rows,
                   title="Jumper points", size=7.5,
-                  note="rays: images the point was measured (and used) in, per exposure; "
+                  note="exp.: exposures the point was intersected at; "
+                       "rays: images the point was measured (and used) in, per exposure; "
                        "angle [deg]: the largest angle between two of its rays, at the point "
                        "(smallest and mean over the exposures); sX, sY, sZ: mean sigmas over "
                        "the exposures; max total: the largest RMS of sX, sY, sZ.")
