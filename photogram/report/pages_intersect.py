@@ -95,8 +95,8 @@ def build_table(doc, data):
     doc.start_section("Stick model per exposure", intro=(
         "Value ± sigma of every parameter at every exposure ("
         + ("coach.csv holds them in these units" if _units(data) == "coach" else
-           "exposures.csv holds them") + " with all digits). Units: " + ", ".join(f"{n} [{_unit(data, n)}]" for n in names)
-        + "."))
+           "exposures.csv holds them") + " with all digits). Units: "
+        + ", ".join(f"{n} [{_unit(data, n)}]" for n in names) + "."))
     rows = []
     for _, x in e.iterrows():
         e_id = x.get("exposure")
