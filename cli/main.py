@@ -119,6 +119,11 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
         sub.add_argument("folder", nargs="?", type=Path, metavar="RESULTS",
                          help="a results folder (the output folder of calibrate, orient, "
                               "intersect)")
+    if name in ("intersect", "report"):
+        # checked by the command (one line, exit 2), not by argparse
+        sub.add_argument("--units", metavar="UNITS", default=None,
+                         help="stick model in the project's units (project) or in deg, m and "
+                              "km/h (coach); default: [report] units of the project")
     if name == "simulate":
         # optional in the parser, checked by the command (exit 2 with a hint)
         sub.add_argument("design", nargs="?", type=Path, metavar="DESIGN",

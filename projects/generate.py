@@ -410,6 +410,37 @@ def jumps_files() -> dict[str, str]:
         f"{e + 1:03d},{truth['legs'][e] * g:.8f},{truth['trunk'][e] * g:.8f},"
         f"{truth['v_angle'][e] * g:.8f}" for e in range(len(truth["times"]))]
     files["truth/angles.csv"] = th + "\n".join(rows) + "\n"
+    files.update(_coach_files(truth))
+    return files
+
+
+def _coach_files(truth) -> dict[str, str]:
+    """The landing slope as a profile (distance = world X, height = world Z
+    of the surface, dm), the true height of O above it per exposure, and
+    jumps-coach.prj: jumps.prj with the profile and the coach's units."""
+    from photogram.simulation.jump import JUMP_SEED
+    X = np.arange(300.0, 801.0, 50.0)
+    rows = ["distance,height"] + [f"{x:.1f},{z:.6f}" for x, z in
+                                  zip(X, designs.slope_height(X))]
+    files = {"landing_profile.csv": _comment(_simulated(
+        "the landing slope of the simulated hill along the jump axis (world X, dm): "
+        "height = world Z of the surface (dm)", JUMP_SEED)) + "\n".join(rows) + "\n"}
+    O = 0.5 * (truth["P"][:, 2] + truth["P"][:, 3])
+    H = O[:, 2] - designs.slope_height(O[:, 0])
+    rows = ["exposure,H"] + [f"{e + 1:03d},{h:.6f}" for e, h in enumerate(H)]
+    files["truth/heights.csv"] = _comment(_simulated(
+        "the TRUE height (dm) of O, the midpoint of the bindings, above the landing slope "
+        "(vertical)", JUMP_SEED)) + "\n".join(rows) + "\n"
+    prj = JUMPS_PRJ.replace('name = "jumps"', 'name = "jumps-coach"').replace(
+        'swap_skis = false\n', 'swap_skis = false\n'
+        'landing_profile = "landing_profile.csv"   # height of O above the slope: H\n').replace(
+        'folder = "results"\n', 'folder = "results-coach"\n\n'
+        '# the stick model in deg, m and km/h (report, figures, coach.csv)\n'
+        '[report]\nunits = "coach"\n')
+    files["jumps-coach.prj"] = _comment(_simulated(
+        "the jumps project for a coach: deg, m, km/h and the height above the landing "
+        "slope", JUMP_SEED) + "\nRun: photogram intersect projects/jumps/jumps-coach.prj "
+        "(after calibrate and orient). See README.md.") + prj
     return files
 
 

@@ -31,8 +31,8 @@ ADJUSTMENT = ["Summary", "Cameras (interior orientation)", "Stations (exterior o
 SECTIONS = {
     "calibrate": ADJUSTMENT,
     "orient": ADJUSTMENT,
-    "intersect": ["Summary", "Cameras (interior orientation)",
-                  "Stations (exterior orientation)", "Residuals", "Residual vectors per image",
+    # cameras and stations are fixed inputs of intersect: one page, not their full pages
+    "intersect": ["Summary", "Input orientation (fixed)", "Residuals", "Residual vectors per image",
                   "Point precision", "Error ellipses", "Rays, intersection angles, coverage",
                   "Network", "Stick model (Fig. 8)", "Stick model over time",
                   "Stick model per exposure", "Jumper points and ski lines"],

@@ -6,7 +6,8 @@ parameter with its sigma, one row per exposure), ``points3d.csv`` (jumper
 points with sigmas), ``lines3d.csv`` (ski lines: point, direction, sigmas,
 segment), ``jump.trc`` (OpenSim markers, Y up), ``stick.png`` (the paper's
 Fig. 8), ``timeseries.png``, and the standard ``summary.json``,
-``points.csv``, ``residuals.csv``, ``log.txt``.
+``points.csv``, ``residuals.csv``, ``log.txt``; with coach units
+(:mod:`photogram.jump.coach`) also ``coach.csv``.
 """
 
 from __future__ import annotations
@@ -144,13 +145,20 @@ def _write_csv(path, frame):
     atomic_write_text(path, frame.to_csv(index=False, float_format="%.10g"))
 
 
-def write_jump(folder, result, project):
-    """All files of the intersect step (atomically)."""
+def write_jump(folder, result, project, units="project"):
+    """All files of the intersect step (atomically); ``units="coach"`` adds
+    coach.csv and draws the figures in deg, m and km/h."""
+    from photogram.jump.coach import HEIGHT, coach_table, to_coach
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     unit = project.units.angle
     table = result.model.to_frame(angle_unit=unit, exposures=result.exposures)
+    if result.height is not None:
+        table[HEIGHT], table["sigma_" + HEIGHT] = result.height
     _write_csv(folder / "exposures.csv", table)
+    coach = units == "coach"
+    if coach:
+        _write_csv(folder / "coach.csv", coach_table(table, unit, project.units.length))
     _write_csv(folder / "points3d.csv", _points_table(result, project.units.length))
     _write_csv(folder / "lines3d.csv", _lines_table(result))
     to_m = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001}[project.units.length]
@@ -160,18 +168,26 @@ def write_jump(folder, result, project):
         markers[f"{ski}_tail"] = result.model.skis[:, j, 0] * to_m
         markers[f"{ski}_tip"] = result.model.skis[:, j, 1] * to_m
     write_trc(folder / "jump.trc", result.times, markers, units="m")
-    plot_stick_figure(result.model, folder / "stick.png")
-    time_series_figure(table, folder / "timeseries.png")
+    plot_stick_figure(result.model, folder / "stick.png", coach=coach)
+    if coach:
+        shown = to_coach(table, unit, project.units.length)
+        shown.attrs.update(angle_unit="deg", length_unit="m", speed_unit="km/h")
+    else:
+        shown = table
+    time_series_figure(shown, folder / "timeseries.png")
 
 
-def intersect_and_write(project, output=None, report=True):
+def intersect_and_write(project, output=None, units=None, report=True):
     """Intersect the project and write its results folder (report.pdf
-    unless ``report`` is false); returns
-    ``(folder, result)`` with ``result.summary`` as in summary.json."""
+    unless ``report`` is false); returns ``(folder, result)`` with
+    ``result.summary`` as in summary.json. ``units`` ("project" or "coach")
+    overrides the project's ``[report] units``."""
+    from photogram.jump.coach import check_units
     from photogram.project.output_policy import project_inputs
     from photogram.project.results import write_results
     from photogram.project.results_folder import staged_results
     from photogram.report import write_report
+    units = check_units(units or project.report.units)
     result = intersect_jump(project, _orientation(project))
     folder = Path(output) if output else project.output_folder()
     s = result.summary
@@ -180,14 +196,18 @@ def intersect_and_write(project, output=None, report=True):
                "exposures": s["exposures"], "ski_checks": s["ski_checks"],
                "swapped_skis": s["swapped_skis"], "warnings": s["warnings"],
                "orientation_covariance": project.intersect.orientation}
+    if project.intersect.landing_profile:     # only then: default outputs stay as they were
+        summary["landing_profile"] = project.intersect.landing_profile
+    if units != "project":
+        summary["report_units"] = units
     # written into a staging folder, moved into place when complete
     with staged_results(folder, command="intersect", inputs=project_inputs(project)) as stage:
         write_results(stage.path, result.project, summary, point_sigma=result.point_sigma,
                       residuals=result.residuals,
                       log_text=json.dumps(summary, indent=1, default=str) + "\n")
-        write_jump(stage.path, result, project)
+        write_jump(stage.path, result, project, units)
         if report:
-            write_report(stage.path)
+            write_report(stage.path, units=units)
     result.summary = summary
     return folder, result
 
@@ -195,7 +215,8 @@ def intersect_and_write(project, output=None, report=True):
 def run(project, args=None):
     """Command-line entry: intersect, write, print one line (and one warning
     line on stderr when the jumper is implausible: size, speed, height)."""
-    folder, result = intersect_and_write(project, report=not getattr(args, "no_report", False))
+    folder, result = intersect_and_write(project, units=getattr(args, "units", None),
+                                         report=not getattr(args, "no_report", False))
     odd = [w for w in result.summary["warnings"] if w.startswith("implausible")]
     if odd:
         more = f" (and {len(odd) - 1} more in summary.json)" if len(odd) > 1 else ""

@@ -18,7 +18,8 @@ def run(args):
         raise InputError("photogram report: which results folder?",
                          hint="give it, e.g. photogram report projects/lab/results")
     outline = []
-    path = write_report(args.folder, output=getattr(args, "output", None), outline=outline)
+    path = write_report(args.folder, output=getattr(args, "output", None), outline=outline,
+                        units=getattr(args, "units", None))
     if not getattr(args, "quiet", False):
         pages = sum(n for _, n in outline)
         print(f"report: {pages} pages ({', '.join(t for t, _ in outline)}) in {path}")

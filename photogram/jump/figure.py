@@ -22,7 +22,7 @@ from photogram.errors import InputError
 from photogram.jump import definitions as defs
 from photogram.project.atomic import atomic_write_bytes
 
-__all__ = ["plot_stick_figure", "time_series_figure"]
+__all__ = ["plot_stick_figure", "time_series_figure", "draw_stick"]
 
 _RIGHT, _LEFT, _BODY = "tab:red", "tab:blue", "black"
 
@@ -65,8 +65,47 @@ def _plan_axes(model, along: str):
     return h, np.array([-h[1], h[0], 0.0]), ("along flight", "lateral")
 
 
+def draw_stick(ax_s, ax_p, P, O, skis, v, idx, *, side, plan, speed, fontsize=7,
+               scale=1.0):
+    """Draw the stick model of the exposures ``idx`` into a side-view and a
+    plan-view axes (shared by stick.png and the report's vector Fig. 8).
+
+    Parameters
+    ----------
+    ax_s, ax_p : matplotlib Axes
+    P : ndarray (n, 4, 3)
+        P1..P4; ``O`` (n, 3); ``skis`` (n, 2, 2, 3) tail and tip per ski
+        (0 right, 1 left); ``v`` (n,) the speed of O (NaN: not annotated).
+    idx : list of int
+    side, plan : callable
+        ``(..., 3) -> (abscissa, ordinate)`` of each view.
+    speed : callable
+        ``v -> str``, the annotation above the head.
+    fontsize : float
+        Of the speed annotations (points).
+    scale : float
+        Line widths and marker sizes times this.
+    """
+    for ax, proj in ((ax_s, side), (ax_p, plan)):
+        for i in idx:
+            for ski, colour in zip(skis[i], (_RIGHT, _LEFT)):
+                ax.plot(*proj(ski), color=colour, lw=1.5 * scale)
+            P1, P2, P3, P4 = P[i]
+            for a, b in ((P1, P2), (P2, P3), (P2, P4), (P3, P4)):
+                ax.plot(*proj(np.stack([a, b])), color=_BODY, lw=1.2 * scale)
+            ax.plot(*proj(P[i]), "o", color=_BODY, ms=2.5 * scale)
+            ax.plot(*proj(O[i][None]), "o", mfc="white", mec=_BODY, ms=3.5 * scale)
+        ax.set_aspect("equal", adjustable="box")
+        ax.grid(True, lw=0.3)
+    for i in idx:
+        if np.isfinite(v[i]):
+            x, z = side(P[i, 0])
+            ax_s.annotate(speed(v[i]), (x, z), xytext=(0, 8), textcoords="offset points",
+                          ha="center", fontsize=fontsize)
+
+
 def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str = "x",
-                      dpi: int = 100, title: str | None = None) -> Path:
+                      dpi: int = 100, title: str | None = None, coach: bool = False) -> Path:
     """The stick model at evenly spaced exposures in side and plan view.
 
     Parameters
@@ -81,6 +120,9 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
         flight (O from the first to the last exposure).
     dpi : int
     title : str, optional
+    coach : bool
+        Lengths in m and the speed in km/h (default: the model's length
+        unit and that unit per second).
 
     Returns
     -------
@@ -90,6 +132,13 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
         raise InputError(f"every must be >= 1, got {every}")
     ex, ey, (lx, ly) = _plan_axes(model, along)
     unit = model.length_unit
+    k = 1.0
+    speed = f"{unit}/s"
+    if coach:
+        from photogram.project.model import LENGTH_UNITS
+        k, unit, speed = LENGTH_UNITS[unit], "m", "km/h"
+    P, O, skis = model.P * k, model.O * k, model.skis * k
+    v = model.values["v"] * (k * 3.6 if coach else 1.0)
     complete = [i for i in range(len(model))
                 if np.all(np.isfinite(model.P[i])) and np.all(np.isfinite(model.skis[i]))]
     # every ``every``-th exposure; where gaps (points or skis not measured,
@@ -111,7 +160,7 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
 
     # equal scales in both panels: the panel heights follow the data ranges
     # (a steep descent needs a tall side view), with a common abscissa range
-    pts = np.concatenate([model.P[idx].reshape(-1, 3), model.skis[idx].reshape(-1, 3)])
+    pts = np.concatenate([P[idx].reshape(-1, 3), skis[idx].reshape(-1, 3)])
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     xs, zs = side(pts)
     _, ys = plan(pts)
@@ -127,24 +176,8 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
         ax_s.set_ylim(zs.min() - pad, zs.max() + pad)
         ymid = 0.5 * (ys.min() + ys.max())
         ax_p.set_ylim(ymid - yr / 2, ymid + yr / 2)
-        for ax, proj in ((ax_s, side), (ax_p, plan)):
-            for i in idx:
-                P1, P2, P3, P4 = model.P[i]
-                O = model.O[i]
-                for ski, colour in zip(model.skis[i], (_RIGHT, _LEFT)):
-                    ax.plot(*proj(ski), color=colour, lw=1.5)
-                for a, b in ((P1, P2), (P2, P3), (P2, P4), (P3, P4)):
-                    ax.plot(*proj(np.stack([a, b])), color=_BODY, lw=1.2)
-                ax.plot(*proj(model.P[i]), "o", color=_BODY, ms=2.5)
-                ax.plot(*proj(O[None]), "o", mfc="white", mec=_BODY, ms=3.5)
-            ax.set_aspect("equal", adjustable="box")
-            ax.grid(True, lw=0.3)
-        for i in idx:
-            v = model.values["v"][i]
-            if np.isfinite(v):
-                x, z = side(model.P[i, 0])
-                ax_s.annotate(f"{v:.1f} {unit}/s", (x, z), xytext=(0, 8),
-                              textcoords="offset points", ha="center", fontsize=7)
+        draw_stick(ax_s, ax_p, P, O, skis, v, idx, side=side, plan=plan,
+                   speed=lambda x: f"{x:.1f} {speed}")
         ax_s.set_ylabel(f"Z [{unit}]")
         ax_p.set_ylabel(f"{ly} [{unit}]")
         ax_p.set_xlabel(f"{lx} [{unit}]")
@@ -164,7 +197,7 @@ def time_series_figure(frame, path_png: str | Path, *, dpi: int = 100) -> Path:
     Units are taken from ``frame.attrs`` (``angle_unit``, ``length_unit``;
     default rad and the unnamed unit).
     """
-    names = [p for p in defs.PARAMETERS if p in frame.columns]
+    names = [p for p in (*defs.PARAMETERS, "H") if p in frame.columns]
     if not names:
         raise InputError("the table has none of the stick model parameters",
                          hint=f"expected columns {', '.join(defs.PARAMETERS)}")
@@ -185,7 +218,7 @@ def time_series_figure(frame, path_png: str | Path, *, dpi: int = 100) -> Path:
             if name in defs.ANGLE_PARAMETERS:
                 u = aunit
             elif name == "v":
-                u = f"{lunit}/s"
+                u = frame.attrs.get("speed_unit", f"{lunit}/s")
             else:
                 u = lunit
             ax.set_ylabel(f"{name} [{u}]", fontsize=8)

@@ -44,6 +44,7 @@ class JumpResult:
     point_sigma: np.ndarray = None  # (n_points, 3) of every point of the project
     summary: dict = field(default_factory=dict)
     residuals: dict = None          # column -> array, one row per image point (residuals.csv)
+    height: tuple = None            # (H, sigma_H) (n,) above the landing profile, if given
 
 
 def intersect_points(project, orientation=None):
@@ -258,6 +259,16 @@ def intersect_jump(project, orientation=None) -> JumpResult:
                         length_unit=project.units.length, ski_length=cfg.ski_length,
                         binding_fraction=cfg.binding_fraction, c1=c[:, 0], c2=c[:, 1],
                         forward="flight", **cov_in)
+    height = None
+    if cfg.landing_profile:                 # Z0 above the landing slope, besides world Z
+        from photogram.jump.coach import read_landing_profile
+        above = stick_model(P, d[:, 0], d[:, 1], fps=cfg.fps, times=times,
+                            length_unit=project.units.length, ski_length=cfg.ski_length,
+                            binding_fraction=cfg.binding_fraction, c1=c[:, 0], c2=c[:, 1],
+                            forward="flight", ground=read_landing_profile(cfg.landing_profile),
+                            **cov_in)
+        sd = above.sigma
+        height = (above.values["Z0"], sd["Z0"] if sd is not None else np.full(n, np.nan))
     summary["warnings"] += plausibility_warnings(model, project.units.length)
     summary["exposures"] = n
     summary["swapped_skis"] = {e: ch.swapped for e, ch in checks.items() if ch.status == "swapped"}
@@ -265,4 +276,4 @@ def intersect_jump(project, orientation=None) -> JumpResult:
     point_sigma = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0, None))
     residuals = summary.pop("residuals", None)
     return JumpResult(exposures, times, P, cov_P, lines, checks, model, adjusted, point_sigma,
-                      summary, residuals)
+                      summary, residuals, height)

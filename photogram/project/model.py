@@ -289,6 +289,20 @@ class IntersectSettings:
     binding_fraction: float = 0.43
     orientation: list | None = None
     swap_skis: bool = False
+    landing_profile: str | None = None       # CSV (distance, height) along world X
+
+
+#: ``[report] units``: "project" (the project's units) or "coach" (deg, m,
+#: km/h in the stick-model tables, figures and coach.csv)
+REPORT_UNITS = ("project", "coach")
+
+
+@dataclass
+class ReportSettings:
+    """``[report]``: how the reports show the results (``units``, one of
+    :data:`REPORT_UNITS`)."""
+
+    units: str = "project"
 
 
 @dataclass
@@ -357,6 +371,7 @@ class Project:
     verticals: list[VerticalConstraint] = field(default_factory=list)
     adjustment: AdjustmentSettings = field(default_factory=AdjustmentSettings)
     output: OutputSettings = field(default_factory=OutputSettings)
+    report: ReportSettings = field(default_factory=ReportSettings)
     intersect: IntersectSettings = field(default_factory=IntersectSettings)
     montecarlo: MonteCarloSettings | None = None
     targets: TargetSettings | None = None   # [targets]: None = no eccentricity correction

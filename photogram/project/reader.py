@@ -27,6 +27,7 @@ from photogram.project.reader_targets import read_targets
 from photogram.project.reader_dbat import _camera_from_dbat, _read_dbat_style, _uses_dbat_features
 from photogram.project.reader_sharing import check_groups
 from photogram.project.reader_sections import PROJECT_KEYS, _read_output, _read_project_section  # noqa: F401
+from photogram.project.reader_sections import read_report_section
 from photogram.project.reader_tables import (_read_observations, _read_points, _read_stations,
                                              _source_table)
 from photogram.project.reader_rigs import check_frames, read_rigs
@@ -48,10 +49,10 @@ __all__ = ["read_project", "SECTIONS", "STATION_COLUMNS", "POINT_COLUMNS"]
 
 SECTIONS = ("project", "cameras", "stations", "points", "observations",
             "constraints", "adjustment", "output", "intersect", "montecarlo", "mocap", "targets",
-            "track", "board", "rigs")
+            "track", "board", "rigs", "report")
 REQUIRED_SECTIONS = ("project", "cameras", "stations", "observations")
 INTERSECT_KEYS = ("fps", "points", "skis", "ski_length", "binding_fraction", "orientation",
-                  "swap_skis")
+                  "swap_skis", "landing_profile")
 MONTECARLO_KEYS = ("orient", "calibrate", "intersect", "perturb", "interior_covariance", "truth",
                    "points", "align", "runs", "seed", "chunk", "workers", "scheduler")
 #: limits of [montecarlo] (and --runs, --workers): refused before anything is
@@ -136,10 +137,12 @@ def read_project(path: str | Path) -> Project:
                                  hint="the tables belong in the projects that [montecarlo] names")
         project.adjustment = _read_adjustment(root.table("adjustment", required=False))
         project.output = _read_output(root.table("output", required=False))
+        project.report = read_report_section(root.table("report", required=False))
         return project
     project.adjustment = _read_adjustment(root.table("adjustment", required=False))
     project.output = _read_output(root.table("output", required=False))
     project.intersect = _read_intersect(root.table("intersect", required=False), prj)
+    project.report = read_report_section(root.table("report", required=False))
     _read_cameras(root.table("cameras"), project)
     _check_sigma_image(root, project)
     if "track" in root.data:     # a tracking project: it writes the observations
@@ -212,11 +215,21 @@ def _read_intersect(sec: Section | None, prj: Path) -> IntersectSettings:
         value = sec.data["orientation"]
         folders = sec.ids("orientation") if isinstance(value, list) else [sec.string("orientation")]
         orientation = [str(Path(f) if Path(f).is_absolute() else prj.parent / f) for f in folders]
+    profile = None
+    if "landing_profile" in sec:
+        value = Path(sec.string("landing_profile"))
+        full = value if value.is_absolute() else prj.parent / value
+        if not full.is_file():
+            raise sec.error("landing_profile", f"landing_profile: {value} not found",
+                            hint="a CSV with columns distance,height (the slope's surface "
+                                 "along world X), relative to the folder of this file")
+        profile = str(full)
     return IntersectSettings(fps=sec.number("fps", out.fps, positive=True), points=points,
                              skis=skis, ski_length=sec.number("ski_length", out.ski_length,
                                                               positive=True),
                              binding_fraction=fraction, orientation=orientation,
-                             swap_skis=sec.boolean("swap_skis", out.swap_skis))
+                             swap_skis=sec.boolean("swap_skis", out.swap_skis),
+                             landing_profile=profile)
 
 
 def _read_montecarlo(sec: Section | None, prj: Path) -> MonteCarloSettings | None:

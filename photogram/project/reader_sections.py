@@ -7,8 +7,9 @@ imports the other's module back.
 
 from __future__ import annotations
 
-from photogram.project.model import (ANGLE_UNITS, IMAGE_UNITS, LENGTH_UNITS,
-                                     ROTATION_DIRECTIONS, OutputSettings, Project, Units)
+from photogram.project.model import (ANGLE_UNITS, IMAGE_UNITS, LENGTH_UNITS, REPORT_UNITS,
+                                     ROTATION_DIRECTIONS, OutputSettings, Project,
+                                     ReportSettings, Units)
 from photogram.project.toml_source import Section
 
 PROJECT_KEYS = ("name", "length_unit", "angle_unit", "image_unit", "rotation",
@@ -32,3 +33,11 @@ def _read_output(sec: Section | None) -> OutputSettings:
         return OutputSettings()
     sec.check_keys(("folder",))
     return OutputSettings(folder=sec.string("folder", "results"))
+
+
+def read_report_section(sec: Section | None) -> ReportSettings:
+    """``[report]``: ``units = "project"`` (default) or ``"coach"``."""
+    if sec is None:
+        return ReportSettings()
+    sec.check_keys(("units",))
+    return ReportSettings(units=sec.string("units", "project", choices=REPORT_UNITS))

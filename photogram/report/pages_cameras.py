@@ -4,6 +4,8 @@ image format."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from photogram.errors import PhotogramError
@@ -160,6 +162,80 @@ def _heatmap(doc, data, name):
     decorate(ax, "correlations (interior)")
 
 
+def is_fixed(cam) -> bool:
+    """True when no parameter of ``cam`` was estimated (every one fixed)."""
+    return not any(p.free for p in cam.parameters.values())
+
+
+def _input_covariance(data, name):
+    """The results folder whose covariance of the fixed interior orientation of
+    camera ``name`` was propagated into this adjustment, or None."""
+    ic = data.summary.get("interior_covariance")
+    if not isinstance(ic, dict):
+        return None
+    own = [p for p in ic.get("parameters") or [] if str(p).split(".")[0] == name]
+    return os.path.normpath(str(ic["from"])) if own and ic.get("from") else (
+        "an earlier calibration" if own else None)
+
+
+def camera_source(data, name, cam):
+    """The file a fixed camera was taken from (as the project names it), or None."""
+    if cam.source:
+        return cam.source
+    prj = data.project.cameras.get(name) if data.project is not None else None
+    return getattr(prj, "source", None)
+
+
+def _fixed_note(data, name, cam, source):
+    src = camera_source(data, name, cam)
+    where = f" (from {src})" if src else ""
+    text = (f"Every parameter of this camera is fixed in this adjustment{where}: it has no "
+            "sigma, t or p here.")
+    if source:
+        return text + (" The correlations below are those of the calibration the values come "
+                       f"from ({source}; its report shows them all), whose covariance was "
+                       "propagated into this adjustment; they are not estimated here.")
+    return text + " A fixed camera has no estimated correlations."
+
+
+def _correlation_table(doc, data, name, fixed, source):
+    if fixed and not source:
+        return
+    high = correlations(data, name)
+    title = "Correlations above 0.95" + (" (of the input calibration)" if fixed else "")
+    doc.table(["parameter", "with", "correlation"],
+              [(a, b, f"{r:+.3f}") for a, b, r in high[:15]], align="llr", title=title,
+              note=(f"... and {len(high) - 15} more" if len(high) > 15 else None))
+
+
+def _distortion(doc, data, cam, fmt):
+    field = None
+    if fmt is not None:
+        try:
+            field = distortion_field(cam, fmt)
+        except PhotogramError as exc:
+            doc.text(f"distortion not evaluated: {exc.one_line()}", size=8)
+    if field is None:
+        return
+    mag = np.hypot(field[2], field[3])
+    k = np.unravel_index(np.argmax(mag), mag.shape)
+    half_diag = 0.5 * np.hypot(*fmt)
+    if not mag[k] > 1e-9 * half_diag:
+        state = "fixed at 0" if is_fixed(cam) else "not estimated (every distortion term 0)"
+        doc.text(f"No distortion: the lens distortion of this camera is {state}; there is no "
+                 "distortion to map.", size=8.5)
+        return
+    px = ""
+    if data.image_unit == "mm" and cam.pixel_size:
+        px = f" ({mag[k] / cam.pixel_size[0]:.1f} px)"
+    doc.text(f"Largest distortion: {num(mag[k], 3)} {data.image_unit}{px}, "
+             f"{100 * mag[k] / half_diag:.2f} % of the half-diagonal, at "
+             f"x = {field[0][k]:.0f}, y = {field[1][k]:.0f} {data.image_unit}. The arrows "
+             "point from the distortion-free to the measured position (longest arrow = "
+             "largest distortion of the arrow grid).", size=8.5)
+    _plot_distortion(doc, data, cam, fmt, field)
+
+
 @section("cameras", "Cameras (interior orientation)", 20,
          applies=lambda d: bool(d.results.cameras))
 def build(doc, data):
@@ -169,8 +245,12 @@ def build(doc, data):
         size = f"{cam.image_size[0]} x {cam.image_size[1]} px" if cam.image_size else "size ?"
         pix = (f", pixel {cam.pixel_size[0]:g} x {cam.pixel_size[1]:g} mm"
                if cam.pixel_size else "")
+        fixed = is_fixed(cam)
+        source = _input_covariance(data, name) if fixed else None
         doc.start_section(f"Camera {name}", intro=_INTRO)
         doc.text(f"model {cam.model}, image {size}{pix}; values in {data.image_unit}", size=8.5)
+        if fixed:
+            doc.text(_fixed_note(data, name, cam, source), size=8.5)
         model = camera_model(cam.model)
         rows = []
         for (pname, par), dim in zip(cam.parameters.items(), model.parameter_dims):
@@ -182,29 +262,8 @@ def build(doc, data):
         doc.table(["parameter", "unit", "value", "sigma", "", "t", "p", "significant"], rows,
                   align="llrrlrrl", title="Parameters")
         shared_table(doc, data, name, cam)
-        _heatmap(doc, data, name)
-        high = correlations(data, name)
-        doc.table(["parameter", "with", "correlation"],
-                  [(a, b, f"{r:+.3f}") for a, b, r in high[:15]], align="llr",
-                  title="Correlations above 0.95",
-                  note=(f"... and {len(high) - 15} more" if len(high) > 15 else None))
-        field = None
-        if fmt is not None:
-            try:
-                field = distortion_field(cam, fmt)
-            except PhotogramError as exc:
-                doc.text(f"distortion not evaluated: {exc.one_line()}", size=8)
-        if field is not None:
-            mag = np.hypot(field[2], field[3])
-            k = np.unravel_index(np.argmax(mag), mag.shape)
-            half_diag = 0.5 * np.hypot(*fmt)
-            px = ""
-            if data.image_unit == "mm" and cam.pixel_size:
-                px = f" ({mag[k] / cam.pixel_size[0]:.1f} px)"
-            doc.text(f"Largest distortion: {num(mag[k], 3)} {data.image_unit}{px}, "
-                     f"{100 * mag[k] / half_diag:.2f} % of the half-diagonal, at "
-                     f"x = {field[0][k]:.0f}, y = {field[1][k]:.0f} {data.image_unit}. The arrows "
-                     "point from the distortion-free to the measured position (longest arrow = "
-                     "largest distortion of the arrow grid).", size=8.5)
-            _plot_distortion(doc, data, cam, fmt, field)
+        if not fixed:            # a fixed camera's matrix is its calibration's (see there)
+            _heatmap(doc, data, name)
+        _correlation_table(doc, data, name, fixed, source)
+        _distortion(doc, data, cam, fmt)
         doc.clear_float()

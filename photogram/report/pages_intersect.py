@@ -7,80 +7,69 @@ from __future__ import annotations
 import numpy as np
 
 from photogram.jump import definitions as defs
+from photogram.jump.coach import HEIGHT, to_coach, unit_of
 from photogram.report.layout import decorate
 from photogram.report.numbers import decimals_for, finite, num, sig
+from photogram.report.pages_stick import EVERY, draw_figure, tall
 from photogram.report.registry import section
 
 
 _SHORT = {"alpha": "legs against the ski axis", "beta": "trunk against the ski axis",
           "gamma": "hip angle", "delta_phi": "V angle of the skis", "phi": "ski slope",
-          "heading": "direction in plan", "Z0": "height of O", "v": "speed of O"}
+          "heading": "direction in plan", "Z0": "height of O (world Z)",
+          "H": "height of O above the landing slope", "v": "speed of O"}
 
 
 def _has_jump(d):
     return d.exposures is not None and len(d.exposures) > 0
 
 
+def _units(data) -> str:
+    return data.extra.get("units", "project")
+
+
 def _unit(data, name):
-    if name in defs.ANGLE_PARAMETERS:
-        return data.angle_unit
-    return f"{data.length_unit}/s" if name == "v" else data.length_unit
+    return unit_of(name, data.angle_unit, data.length_unit, _units(data))
+
+
+def _table(data):
+    """exposures.csv in the units of the report (project or coach)."""
+    if _units(data) == "coach":
+        return to_coach(data.exposures, data.angle_unit, data.length_unit)
+    return data.exposures
 
 
 def _params(data):
-    return [p for p in defs.PARAMETERS if p in data.exposures.columns]
+    return [p for p in (*defs.PARAMETERS, HEIGHT) if p in data.exposures.columns]
 
 
 @section("stick", "Stick model (Fig. 8)", 80, applies=_has_jump)
 def build_stick(doc, data):
-    image = None
-    if data.has("stick.png"):
-        from photogram.report.data import read_image
-        image = read_image(data.folder / "stick.png")
-    wide = image is None or image.shape[1] > 1.3 * image.shape[0]
-    doc.start_section("Stick model (Fig. 8)", landscape=wide, intro=(
-        "The jumper's stick model (head P1, hip P2, bindings P3 P4, the two skis; right ski "
-        "red, left blue) at evenly spaced exposures, in a side view (X, Z) and in plan "
-        "(X, Y), at the true positions along the flight, with the speed of the binding "
-        "midpoint O."))
-    if image is not None:
-        doc.image(image, doc.remaining - 0.1)
-    else:
-        _redraw(doc, data)
-
-
-def _redraw(doc, data):
-    """Side and plan view from points3d.csv and lines3d.csv (stick.png missing)."""
-    lu = data.length_unit
-    p3, l3 = data.points3d, data.lines3d
-    axes = doc.axes(doc.remaining - 0.2, ncols=2, gap=0.3)
-    for ax, (j, name) in zip(axes, ((2, "Z"), (1, "Y"))):
-        if p3 is not None:
-            for _, g in p3.groupby("exposure"):
-                P = g.set_index("point").reindex(["P1", "P2", "P3", "P4"])[["X", "Y", "Z"]]
-                P = P.to_numpy(float)
-                for a, b in ((0, 1), (1, 2), (1, 3), (2, 3)):
-                    ax.plot(P[[a, b], 0], P[[a, b], j], color="black", lw=0.8)
-        if l3 is not None:
-            for _, row in l3.iterrows():
-                colour = "tab:red" if row["line"] == "L1" else "tab:blue"
-                ax.plot([row["X1"], row["X2"]], [row[f"{name}1"], row[f"{name}2"]],
-                        color=colour, lw=1.0)
-        ax.set_aspect("equal", adjustable="box")
-        ax.grid(True, lw=0.3)
-        decorate(ax, f"{'side' if j == 2 else 'plan'} view (stick.png not found: drawn from "
-                     "points3d.csv and lines3d.csv)", f"X [{lu}]", f"{name} [{lu}]")
+    speed = "km/h" if _units(data) == "coach" else f"{data.length_unit}/s"
+    doc.start_section("Stick model (Fig. 8)", landscape=not tall(data), intro=(
+        f"The jumper's stick model (head P1, hip P2, bindings P3 P4 (dots), O the midpoint of "
+        f"the bindings (circle), the two skis; right ski red, left blue) every {EVERY}rd "
+        f"exposure, in a side view (X, Z) and in plan (X, Y), at the intersected positions "
+        f"along the flight, both at the same scale, with the speed of O [{speed}] above the "
+        "head. Drawn from points3d.csv, lines3d.csv and exposures.csv (the skis: "
+        "their lines through the bindings, with the project's ski length and binding "
+        "position); stick.png is the same figure as a picture."))
+    if not draw_figure(doc, data, _units(data)):
+        doc.text("No exposure has all four jumper points and both skis: nothing to draw.",
+                 size=8.5)
 
 
 @section("timeseries", "Stick model over time", 81, applies=_has_jump)
 def build_series(doc, data):
-    e = data.exposures
+    e = _table(data)
     names = _params(data)
     doc.start_section("Stick model over time", intro=(
         "Every stick-model parameter against time; the band is ±1 sigma (propagated from "
         "the image measurements and, if given, the orientation's covariance). alpha legs and "
         "beta trunk against the ski axis, gamma hip angle, delta_phi V angle of the skis, phi "
-        "ski slope, heading, Z0 height of O, v speed of O (docs/stick-model.md)."))
+        "ski slope, heading, Z0 height of O (world Z), "
+        + ("H height of O above the landing slope, " if HEIGHT in names else "")
+        + "v speed of O (docs/stick-model.md)."))
     t = e["time"].to_numpy(float) if "time" in e.columns else np.arange(len(e), dtype=float)
     rows = (len(names) + 1) // 2
     height = min(2.3, (doc.remaining - 0.2) / max(rows, 1))
@@ -101,12 +90,13 @@ def build_series(doc, data):
 
 @section("stick_table", "Stick model per exposure", 82, applies=_has_jump)
 def build_table(doc, data):
-    e = data.exposures
+    e = _table(data)
     names = _params(data)
     doc.start_section("Stick model per exposure", intro=(
-        "Value ± sigma of every parameter at every exposure (exposures.csv holds them "
-        "with all digits). Units: " + ", ".join(f"{n} [{_unit(data, n)}]" for n in names)
-        + "."))
+        "Value ± sigma of every parameter at every exposure ("
+        + ("coach.csv holds them in these units" if _units(data) == "coach" else
+           "exposures.csv holds them") + " with all digits). Units: "
+        + ", ".join(f"{n} [{_unit(data, n)}]" for n in names) + "."))
     rows = []
     for _, x in e.iterrows():
         e_id = x.get("exposure")
@@ -119,6 +109,32 @@ def build_table(doc, data):
                        else num(x[n], 4))
         rows.append(row)
     doc.table(["exp.", "time [s]"] + names, rows, size=7.5)
+
+
+def _span(values) -> str:
+    """"a-b" (or "a") of integer counts; "-" if none are known."""
+    if values is None:
+        return "-"
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return "-"
+    lo, hi = int(v.min()), int(v.max())
+    return str(lo) if lo == hi else f"{lo}-{hi}"
+
+
+def point_geometry(data, p3):
+    """Rays and intersection angle (deg) of every row of points3d.csv
+    (point ``P1`` at exposure ``001`` is ``P1@001`` in residuals.csv and
+    points.csv); NaN where the residuals do not list the point."""
+    import pandas as pd
+
+    ids = p3["point"].astype(str) + "@" + p3["exposure"].astype(str)
+    rays = data.rays if data.has_residuals else pd.DataFrame(columns=["rays", "angle"])
+    got = rays.reindex(ids.to_numpy())
+    return pd.DataFrame({"point": p3["point"].astype(str).to_numpy(),
+                         "rays": got["rays"].to_numpy(float),
+                         "angle": got["angle"].to_numpy(float)})
 
 
 @section("intersect_quality", "Jumper points and ski lines", 83,
@@ -144,22 +160,35 @@ def build_quality(doc, data):
             doc.text("Not 'ok': " + ", ".join(f"{k} ({checks[k]})" for k in bad), size=8)
     p3 = data.points3d
     if p3 is not None and len(p3):
+        geo = point_geometry(data, p3)
         rows = []
         for name, g in p3.groupby("point", sort=True):
-            rows.append([name, str(len(g))] + [sig(g[c].mean()) for c in ("sX", "sY", "sZ")]
-                        + [sig(np.sqrt((g[["sX", "sY", "sZ"]] ** 2).to_numpy().mean(axis=1))
-                               .max())])
-        doc.table(["point", "exposures", f"mean sX [{lu}]", f"mean sY [{lu}]",
-                   f"mean sZ [{lu}]", f"max total [{lu}]"], rows, title="Jumper points")
+            n, a = geo.loc[geo["point"] == name, "rays"], geo.loc[geo["point"] == name, "angle"]
+            g = g[np.isfinite(g["X"].to_numpy(float))]          # measured exposures only
+            total = np.sqrt((g[["sX", "sY", "sZ"]] ** 2).to_numpy(float).mean(axis=1))
+            rows.append([name, str(len(g)), _span(n), num(a.min(), 3), num(a.mean(), 3)]
+                        + [sig(g[c].mean()) for c in ("sX", "sY", "sZ")]
+                        + [sig(np.nanmax(total)) if np.isfinite(total).any() else "-"])
+        doc.table(["point", "exp.", "rays", "min angle", "mean angle", f"sX [{lu}]",
+                   f"sY [{lu}]", f"sZ [{lu}]", f"max total [{lu}]"], rows,
+                  title="Jumper points", size=7.5,
+                  note="exp.: exposures the point was intersected at; "
+                       "rays: images the point was measured (and used) in, per exposure; "
+                       "angle [deg]: the largest angle between two of its rays, at the point "
+                       "(smallest and mean over the exposures); sX, sY, sZ: mean sigmas over "
+                       "the exposures; max total: the largest RMS of sX, sY, sZ.")
     l3 = data.lines3d
     if l3 is not None and len(l3):
         rows = []
         for name, g in l3.groupby("line", sort=True):
             ang = np.degrees(g["sigma_angle_rad"].to_numpy(float))
-            rows.append([name, str(len(g)), num(np.nanmean(ang), 3), num(np.nanmax(ang), 3),
+            views = g["stations"].astype(str).str.split().str.len() if "stations" in g.columns \
+                else None
+            rows.append([name, str(len(g)), _span(views), num(np.nanmean(ang), 3),
+                         num(np.nanmax(ang), 3),
                          sig(g["sigma_position"].mean()), num(g["sigma0"].mean(), 3),
                          num(g["sigma0"].max(), 3)])
-        doc.table(["line", "exposures", "mean s(dir) [deg]", "max s(dir) [deg]",
+        doc.table(["line", "exposures", "images", "mean s(dir) [deg]", "max s(dir) [deg]",
                    f"mean s(pos) [{lu}]", "mean sigma0", "max sigma0"], rows,
                   title="Ski lines")
         ax, = doc.axes(2.6, pad_right=1.4)

@@ -50,11 +50,14 @@ def build(doc, data):
     if not len(allp):
         return
     size = float(np.ptp(allp, axis=0).max()) or 1.0
+    rays = data.has_residuals and len(C) > 0 and bool(data.residuals["used"].any())
     doc.start_section("Network", intro=(
         "Projection centres (black triangles, with the viewing direction) and the measured "
         "points (red triangles: control, orange squares: check, grey dots: tie or object "
-        "points) in 3D and in plan; in the plan view every ray from a camera to a point it "
-        "measured is drawn as a thin line."))
+        "points) in 3D and in plan; " + (
+            "in the plan view every ray from a camera to a point it measured (used "
+            "observations of residuals.csv) is drawn as a thin blue line." if rays else
+            "no rays are drawn: residuals.csv lists no used observation of these stations.")))
     ax3, = doc.axes(4.4, projection="3d", pad_left=0.3, pad_bottom=0.2, pad_top=0.1)
     for kind, (marker, colour, ms) in _STYLE.items():
         m = kinds == kind
@@ -80,7 +83,7 @@ def build(doc, data):
     span = np.ptp(allp[:, :2], axis=0) + 1e-9
     height = float(np.clip(5.6 * span[1] / span[0], 2.5, 5.2)) + 0.8
     ax, = doc.axes(max(3.0, min(height, doc.remaining - 0.1)), pad_left=0.9, pad_right=0.4)
-    if data.has_residuals and len(C):
+    if rays:
         r = data.residuals[data.residuals["used"]]
         idx = {n: i for i, n in enumerate(names)}
         pts = data.points

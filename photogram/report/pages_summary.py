@@ -9,7 +9,7 @@ import numpy as np
 
 import photogram
 from photogram.project.results_folder import final_folder
-from photogram.report.layout import decorate
+from photogram.report.layout import char_width, decorate
 from photogram.report.numbers import finite, num
 from photogram.report.registry import section
 
@@ -140,7 +140,7 @@ def build(doc, data):
 
     trace = [c for c in s.get("cost_trace") or [] if finite(c)]
     if len(trace) >= 2:
-        ax, = doc.axes(2.3, widths=[1.0], pad_right=3.2)
+        ax, = doc.axes(2.3, widths=[1.0], pad_left=1.0, pad_right=3.2)
         ax.plot(np.arange(len(trace)), trace, "o-", ms=3, color="tab:blue")
         if max(trace) > 20 * min(trace) > 0:
             ax.set_yscale("log")
@@ -148,10 +148,24 @@ def build(doc, data):
             ax.ticklabel_format(axis="y", useOffset=False, style="plain")
         ax.xaxis.get_major_locator().set_params(integer=True)
         decorate(ax, "cost per iteration (Gauss-Newton / Levenberg-Marquardt)", "iteration",
-                 "cost [-]", ypad=0.6)
+                 "cost [-]", ypad=tick_label_pad(ax))
         ax.grid(True, which="both", lw=0.3)
     doc.subheading("Warnings")
     doc.bullets(s.get("warnings"), size=8)
+
+
+def tick_label_pad(ax, size: float = 7.0) -> float:
+    """Distance (inches) from the axes to the y label that clears the widest
+    tick label of ``ax`` (``size`` pt; mathtext such as 10^6 counted by its
+    visible characters), at least 0.45."""
+    lo, hi = sorted(ax.get_ylim())
+    locs = [t for t in ax.yaxis.get_major_locator()() if lo <= t <= hi]
+    fmt = ax.yaxis.get_major_formatter()
+    fmt.set_locs(locs)
+    text = [fmt(t) for t in locs]
+    chars = [len(t.replace("\\mathdefault", "").replace("$", "").replace("{", "")
+                 .replace("}", "").replace("^", "")) for t in text] or [0]
+    return max(0.45, max(chars) * char_width(size, mono=False) + 0.2)
 
 
 @section("variance", "Variance components", 15,

@@ -19,16 +19,22 @@ import importlib
 from dataclasses import dataclass
 from typing import Callable
 
-__all__ = ["Section", "SECTIONS", "MODULES", "section", "sections"]
+__all__ = ["Section", "SECTIONS", "MODULES", "INPUT_ONLY", "section", "sections"]
 
 #: page modules, imported by :func:`sections`
 MODULES = ("photogram.report.pages_summary", "photogram.report.pages_cameras",
            "photogram.report.pages_stations", "photogram.report.pages_measurement",
            "photogram.report.pages_residuals",
            "photogram.report.pages_points", "photogram.report.pages_geometry",
-           "photogram.report.pages_network",
+           "photogram.report.pages_network", "photogram.report.pages_inputs",
            "photogram.report.pages_intersect", "photogram.report.hooks",
            "photogram.report.pages_montecarlo", "photogram.report.pages_mocap")
+
+#: sections left out of a command's report because that command estimates
+#: nothing they show: the intersect step holds cameras and stations fixed
+#: (the reports of calibrate and orient have their pages); its report shows
+#: them once, on one page ("inputs", photogram/report/pages_inputs.py)
+INPUT_ONLY = {"intersect": ("cameras", "stations")}
 
 
 @dataclass(frozen=True)
@@ -58,4 +64,7 @@ def sections(data=None) -> list[Section]:
     for module in MODULES:
         importlib.import_module(module)
     out = sorted(SECTIONS.values(), key=lambda s: (s.order, s.name))
-    return [s for s in out if data is None or s.applies(data)]
+    if data is None:
+        return out
+    skip = INPUT_ONLY.get(data.command, ())
+    return [s for s in out if s.name not in skip and s.applies(data)]

@@ -55,9 +55,17 @@ def build_report(data: ReportData):
     return figures, outline
 
 
+def report_units(data, units=None) -> str:
+    """The units of the stick-model pages: ``units``, else summary.json's
+    ``report_units``, else the project's ``[report] units``, else "project"."""
+    from photogram.jump.coach import check_units
+    project = getattr(getattr(data.project, "report", None), "units", None)
+    return check_units(units or data.summary.get("report_units") or project or "project")
+
+
 def write_report(folder: str | Path, *, output: str | Path | None = None,
                  png_folder: str | Path | None = None, dpi: int = 60,
-                 outline: list | None = None) -> Path:
+                 outline: list | None = None, units: str | None = None) -> Path:
     """Write ``report.pdf`` for the results folder ``folder``.
 
     Parameters
@@ -72,6 +80,9 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
     outline : list, optional
         If given, ``(section title, number of pages)`` of every section are
         appended to it.
+    units : str, optional
+        "project" or "coach" (:mod:`photogram.jump.coach`); default: what
+        the command used (summary.json), else the project's ``[report] units``.
 
     Returns
     -------
@@ -86,6 +97,7 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
     from matplotlib.backends.backend_pdf import PdfPages
 
     data = load(folder)
+    data.extra["units"] = report_units(data, units)
     target = Path(output) if output is not None else Path(folder)
     try:
         target.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,132 @@
+"""The stick model figure (the ski-jump paper's Fig. 8) drawn as vector
+graphics on the report page, from the results tables (points3d.csv,
+lines3d.csv, exposures.csv) with the same drawing as stick.png
+(:func:`photogram.jump.figure.draw_stick`), in the project's units or the
+coach's (deg, m, km/h)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from photogram.jump.coach import KMH_PER_MS
+from photogram.jump.figure import draw_stick
+from photogram.jump.stick import ski_segments
+from photogram.project.model import LENGTH_UNITS, IntersectSettings
+from photogram.report.layout import decorate
+
+#: draw every EVERY-th exposure (as stick.png)
+EVERY = 3
+
+
+def _settings(data) -> IntersectSettings:
+    cfg = getattr(data.project, "intersect", None)
+    return cfg if isinstance(cfg, IntersectSettings) else IntersectSettings()
+
+
+def stick_arrays(data):
+    """``(ids, P (n,4,3), O (n,3), skis (n,2,2,3), v (n,))`` in the project's
+    length unit, from the results tables; None without exposures.csv or
+    points3d.csv."""
+    e, p3, l3 = data.exposures, data.points3d, data.lines3d
+    if e is None or p3 is None or not len(e):
+        return None
+    cfg = _settings(data)
+    ids = [str(x) for x in e["exposure"]]
+    row = {x: i for i, x in enumerate(ids)}
+    n = len(ids)
+    P = np.full((n, 4, 3), np.nan)
+    names = {name: k for k, name in enumerate(cfg.points)}
+    for r in p3.itertuples(index=False):
+        i, k = row.get(str(r.exposure)), names.get(str(r.point))
+        if i is not None and k is not None:
+            P[i, k] = (r.X, r.Y, r.Z)
+    O = e[["O_x", "O_y", "O_z"]].to_numpy(float) if "O_x" in e.columns else \
+        0.5 * (P[:, 2] + P[:, 3])
+    u = np.full((n, 2, 3), np.nan)
+    c = np.full((n, 2, 3), np.nan)
+    skis = {name: j for j, name in enumerate(cfg.skis)}
+    if l3 is not None:
+        for r in l3.itertuples(index=False):
+            i, j = row.get(str(r.exposure)), skis.get(str(r.line))
+            if i is not None and j is not None:
+                u[i, j], c[i, j] = (r.dX, r.dY, r.dZ), (r.X, r.Y, r.Z)
+    ok = np.flatnonzero(np.all(np.isfinite(O), axis=1))
+    if len(ok) >= 2:                          # tail to tip along the flight
+        forward = O[ok[-1]] - O[ok[0]]
+        flip = np.einsum("nki,i->nk", u, forward) < 0
+        u = np.where(flip[..., None], -u, u)
+    u = u / np.linalg.norm(u, axis=2, keepdims=True)
+    length = cfg.ski_length / LENGTH_UNITS.get(data.length_unit, 1.0)
+    _, seg = ski_segments(P[:, 2], P[:, 3], u[:, 0], u[:, 1], c[:, 0], c[:, 1],
+                          length=length, binding_fraction=cfg.binding_fraction)
+    v = e["v"].to_numpy(float) if "v" in e.columns else np.full(n, np.nan)
+    return ids, P, O, seg, v
+
+
+def _chosen(P, skis):
+    complete = [i for i in range(len(P))
+                if np.all(np.isfinite(P[i])) and np.all(np.isfinite(skis[i]))]
+    return [i for i in complete if i % EVERY == 0] or complete[::EVERY]
+
+
+def tall(data) -> bool | None:
+    """True when the figure fits a portrait page better than a landscape one
+    (a steep or long descent); None when there is nothing to draw."""
+    arrays = stick_arrays(data)
+    if arrays is None:
+        return None
+    _, P, _, skis, _ = arrays
+    idx = _chosen(P, skis)
+    if not idx:
+        return None
+    pts = np.concatenate([P[idx].reshape(-1, 3), skis[idx].reshape(-1, 3)])
+    r = np.ptp(pts[np.all(np.isfinite(pts), axis=1)], axis=0) + 1e-9
+    return (r[2] + max(r[1], 0.12 * r[0])) / r[0] > 0.55
+
+
+def draw_figure(doc, data, units: str) -> bool:
+    """The side view (X, Z) above the plan (X, Y) at equal scales, as wide
+    as the page allows; False if there is nothing to draw."""
+    arrays = stick_arrays(data)
+    if arrays is None:
+        return False
+    ids, P, O, skis, v = arrays
+    idx = _chosen(P, skis)
+    if not idx:
+        return False
+    lu, speed = data.length_unit, f"{data.length_unit}/s"
+    if units == "coach":
+        k = LENGTH_UNITS.get(lu, 1.0)
+        P, O, skis, v = P * k, O * k, skis * k, v * k * KMH_PER_MS
+        lu, speed = "m", "km/h"
+    pts = np.concatenate([P[idx].reshape(-1, 3), skis[idx].reshape(-1, 3)])
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.04 * (hi[0] - lo[0] + 1e-9)
+    lo, hi = lo - pad, hi + pad
+    hi[2] += 2.5 * pad                       # room for the speeds above the heads
+    hi[0] += pad                             # and for the last one's right half
+    xr, yr, zr = hi - lo
+    if yr < 0.12 * xr:
+        mid = 0.5 * (lo[1] + hi[1])
+        lo[1], hi[1], yr = mid - 0.06 * xr, mid + 0.06 * xr, 0.12 * xr
+    width = doc.width - 1.05
+    room = doc.remaining - 1.6                # labels of both panels and the note
+    scale = min(width / xr, room / (zr + yr))
+    hs, hp = zr * scale, yr * scale
+    side = lambda p: (p[..., 0], p[..., 2])   # noqa: E731
+    plan = lambda p: (p[..., 0], p[..., 1])   # noqa: E731
+    ax_s, = doc.axes(hs + 0.75, pad_left=0.85, pad_bottom=0.45, pad_top=0.3)
+    ax_p, = doc.axes(hp + 0.75, pad_left=0.85, pad_bottom=0.5, pad_top=0.25)
+    for ax, (a, b) in ((ax_s, (0, 2)), (ax_p, (0, 1))):
+        ax.set_xlim(lo[a], hi[a])
+        ax.set_ylim(lo[b], hi[b])
+    draw_stick(ax_s, ax_p, P, O, skis, v, idx, side=side, plan=plan,
+               speed=lambda x: f"{x:.1f} {speed}", fontsize=7.5, scale=0.9)
+    ax_s.plot([], [], color="tab:red", label="right ski (L1)")
+    ax_s.plot([], [], color="tab:blue", label="left ski (L2)")
+    ax_s.legend(loc="upper right", fontsize=7.5)     # a descent leaves that corner empty
+    decorate(ax_s, f"side view (X, Z): exposures {', '.join(ids[i] for i in idx)}",
+             None, f"Z [{lu}]", ypad=0.6)
+    decorate(ax_p, "plan (X, Y)", f"X [{lu}]", f"Y [{lu}]", ypad=0.6)
+    return True
