@@ -170,14 +170,15 @@ def _cell_vectors(ax, xy, v, size, k) -> None:
 
 def _vector_plot(ax, data, station, g, k, iu):
     fmt = data.image_format(data.station_camera(station))
-    xy = g[["x", "y"]].to_numpy(float)
-    hull = convex_hull(xy[g["used"].to_numpy()])
+    a = g[["x", "y", "vx", "vy"]].to_numpy(float)
+    u = g["used"].to_numpy(bool)
+    xy = a[:, :2]
+    hull = convex_hull(xy[u])
     if fmt:
         ax.add_patch(Rectangle((0, 0), fmt[0], fmt[1], fill=False, lw=0.8, color="0.3"))
     if len(hull) >= 3:
         ax.fill(hull[:, 0], hull[:, 1], color="tab:green", alpha=0.12, lw=0)
-    u = g["used"].to_numpy()
-    v = g[["vx", "vy"]].to_numpy(float)[u]
+    v = a[u, 2:]
     w, h = fmt if fmt else (xy[:, 0].max(), xy[:, 1].max())
     if u.sum() > CELL_POINTS:
         _cell_vectors(ax, xy[u], v, (w, h), k)
@@ -197,7 +198,7 @@ def _vector_plot(ax, data, station, g, k, iu):
     ax.set_xticks(np.linspace(0, w, 3))
     ax.set_yticks(np.linspace(0, h, 3))
     ax.tick_params(labelsize=6)
-    n, _, _, rv, _ = _stats(g[g["used"]])
+    n, rv = int(u.sum()), _rms(np.hypot(v[:, 0], v[:, 1]))
     decorate(ax, f"{station} ({data.station_camera(station)}): {n} points, RMS {num(rv, 2)} {iu}",
              f"x [{iu}]", f"y [{iu}]", xpad=0.25, ypad=0.4, size=7.5)
 
