@@ -137,3 +137,28 @@ def test_point_kinds_without_a_loop_equal_the_loop():
         assert list(got[kind][1]) == list(rays.loc[ids, "angle"])
     assert list(got) == ["control", "check", "tie"]
     assert list(got["tie"][0].index) == ["2", "4", "99"]      # "5" has kind nan
+
+
+def test_a_passed_project_gives_the_same_report_and_is_used_only_for_its_file(tmp_path):
+    import copy
+    import shutil
+    from pathlib import Path
+
+    from photogram.project import read_project
+    from photogram.report import load, write_report
+    from photogram_cli.main import main
+
+    src = Path(__file__).parent / "data" / "lab"
+    shutil.copytree(src, tmp_path / "lab", ignore=shutil.ignore_patterns("results*"))
+    prj_file = tmp_path / "lab" / "lab.prj"
+    folder = tmp_path / "results"
+    assert main(["calibrate", "-q", str(prj_file), "--output", str(folder)]) == 0
+    project = read_project(prj_file)
+    assert load(folder, project).project is project
+    other = copy.copy(project)
+    other.path = tmp_path / "elsewhere.prj"
+    data = load(folder, other)
+    assert data.project is not other and data.project is not None
+    a = write_report(folder, output=tmp_path / "a")
+    b = write_report(folder, output=tmp_path / "b", project=project)
+    assert a.read_bytes() == b.read_bytes()

@@ -89,7 +89,7 @@ def build_report(data: ReportData):
 
 def write_report(folder: str | Path, *, output: str | Path | None = None,
                  png_folder: str | Path | None = None, dpi: int = 60,
-                 outline: list | None = None) -> Path:
+                 outline: list | None = None, project=None) -> Path:
     """Write ``report.pdf`` for the results folder ``folder``.
 
     Parameters
@@ -101,6 +101,10 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
     png_folder : str or Path, optional
         Also write every page as ``page-NN.png`` there (``dpi``), rendered
         by matplotlib from the same figures (for a quick look and tests).
+    project : Project, optional
+        The project the results were computed from, as read from its file
+        and not changed since (a command passes the one it has in memory,
+        so that it is not read again; see :func:`photogram.report.data.load`).
     outline : list, optional
         If given, ``(section title, number of pages)`` of every section are
         appended to it.
@@ -118,7 +122,7 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
 
-    data = load(folder)
+    data = load(folder, project)
     target = Path(output) if output is not None else Path(folder)
     try:
         target.mkdir(parents=True, exist_ok=True)
