@@ -22,11 +22,19 @@ The large network runs once, after CAMCAL (warm; cold when CAMCAL is
 skipped). Goal: report <= 15 % of the command and <= 2 s for
 CAMCAL, <= 6 s for the large network.
 
-Run: .venv/bin/python benchmarks/report_speed.py [--no-large] [--profile N]
+The CAMCAL runs do not include the import of matplotlib (this script
+imports photogram.report, and with it matplotlib, before it starts the clock);
+``--floor`` measures it in a fresh process, together with what 15 pages of
+header and footer with 35 empty axes cost (CAMCAL's report has 15 pages and 35
+axes): the part of the report no page design can remove while it is drawn with
+matplotlib.
+
+Run: .venv/bin/python benchmarks/report_speed.py [--no-large] [--profile N] [--floor]
 Ends with one line ``RESULT key=value ...``.
 """
 
 import argparse
+import os
 import shutil
 import sys
 import tempfile
@@ -103,6 +111,50 @@ def large_project(n_points, seed=0):
     return read_project(path), len(net.station), path.parent
 
 
+_FLOOR = r"""
+import time
+t0 = time.process_time()
+import matplotlib
+from matplotlib.figure import Figure
+from matplotlib.backends.backend_pdf import PdfPages
+t1 = time.process_time()
+import io
+from contextlib import ExitStack
+from photogram.report.layout import Document
+from photogram.report.writer import _style
+pages, axes = {pages}, {axes}
+out = []
+for with_axes in (False, True):
+    t = time.process_time()
+    with ExitStack() as stack:
+        _style(stack)
+        doc = Document(header="photogram calibrate report: floor")
+        for i in range(pages):
+            doc.start_section(f"section {{i}}", intro="one line of text")
+        if with_axes:
+            for i in range(axes):
+                doc.page.figure.add_axes([0.1 + 0.02 * (i % 5), 0.1, 0.1, 0.1])
+        figures = doc.finish("footer")
+        with PdfPages(io.BytesIO()) as pdf:
+            for fig in figures:
+                pdf.savefig(fig)
+    out.append(time.process_time() - t)
+print(f"{{t1 - t0:.3f}} {{out[0]:.3f}} {{out[1]:.3f}}")
+"""
+
+
+def floor(pages, axes):
+    """CPU seconds, in a fresh process, of what any matplotlib report of
+    ``pages`` pages with ``axes`` (empty) axes costs: ``(import of matplotlib
+    and its PDF backend, pages with heading/header/footer only, the same
+    with the empty axes)``."""
+    import subprocess
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    out = subprocess.run([sys.executable, "-c", _FLOOR.format(pages=pages, axes=axes)],
+                         capture_output=True, text=True, env=env, check=True, cwd=ROOT)
+    return tuple(float(x) for x in out.stdout.split())
+
+
 def show(label, total, rep, goal):
     share = rep / total if total > 0 else float("nan")
     print(f"{label}: command {total:.2f} s CPU, report {rep:.2f} s CPU "
@@ -117,6 +169,8 @@ def main():
     ap.add_argument("--seed", type=int, default=0, help="seed of the simulated network")
     ap.add_argument("--profile", type=int, default=0, metavar="N",
                     help="print the N costliest calls of the CAMCAL report (cumulative)")
+    ap.add_argument("--floor", action="store_true",
+                    help="also measure matplotlib's floor for CAMCAL's 15 pages and 35 axes")
     args = ap.parse_args()
     fields = {}
     if DATA.is_dir():
@@ -133,6 +187,16 @@ def main():
                       camcal_share=f"{share:.3f}")
         if prof is not None:
             pstats.Stats(prof).sort_stats("cumulative").print_stats(args.profile)
+        if args.floor:
+            imp, bare, with_axes = floor(15, 35)
+            rest = total - rep
+            print(f"floor (fresh process): import of matplotlib + PDF backend {imp:.2f} s, "
+                  f"15 pages of header/heading/footer {bare:.2f} s, with 35 empty axes "
+                  f"{with_axes:.2f} s; the command without its report {rest:.2f} s: "
+                  f"a report at that floor would be "
+                  f"{100 * (imp + with_axes) / (rest + imp + with_axes):.0f} % of the command")
+            fields.update(floor_import=f"{imp:.2f}", floor_pages=f"{bare:.2f}",
+                          floor_axes=f"{with_axes:.2f}", camcal_rest=f"{rest:.2f}")
     else:
         print(f"CAMCAL skipped: no data at {DATA} (DBAT's camcal folder beside the repository)")
         fields["camcal"] = "skipped"

@@ -238,6 +238,13 @@ def _read_project(folder: Path, summary: dict):
         logger.setLevel(level)
 
 
+def _is_project_of(project, folder: Path, summary: dict) -> bool:
+    """Whether ``project`` was read from the project file of ``summary``."""
+    path = _project_path(folder, _project_of(summary).get("path"))
+    mine = getattr(project, "path", None)
+    return path is not None and mine is not None and Path(mine).resolve() == path.resolve()
+
+
 def _read_summary(folder: Path) -> dict:
     return read_json(folder / "summary.json", "summary.json")
 
@@ -256,8 +263,13 @@ def _summary_only(folder: Path, summary: dict) -> Results:
                    log="")
 
 
-def load(folder: str | Path) -> ReportData:
+def load(folder: str | Path, project=None) -> ReportData:
     """Read a results folder for the report.
+
+    ``project``, if given, is the project the results were computed from,
+    as read from its file (a command that has it in memory saves reading
+    it again: 1.9 s for 181,000 observations); it is used only if its path
+    is the project file named in summary.json, otherwise that file is read.
 
     Raises
     ------
@@ -287,7 +299,10 @@ def load(folder: str | Path) -> ReportData:
         results = _summary_only(folder, summary)
     else:
         results = read_results(folder)
-    project, note = _read_project(folder, results.summary)
+    if _is_project_of(project, folder, results.summary):
+        note = ""
+    else:
+        project, note = _read_project(folder, results.summary)
     return ReportData(folder=folder, results=results,
                       covariance=_read_covariance(folder / "covariance.npz"),
                       exposures=_read_table(folder / "exposures.csv", ids=("exposure",)),

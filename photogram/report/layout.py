@@ -28,10 +28,20 @@ __all__ = ["Document", "PORTRAIT", "LANDSCAPE", "MONO", "char_width", "decorate"
 PORTRAIT = (8.27, 11.69)          # A4, inches
 LANDSCAPE = (11.69, 8.27)
 MARGIN_X, MARGIN_TOP, MARGIN_BOTTOM = 0.6, 0.75, 0.65
-MONO = "DejaVu Sans Mono"
+MONO = "monospace"               # DejaVu Sans Mono; Courier in the PDF (writer.RC)
 _MONO_ADVANCE = 0.602             # advance of DejaVu Sans Mono, in em
 _SANS_ADVANCE = 0.56              # generous mean advance of DejaVu Sans, in em
 _LINE = 1.38                      # line height in font sizes
+# Text is set on its baseline, a fixed distance below the cursor (the top of
+# DejaVu's "l", as matplotlib's va="top" put it): the PDF standard fonts
+# measure each string's own ink, so va="top" would move every line by its
+# tallest glyph ("^", "|") and the rows of a table would not be evenly spaced.
+_ASCENT, _DESCENT = 0.76, 0.236   # in em
+
+
+def ascent(size: float) -> float:
+    """Distance (inches) from the top of a ``size`` pt line to its baseline."""
+    return size * _ASCENT / 72.0
 
 
 def char_width(size: float, mono: bool = True) -> float:
@@ -57,8 +67,9 @@ def decorate(ax, title: str | None = None, xlabel: str | None = None,
     pos = ax.get_position()
     w_in, h_in = pos.width * fig.get_figwidth(), pos.height * fig.get_figheight()
     if title:
-        ax.text(0.0, 1.0 + 0.07 / h_in, title, transform=ax.transAxes, ha="left",
-                va="bottom", size=size or 8.5)
+        size = size or 8.5
+        ax.text(0.0, 1.0 + (0.07 + size * _DESCENT / 72.0) / h_in, title,
+                transform=ax.transAxes, ha="left", va="baseline", size=size)
     if xlabel:
         ax.set_xlabel(xlabel)
         ax.xaxis.set_label_coords(0.5, -xpad / h_in)
@@ -179,8 +190,8 @@ class Document:
     def heading(self, text: str, size: float = 10.5, color: str = "black") -> None:
         self.ensure(line_height(size) * 2.5)
         self._y += 0.35 * line_height(size)
-        self.page.figure.text(self._fx(MARGIN_X), self._fy(self._y), text, size=size,
-                              weight="bold", va="top", color=color)
+        self.page.figure.text(self._fx(MARGIN_X), self._fy(self._y + ascent(size)), text,
+                              size=size, weight="bold", va="baseline", color=color)
         self._y += line_height(size) * 1.15
 
     def text(self, text: str, size: float = 8.5, mono: bool = False,
@@ -193,8 +204,9 @@ class Document:
                                    subsequent_indent=hanging) or [""]
         for line in lines:
             self.ensure(line_height(size))
-            self.page.figure.text(self._fx(MARGIN_X + indent), self._fy(self._y), line,
-                                  size=size, va="top", color=color,
+            self.page.figure.text(self._fx(MARGIN_X + indent),
+                                  self._fy(self._y + ascent(size)), line,
+                                  size=size, va="baseline", color=color,
                                   family=MONO if mono else None)
             self._y += line_height(size)
         self._y += 0.3 * line_height(size)
@@ -262,8 +274,9 @@ class Document:
             self.text(note, size=7.5, color="0.3")
 
     def _put_mono(self, line: str, size: float, weight="normal", color="black") -> None:
-        self.page.figure.text(self._fx(MARGIN_X), self._fy(self._y), line, size=size,
-                              family=MONO, va="top", weight=weight, color=color)
+        self.page.figure.text(self._fx(MARGIN_X), self._fy(self._y + ascent(size)), line,
+                              size=size, family=MONO, va="baseline", weight=weight,
+                              color=color)
         self._y += line_height(size)
 
     def pairs(self, items, *, size: float = 8.0, title: str | None = None) -> None:
@@ -285,8 +298,8 @@ class Document:
     def subheading(self, text: str, size: float = 9.0) -> None:
         self.ensure(line_height(size) * 4)
         self._y += 0.2 * line_height(size)
-        self.page.figure.text(self._fx(MARGIN_X), self._fy(self._y), text, size=size,
-                              weight="bold", va="top")
+        self.page.figure.text(self._fx(MARGIN_X), self._fy(self._y + ascent(size)), text,
+                              size=size, weight="bold", va="baseline")
         self._y += line_height(size) * 1.2
 
     # ------------------------------------------------------------------ axes

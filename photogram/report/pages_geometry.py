@@ -48,19 +48,29 @@ def coverage(data):
     return per_station, union
 
 
+def _by_kind(data, rays) -> dict:
+    """``{kind: (rays, angles)}`` of the control, check and tie points that
+    have rays (points without a kind count as tie; all points are in every
+    kind when the points table has no kind column), in that order."""
+    if "kind" not in data.points.columns:
+        return {kind: (rays["rays"], rays["angle"]) for kind in ("control", "check", "tie")
+                if len(rays)}
+    kinds = data.points["kind"]
+    kinds = kinds[~kinds.index.duplicated()]
+    kinds = np.where(rays.index.isin(kinds.index),
+                     kinds.reindex(rays.index).astype(str).to_numpy(), "tie")
+    return {kind: (rays.loc[m, "rays"], rays.loc[m, "angle"])
+            for kind in ("control", "check", "tie") if (m := kinds == kind).any()}
+
+
 @section("geometry", "Rays, intersection angles, coverage", 60,
          applies=lambda d: d.has_residuals)
 def build(doc, data):
     doc.start_section("Rays, intersection angles and image coverage", intro=_INTRO)
     rays = data.rays
-    kinds = data.points["kind"] if "kind" in data.points.columns else None
     rows = []
-    for kind in ("control", "check", "tie"):
-        ids = [p for p in rays.index if kinds is None or str(kinds.get(p, "tie")) == kind]
-        if not ids:
-            continue
-        n, a = rays.loc[ids, "rays"], rays.loc[ids, "angle"]
-        rows.append([kind, str(len(ids)), f"{n.min()}-{n.max()}", f"{n.mean():.1f}",
+    for kind, (n, a) in _by_kind(data, rays).items():
+        rows.append([kind, str(len(n)), f"{n.min()}-{n.max()}", f"{n.mean():.1f}",
                      num(a.min(), 3), num(a.mean(), 3), num(a.max(), 3)])
     doc.table(["points", "number", "rays", "mean rays", "min angle [deg]", "mean angle [deg]",
                "max angle [deg]"], rows, align="lrrrrrr", title="Rays and intersection angles")

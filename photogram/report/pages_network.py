@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 from matplotlib.collections import LineCollection
 from matplotlib.ticker import MaxNLocator
 
@@ -19,8 +20,7 @@ def _points(data):
     xyz = p[["X", "Y", "Z"]].to_numpy(float)
     ok = np.all(np.isfinite(xyz), axis=1)
     if data.has_residuals:
-        seen = set(data.residuals["point"])
-        ok &= p.index.isin(seen)
+        ok &= p.index.isin(data.residuals["point"].unique())
     kinds = p["kind"].astype(str).to_numpy() if "kind" in p.columns else np.full(len(p), "tie")
     return xyz[ok], kinds[ok]
 
@@ -85,13 +85,15 @@ def build(doc, data):
     ax, = doc.axes(max(3.0, min(height, doc.remaining - 0.1)), pad_left=0.9, pad_right=0.4)
     if rays:
         r = data.residuals[data.residuals["used"]]
-        idx = {n: i for i, n in enumerate(names)}
         pts = data.points
-        ok = r["station"].isin(idx) & r["point"].isin(pts.index)
-        a = C[[idx[s] for s in r.loc[ok, "station"]], :2]
-        b = pts.loc[r.loc[ok, "point"], ["X", "Y"]].to_numpy(float)
+        ok = (r["station"].isin(names) & r["point"].isin(pts.index)).to_numpy()
+        idx = pd.Series({n: i for i, n in enumerate(names)})
+        a = C[idx.loc[r["station"].to_numpy()[ok]].to_numpy(int), :2]
+        b = pts.loc[r["point"].to_numpy()[ok], ["X", "Y"]].to_numpy(float)
+        # limits: equal_limits below (autolim would measure every ray)
         ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors="tab:blue",
-                                         lw=0.3, alpha=0.15, rasterized=dense(len(a))))
+                                         lw=0.3, alpha=0.15, rasterized=dense(len(a))),
+                          autolim=False)
     for kind, (marker, colour, ms) in _STYLE.items():
         m = kinds == kind
         if m.any():

@@ -5,13 +5,12 @@ standardized residuals, data snooping, and residual vector plots per image
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.collections import LineCollection
-from matplotlib.patches import Rectangle
+from matplotlib.patches import PathPatch, Rectangle
 
 from photogram.report.layout import decorate
 from photogram.report.numbers import finite, num
 from photogram.report.registry import section
-from photogram.report.shapes import convex_hull, dense, nice
+from photogram.report.shapes import cell_means, convex_hull, dense, nice, segments_path
 
 _INTRO = ("Residuals are the measured minus the adjusted image coordinates. The RMS is "
           "over the used observations; 'RMS' alone is the RMS of the residual vector length "
@@ -145,22 +144,50 @@ def _scale(data):
     return nice(0.08 * max(widths) / rms)
 
 
+#: images with more used points than this show their residual vectors
+#: averaged per cell of a grid of CELL_COLUMNS square cells across
+CELL_POINTS, CELL_COLUMNS = 1000, 24
+
+
+def _segments(ax, a, b) -> None:
+    # add_artist, not add_patch: the limits are set by the caller, and
+    # add_patch would walk the path segment by segment in Python
+    ax.add_artist(PathPatch(segments_path(a, b), fill=False, lw=0.9, edgecolor="tab:blue",
+                            capstyle="butt", rasterized=dense(len(a))))
+
+
+def _cell_vectors(ax, xy, v, size, k) -> None:
+    """Mean residual vector per cell from the cell centre (dot), over the
+    number of points per cell in grey."""
+    centres, means, counts = cell_means(xy, v, size, CELL_COLUMNS)
+    cell = size[0] / CELL_COLUMNS
+    ax.imshow(np.ma.masked_equal(counts, 0), cmap="Greys", vmin=0, vmax=2.5 * counts.max(),
+              extent=(0, CELL_COLUMNS * cell, counts.shape[0] * cell, 0),
+              interpolation="nearest", zorder=0.5)
+    ax.plot(centres[:, 0], centres[:, 1], ".", ms=2, color="0.2")
+    _segments(ax, centres, centres + k * means)
+
+
 def _vector_plot(ax, data, station, g, k, iu):
     fmt = data.image_format(data.station_camera(station))
-    xy = g[["x", "y"]].to_numpy(float)
-    hull = convex_hull(xy[g["used"].to_numpy()])
+    a = g[["x", "y", "vx", "vy"]].to_numpy(float)
+    u = g["used"].to_numpy(bool)
+    xy = a[:, :2]
+    hull = convex_hull(xy[u])
     if fmt:
         ax.add_patch(Rectangle((0, 0), fmt[0], fmt[1], fill=False, lw=0.8, color="0.3"))
     if len(hull) >= 3:
         ax.fill(hull[:, 0], hull[:, 1], color="tab:green", alpha=0.12, lw=0)
-    u = g["used"].to_numpy()
-    v = g[["vx", "vy"]].to_numpy(float)[u]
-    ax.plot(xy[u, 0], xy[u, 1], ".", ms=2, color="0.2", rasterized=dense(int(u.sum())))
-    ax.add_collection(LineCollection(np.stack([xy[u], xy[u] + k * v], axis=1),
-                                     colors="tab:blue", lw=0.9, rasterized=dense(int(u.sum()))))
-    if (~u).any():
-        ax.plot(xy[~u, 0], xy[~u, 1], "x", color="tab:red", ms=4, label="rejected")
+    v = a[u, 2:]
     w, h = fmt if fmt else (xy[:, 0].max(), xy[:, 1].max())
+    if u.sum() > CELL_POINTS:
+        _cell_vectors(ax, xy[u], v, (w, h), k)
+    else:
+        ax.plot(xy[u, 0], xy[u, 1], ".", ms=2, color="0.2", rasterized=dense(int(u.sum())))
+        _segments(ax, xy[u], xy[u] + k * v)
+    if (~u).any():
+        ax.plot(xy[~u, 0], xy[~u, 1], "x", color="tab:red", ms=4, label="rejected",
+                rasterized=dense(int((~u).sum())))
     ref = nice(0.12 * w / k)
     y0 = 1.06 * h
     ax.plot([w - k * ref, w], [y0, y0], color="tab:blue", lw=2, solid_capstyle="butt")
@@ -171,7 +198,7 @@ def _vector_plot(ax, data, station, g, k, iu):
     ax.set_xticks(np.linspace(0, w, 3))
     ax.set_yticks(np.linspace(0, h, 3))
     ax.tick_params(labelsize=6)
-    n, _, _, rv, _ = _stats(g[g["used"]])
+    n, rv = int(u.sum()), _rms(np.hypot(v[:, 0], v[:, 1]))
     decorate(ax, f"{station} ({data.station_camera(station)}): {n} points, RMS {num(rv, 2)} {iu}",
              f"x [{iu}]", f"y [{iu}]", xpad=0.25, ypad=0.4, size=7.5)
 
@@ -185,7 +212,12 @@ def build_vectors(doc, data):
         "drawn as lines from the measured points (dots) over the image format. Green: "
         "convex hull of the measured points (image coverage); red x: rejected observations. "
         "Systematic patterns (all lines turning together, growing towards the edges) point "
-        "to an error of the camera model; a single long line to a blunder."))
+        "to an error of the camera model; a single long line to a blunder." + (
+            f" Images with more than {CELL_POINTS} points: the residuals are averaged per "
+            f"cell of a grid of {CELL_COLUMNS} square cells across the format and drawn from "
+            "the cell centres; grey: points per cell (darker = more)."
+            if (data.residuals.groupby("station")["used"].sum() > CELL_POINTS).any()
+            else "")))
     groups = list(data.residuals.groupby("station", sort=False))
     for i in range(0, len(groups), 2):
         pair_ = groups[i:i + 2]

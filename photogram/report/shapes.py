@@ -7,7 +7,8 @@ import math
 
 import numpy as np
 
-__all__ = ["convex_hull", "polygon_area", "ellipse", "nice", "coverage_fraction"]
+__all__ = ["convex_hull", "polygon_area", "ellipse", "nice", "coverage_fraction",
+           "segments_path", "cell_means"]
 
 
 def convex_hull(xy) -> np.ndarray:
@@ -157,3 +158,59 @@ def nice(x: float) -> float:
     e = math.floor(math.log10(x))
     m = x / 10 ** e
     return (5 if m >= 5 else 2 if m >= 2 else 1) * 10.0 ** e
+
+
+def segments_path(a, b):
+    """One matplotlib Path of the line segments ``a[i] -> b[i]`` (n, 2):
+    MOVETO a[i], LINETO b[i]. Drawn as one PathPatch it looks the same as a
+    LineCollection of the segments (one colour, no transparency) but costs
+    one path instead of n (matplotlib builds and draws a Path per segment of
+    a collection). Not simplified, so no segment is merged or dropped."""
+    from matplotlib.path import Path
+
+    a, b = np.asarray(a, float).reshape(-1, 2), np.asarray(b, float).reshape(-1, 2)
+    verts = np.empty((2 * len(a), 2))
+    verts[0::2], verts[1::2] = a, b
+    codes = np.tile(np.array([Path.MOVETO, Path.LINETO], dtype=Path.code_type), len(a))
+    path = Path(verts, codes)
+    path.should_simplify = False
+    return path
+
+
+def cell_means(xy, v, size, ncols: int = 24):
+    """Residual vectors averaged per cell of a grid of square cells over
+    the image format.
+
+    Parameters
+    ----------
+    xy : array_like (n, 2)
+        Image positions (points outside the format count in the nearest
+        border cell).
+    v : array_like (n, 2)
+        Residual vectors at ``xy``.
+    size : (width, height)
+        The image format.
+    ncols : int
+        Cells across the width; the rows follow from the cells being square.
+
+    Returns
+    -------
+    centres : ndarray (m, 2)
+        Centres of the m cells holding at least one point, row by row.
+    means : ndarray (m, 2)
+        Mean residual vector of each of them.
+    counts : ndarray (nrows, ncols)
+        Points per cell (row 0 at y = 0).
+    """
+    xy, v = np.asarray(xy, float).reshape(-1, 2), np.asarray(v, float).reshape(-1, 2)
+    w, h = float(size[0]), float(size[1])
+    cell = w / ncols
+    nrows = max(1, math.ceil(h / cell - 1e-9))
+    ix = np.clip(np.floor(xy[:, 0] / cell).astype(int), 0, ncols - 1)
+    iy = np.clip(np.floor(xy[:, 1] / cell).astype(int), 0, nrows - 1)
+    k = iy * ncols + ix
+    n = np.bincount(k, minlength=nrows * ncols)
+    sums = np.stack([np.bincount(k, v[:, j], minlength=nrows * ncols) for j in (0, 1)], axis=1)
+    full = np.flatnonzero(n)
+    centres = np.stack([(full % ncols + 0.5) * cell, (full // ncols + 0.5) * cell], axis=1)
+    return centres, sums[full] / n[full, None], n.reshape(nrows, ncols)

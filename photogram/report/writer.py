@@ -3,15 +3,22 @@
 The PDF is reproducible: matplotlib's default style (not the user's
 matplotlibrc), no creation date, and nothing in the pages that depends on
 the time or the machine, so that the same results folder gives a
-byte-identical report.pdf. It is written atomically. Fonts are matplotlib's
-Type 3 subsets of DejaVu (with a ToUnicode map: the text layer can be
-searched and extracted); Type 42 looks a little crisper in some viewers but
-costs about half a second more per report (fontTools subsetting).
+byte-identical report.pdf. It is written atomically.
+
+Fonts: the PDF's standard fonts (Helvetica, and Courier for the monospaced
+tables; every viewer has them, nothing is embedded), because laying out and
+writing text glyph by glyph in embedded DejaVu subsets was half of a
+report's CPU time (issue 23). They cover Latin-1 (cp1252) only: a page with
+any other character (a Greek project name, say) is written with embedded
+Type 3 subsets of DejaVu instead, as before. Minus signs are ASCII hyphens
+(``axes.unicode_minus`` off: U+2212 is not in cp1252). PNG pages
+(``png_folder``) are rendered by Agg with DejaVu.
 """
 
 from __future__ import annotations
 
 import io
+import logging
 from contextlib import ExitStack
 from pathlib import Path
 
@@ -26,9 +33,19 @@ __all__ = ["write_report", "build_report", "REPORT_NAME", "RC"]
 
 REPORT_NAME = "report.pdf"
 
-RC = {"pdf.fonttype": 3, "font.size": 8, "axes.titlesize": 8.5, "axes.labelsize": 8,
+RC = {"pdf.fonttype": 3, "pdf.use14corefonts": True, "axes.unicode_minus": False,
+      "font.size": 8, "axes.titlesize": 8.5, "axes.labelsize": 8,
       "xtick.labelsize": 7, "ytick.labelsize": 7, "legend.fontsize": 7,
-      "axes.titlelocation": "left", "figure.dpi": 100, "image.interpolation": "antialiased"}
+      "axes.titlelocation": "left", "figure.dpi": 100, "image.interpolation": "antialiased",
+      "font.monospace": ["DejaVu Sans Mono", "Courier"]}
+
+
+class _QuietWeight(logging.Filter):
+    """Drop matplotlib's note that the standard fonts' weight is "Medium"
+    where "normal" was asked for (it picks the right font)."""
+
+    def filter(self, record) -> bool:
+        return not str(record.msg).startswith("findfont: Failed to find font weight")
 
 
 def _style(stack: ExitStack) -> None:
@@ -37,6 +54,22 @@ def _style(stack: ExitStack) -> None:
 
     stack.enter_context(matplotlib.style.context("default"))
     stack.enter_context(matplotlib.rc_context(RC))
+    logger, quiet = logging.getLogger("matplotlib.font_manager"), _QuietWeight()
+    logger.addFilter(quiet)
+    stack.callback(logger.removeFilter, quiet)
+
+
+def core_fonts_fit(fig) -> bool:
+    """True if every text of ``fig`` can be written in the PDF standard
+    fonts (cp1252); tick labels are numbers with ASCII minus signs."""
+    from matplotlib.text import Text
+
+    for artist in fig.findobj(Text):
+        try:
+            artist.get_text().encode("cp1252")
+        except UnicodeEncodeError:
+            return False
+    return True
 
 
 def build_report(data: ReportData):
@@ -65,7 +98,8 @@ def report_units(data, units=None) -> str:
 
 def write_report(folder: str | Path, *, output: str | Path | None = None,
                  png_folder: str | Path | None = None, dpi: int = 60,
-                 outline: list | None = None, units: str | None = None) -> Path:
+                 outline: list | None = None, units: str | None = None,
+                 project=None) -> Path:
     """Write ``report.pdf`` for the results folder ``folder``.
 
     Parameters
@@ -77,6 +111,10 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
     png_folder : str or Path, optional
         Also write every page as ``page-NN.png`` there (``dpi``), rendered
         by matplotlib from the same figures (for a quick look and tests).
+    project : Project, optional
+        The project the results were computed from, as read from its file
+        and not changed since (a command passes the one it has in memory,
+        so that it is not read again; see :func:`photogram.report.data.load`).
     outline : list, optional
         If given, ``(section title, number of pages)`` of every section are
         appended to it.
@@ -94,9 +132,10 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
     InputError
         ``folder`` is not a results folder (one line naming what is missing).
     """
+    import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
 
-    data = load(folder)
+    data = load(folder, project)
     data.extra["units"] = report_units(data, units)
     target = Path(output) if output is not None else Path(folder)
     try:
@@ -114,7 +153,8 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
                 "ModDate": None}
         with PdfPages(buf, metadata=meta) as pdf:
             for fig in figures:
-                pdf.savefig(fig)
+                with matplotlib.rc_context({"pdf.use14corefonts": core_fonts_fit(fig)}):
+                    pdf.savefig(fig)
         if png_folder is not None:
             png_folder = Path(png_folder)
             png_folder.mkdir(parents=True, exist_ok=True)
