@@ -58,22 +58,32 @@ WALL_FREE = ("c", "x0", "y0", "K1", "K2", "P1", "P2")
 
 def wall_network_chunked(n_stations, n_points, rays, seed=0, sigma=0.5, chunk=4000):
     """The wall network of :func:`photogram.simulation.network.wall_network`
-    observed ``chunk`` points at a time (the same geometry; the noise is
-    drawn chunk by chunk from the same generator)."""
+    (the same geometry), observed ``chunk`` points at a time in the order
+    of their position along the wall, each chunk only from the stations
+    whose image can reach it (the full projection would be S x P); the
+    noise is drawn chunk by chunk from the same generator."""
     from photogram.simulation.network import SyntheticNetwork, observe, wall_geometry
-    pts, X0, R, io, size, rng = wall_geometry(n_stations, n_points, 10.0, rays, seed)
+    distance = 10.0
+    pts, X0, R, io, size, rng = wall_geometry(n_stations, n_points, distance, rays, seed)
+    reach = 1.5 * distance * (size[0] / 2) / io[0]      # half the wall width an image sees, +50 %
     cams = np.zeros(n_stations, int)
+    order = np.argsort(pts[:, 0], kind="stable")
     st, pt, xy_t, xy = [], [], [], []
     for lo in range(0, n_points, chunk):
-        net = observe("brown", io, cams, R, X0, pts[lo:lo + chunk], size, sigma=sigma,
+        idx = order[lo:lo + chunk]
+        x = pts[idx, 0]
+        cand = np.flatnonzero((X0[:, 0] > x.min() - reach) & (X0[:, 0] < x.max() + reach))
+        net = observe("brown", io, cams[cand], R[cand], X0[cand], pts[idx], size, sigma=sigma,
                       rng=rng, margin=5)
-        st.append(net.station)
-        pt.append(net.point + lo)
+        st.append(cand[net.station])
+        pt.append(idx[net.point])
         xy_t.append(net.xy_true)
         xy.append(net.xy)
+    st, pt = np.concatenate(st), np.concatenate(pt)
+    by_station = np.lexsort((pt, st))           # image by image, as a measuring program writes
     return SyntheticNetwork("brown", np.atleast_2d(io), size, cams, R, X0, pts,
-                            np.concatenate(st), np.concatenate(pt),
-                            np.concatenate(xy_t), np.concatenate(xy))
+                            st[by_station], pt[by_station],
+                            np.concatenate(xy_t)[by_station], np.concatenate(xy)[by_station])
 
 
 def wall_project(n_stations, n_points, rays, seed=0):

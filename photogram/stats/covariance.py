@@ -47,13 +47,14 @@ class Cofactors:
     builds that matrix on request (small problems, tests).
     """
 
-    def __init__(self, layout, Qcc, Qec, Qee, qec_rows=None, cross=None):
+    def __init__(self, layout, Qcc, Qec, Qee, qec_rows=None, cross=None, ce_times=None):
         self.layout = layout
         self.Qcc = Qcc
         self.Qee = Qee
         self._Qec = Qec
         self._qec_rows = qec_rows       # callable: points -> (len, 3, n_r)
         self._cross = cross             # callable: (points, cols) -> (len, 3, sr)
+        self._ce_times = ce_times       # callable: (n_e, 3, q) -> (n_r, q)
 
     @property
     def Qec(self) -> np.ndarray:
@@ -89,6 +90,20 @@ class Cofactors:
             q = order[bounds[lo]:bounds[min(lo + step, len(pts))]]
             out[q] = Q[(inv[q] - lo)[:, None, None], np.arange(3)[None, :, None],
                        cols[q][:, None, :]]
+        return out
+
+    def ce_times(self, Ne, chunk_entries=4_000_000):
+        """``sum_p Q_ce[:, p] Ne[p]`` (n_r, q): the cofactors of the reduced
+        unknowns and the eliminated points times ``Ne`` (n_e, 3, q)."""
+        Ne = np.asarray(Ne, dtype=float)
+        if self._ce_times is not None and self._Qec is None:
+            return self._ce_times(Ne)
+        n_e, n_r = self.layout.n_eliminated, self.layout.n_reduced
+        out = np.zeros((n_r, Ne.shape[2]))
+        step = max(1, chunk_entries // (3 * max(n_r, 1)))
+        for lo in range(0, n_e, step):
+            Q = self._qec_of_points(np.arange(lo, min(lo + step, n_e)))   # (c, 3, n_r)
+            out += np.einsum("cin,ciq->nq", Q, Ne[lo:lo + step])
         return out
 
     def block(self, cols_a, cols_b):
@@ -157,7 +172,7 @@ def _cofactors(problem, G):
     def qec_rows(points):
         return _qec_rows(st, system.WT, fact.Ainv, ext, AinvGe3, n_r, points, fixed)
 
-    cof = Cofactors(lay, Qcc, None, Qee, qec_rows, blocks.cross)
+    cof = Cofactors(lay, Qcc, None, Qee, qec_rows, blocks.cross, blocks.ce_times)
     cof.factorization = fact
     return cof
 
@@ -231,7 +246,17 @@ def s_transform(cof, T, Tp, QTp, layout=None):
         Tq, Uq = Te[points], Ue[points]
         return (old(points) - Uq @ Tc.T - Tq @ Uc.T + Tq @ (H @ Tc.T))
 
-    return Cofactors(lay, Qcc, None, Qee, qec_rows)
+    def cross(points, cols):
+        Tq, Uq = Te[points], Ue[points]                        # (n, 3, k)
+        Tk, Uk = np.swapaxes(Tc[cols], 1, 2), np.swapaxes(Uc[cols], 1, 2)   # (n, k, sr)
+        return cof.cross(points, cols) - Uq @ Tk - Tq @ Uk + Tq @ (H @ Tk)
+
+    def ce_times(Ne):
+        UN = np.einsum("pik,piq->kq", Ue, Ne)
+        TN = np.einsum("pik,piq->kq", Te, Ne)
+        return cof.ce_times(Ne) - Tc @ UN - Uc @ TN + Tc @ (H.T @ TN)
+
+    return Cofactors(lay, Qcc, None, Qee, qec_rows, cross, ce_times)
 
 
 def _point_cofactors(st, WT, Ainv, ext, AinvGe3, g0, blocks):

@@ -22,7 +22,7 @@ import numpy as np
 __all__ = ["leverage_diagonal"]
 
 
-def leverage_diagonal(cof, J, slot_cols, chunk_entries=2_000_000):
+def leverage_diagonal(cof, J, slot_cols, chunk_entries=1_000_000):
     """``diag(J Q J^T)`` (N, d) of every row of one residual block.
 
     Parameters

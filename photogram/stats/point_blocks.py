@@ -45,7 +45,7 @@ class PointBlocks:
         Entries of ``ext[U, U]`` gathered at once (8 bytes each).
     """
 
-    def __init__(self, st, WT, Ainv, ext, AinvGe3, fixed, budget=4_000_000):
+    def __init__(self, st, WT, Ainv, ext, AinvGe3, fixed, budget=2_000_000):
         self.st, self.WT, self.Ainv, self.ext = st, WT, Ainv, ext
         self.AinvGe3 = AinvGe3
         self.n_r = st.n_r
@@ -80,12 +80,12 @@ class PointBlocks:
             lo = hi
         return out
 
-    def chunk(self, P):
+    def chunk(self, P, products=True):
         """``(U, V, X, keys, start)`` of the points ``P``: ``U`` (n, u)
         columns (padded with the dummy column), ``V`` (n, 3, u), ``X = V
         ext[U, U]`` (n, 3, u), ``keys`` the sorted ``local * width +
         column`` of the distinct columns and ``start`` (n,) each point's
-        first key."""
+        first key (``X`` None when not ``products``)."""
         st, W = self.st, self.width
         n = len(P)
         ptr = st.pt_ptr
@@ -114,7 +114,7 @@ class PointBlocks:
         U[lp, upos] = uniq % W
         V = np.zeros((n, 3, u))
         V[lp, :, upos] = Vf
-        X = np.matmul(V, self.ext[U[:, :, None], U[:, None, :]])
+        X = np.matmul(V, self.ext[U[:, :, None], U[:, None, :]]) if products else None
         return U, V, X, uniq, start
 
     # ------------------------------------------------------------------
@@ -168,9 +168,33 @@ class PointBlocks:
         found = keys[at] == want
         pos = np.where(found, at - start[local][:, None], 0)
         out = -np.swapaxes(X[local[:, None], :, pos], 1, 2)          # (q, 3, sr)
-        if not found.all():
-            qi, ci = np.nonzero(~found)
-            lq = local[qi]
-            e = self.ext[U[lq], cols[qi, ci][:, None]]                  # (k, u)
-            out[qi, :, ci] = -np.einsum("kiu,ku->ki", V[lq], e)
+        # columns the point does not touch (fixed ones are zero anyway)
+        qi, ci = np.nonzero(~found & ~self.fixed_c[cols])
+        out *= found[:, None, :]
+        step = max(1, self.budget // (4 * U.shape[1]))
+        for lo in range(0, len(qi), step):
+            q, c = qi[lo:lo + step], ci[lo:lo + step]
+            e = self.ext[U[local[q]], cols[q, c][:, None]]              # (k, u)
+            out[q, :, c] = -np.einsum("kiu,ku->ki", V[local[q]], e)
+        return out
+
+    def ce_times(self, Ne):
+        """``sum_p Q_ce[:, p] Ne[p]`` (n_r, q) for ``Ne`` (n_e, 3, q): the
+        reduced cofactors times a matrix over the points' coordinates, as
+        ``-ext[:n_r] Y`` with ``Y = sum_p V_p^T Ne[p]`` (scattered to the
+        point's columns)."""
+        Ne = np.asarray(Ne, dtype=float) * ~self.fixed_e[:, :, None]
+        q = Ne.shape[2]
+        Y = np.zeros((self.width, q))
+        pts = np.arange(len(self.Ainv))
+        for idx in self.chunks(pts):
+            P = pts[idx]
+            U, V, _, _, _ = self.chunk(P, products=False)
+            contrib = np.matmul(np.swapaxes(V, 1, 2), Ne[P])            # (n, u, q)
+            flat = U.ravel()
+            for j in range(q):
+                Y[:, j] += np.bincount(flat, weights=contrib[:, :, j].ravel(),
+                                       minlength=self.width)
+        out = -(self.ext[:self.n_r] @ Y)
+        out[self.fixed_c] = 0.0
         return out
