@@ -23,7 +23,8 @@ process; the peak memory is the child's maximum resident set size
 (``ru_maxrss``), the CPU seconds of the command the child's user + system time, those of the
 solve and of the statistics from summary.json (``timings.cpu``), the
 results folder's and the report's the rest after the adjustment. The child
-reports its own ``getrusage(RUSAGE_SELF)`` (peak RSS and CPU) when it ends;
+reports its own peak RSS (``VmHWM`` of /proc/self/status: ``ru_maxrss``
+would carry the parent's size over the fork) and CPU seconds when it ends;
 summary.json's ``timings.peak_rss_mb`` has the peak before and after the
 statistics.
 
@@ -130,7 +131,9 @@ try:
     rc = cli.main.main()
 finally:
     ru = resource.getrusage(resource.RUSAGE_SELF)
-    print(f"CHILD maxrss_kb={{ru.ru_maxrss}} cpu={{ru.ru_utime + ru.ru_stime}}", file=sys.stderr)
+    hwm = [ln.split()[1] for ln in open("/proc/self/status") if ln.startswith("VmHWM:")]
+    print(f"CHILD maxrss_kb={{hwm[0] if hwm else ru.ru_maxrss}} "
+          f"cpu={{ru.ru_utime + ru.ru_stime}}", file=sys.stderr)
 sys.exit(rc)
 """
 
@@ -139,7 +142,7 @@ def run_calibrate(project_path, output, no_report=False):
     """``photogram calibrate`` in a child process: (peak RSS MB, CPU s of
     the child, wall s, return code)."""
     args = [sys.executable, "-c", CHILD.format(root=str(ROOT)), "calibrate", str(project_path),
-            "-o", str(output), "--quiet"]
+            "--output", str(output), "--quiet"]
     if no_report:
         args.append("--no-report")
     env = dict(os.environ, PYTHONPATH=str(ROOT))
@@ -168,14 +171,15 @@ def measure(name, prj, n_obs, keep=None, no_report=False):
         summary = tmp / "results" / "summary.json"
         if summary.exists():
             s = json.loads(summary.read_text())
-            c = s["timings"].get("cpu", {})
+            c = s["timings"].get("cpu", {})           # absent before issue 23
+            rss = s["timings"].get("peak_rss_mb", {})
             out.update(status=s["status"], iterations=s["iterations"], sigma0=s["sigma0"],
                        unknowns=s["counts"]["unknowns"],
                        observations=s["counts"]["observations"],
                        solve_cpu=c.get("adjustment", float("nan")),
                        stats_cpu=c.get("statistics", float("nan")),
-                       solve_peak_mb=s["timings"]["peak_rss_mb"]["after_adjustment"],
-                       stats_peak_mb=s["timings"]["peak_rss_mb"]["after_statistics"])
+                       solve_peak_mb=rss.get("after_adjustment", float("nan")),
+                       stats_peak_mb=rss.get("after_statistics", float("nan")))
             out["rest_cpu"] = cpu - c.get("total", float("nan"))
         if keep:
             shutil.copytree(tmp / "results", keep, dirs_exist_ok=True)

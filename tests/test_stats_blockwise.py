@@ -117,6 +117,16 @@ def test_leverages_of_chosen_rows_equal_the_dense_ones(case):
     np.testing.assert_allclose(leverages(p, cof, k, rows), want, rtol=0, atol=1e-10)
 
 
+def test_joint_covariance_of_chosen_points_equals_the_dense_inverse(case):
+    _, _, built, cof, Qd, _ = case
+    pts = np.array([7, 2, 30, 0, 11])          # 0: a control point (fixed unless weighted)
+    cols = built.problem.layout.point_cols[pts].ravel()
+    got = cof.joint_points(pts)
+    assert got.shape == (15, 15)
+    assert _rel(got, Qd[np.ix_(cols, cols)]) < 1e-9
+    assert np.abs(got[:3, 6:9]).max() > 1e-3 * np.abs(got[:3, :3]).max()   # cross blocks
+
+
 def test_orientation_covariance_equals_the_dense_transformation(case):
     _, prj, built, cof, Qd, _ = case
     p = built.problem

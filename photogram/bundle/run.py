@@ -58,8 +58,17 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
 
 
 def _peak_rss_mb():
-    """Peak resident set size of this process so far (MB; NaN where the
-    ``resource`` module is missing)."""
+    """Peak resident set size of this process so far (MB): ``VmHWM`` of
+    /proc/self/status on Linux (``ru_maxrss`` of a child keeps its
+    parent's size across fork and exec), else ``ru_maxrss``; NaN without
+    either (Windows)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return float(line.split()[1]) / 1024.0
+    except OSError:
+        pass
     try:
         import resource
     except ImportError:         # Windows

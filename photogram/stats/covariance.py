@@ -55,6 +55,7 @@ class Cofactors:
         self._qec_rows = qec_rows       # callable: points -> (len, 3, n_r)
         self._cross = cross             # callable: (points, cols) -> (len, 3, sr)
         self._ce_times = ce_times       # callable: (n_e, 3, q) -> (n_r, q)
+        self._blocks = None             # PointBlocks of the factorization (joint_points)
 
     @property
     def Qec(self) -> np.ndarray:
@@ -105,6 +106,18 @@ class Cofactors:
             Q = self._qec_of_points(np.arange(lo, min(lo + step, n_e)))   # (c, 3, n_r)
             out += np.einsum("cin,ciq->nq", Q, Ne[lo:lo + step])
         return out
+
+    def joint_points(self, points):
+        """The joint cofactors (3 n, 3 n) of the points ``points`` (point
+        numbers of the layout), the cross blocks between points included:
+        the full covariance of chosen points, on request (n^2 memory)."""
+        lay = self.layout
+        cols = lay.point_cols[np.asarray(points, dtype=np.int64)].ravel()
+        n_r = lay.n_reduced
+        if self._blocks is not None and self._Qec is None and np.all(cols >= n_r):
+            return self._blocks.joint((cols[::3] - n_r) // 3)
+        raise NotImplementedError("joint point cofactors need the Schur factorization of "
+                                  "eliminated points (cofactors(problem))")
 
     def block(self, cols_a, cols_b):
         """Cofactors between per-row column sets (N, sa) and (N, sb).
@@ -173,6 +186,7 @@ def _cofactors(problem, G):
         return _qec_rows(st, system.WT, fact.Ainv, ext, AinvGe3, n_r, points, fixed)
 
     cof = Cofactors(lay, Qcc, None, Qee, qec_rows, blocks.cross, blocks.ce_times)
+    cof._blocks = blocks
     cof.factorization = fact
     return cof
 

@@ -198,3 +198,23 @@ class PointBlocks:
         out = -(self.ext[:self.n_r] @ Y)
         out[self.fixed_c] = 0.0
         return out
+
+    def joint(self, points):
+        """The joint cofactor matrix (3 n, 3 n) of the eliminated points
+        ``points`` (n of them, in this order), cross blocks between points
+        included: ``Q_pq = [p == q] A_p^-1 + V_p ext[U_p, U_q] V_q^T``.
+        Its size grows with n^2: for chosen points, not all of them."""
+        points = np.asarray(points, dtype=np.int64)
+        n = len(points)
+        U, V, _, _, _ = self.chunk(points, products=False)
+        cols, inv = np.unique(U, return_inverse=True)
+        inv = inv.reshape(U.shape)
+        Vd = np.zeros((n, 3, len(cols)))
+        for i in range(3):                 # duplicate dummy entries carry zeros
+            np.add.at(Vd[:, i, :], (np.arange(n)[:, None], inv), V[:, i, :])
+        Vd = Vd.reshape(3 * n, len(cols))
+        Q = Vd @ self.ext[np.ix_(cols, cols)] @ Vd.T
+        idx = 3 * np.arange(n)[:, None, None] + np.arange(3)
+        Q[idx, np.swapaxes(idx, 1, 2)] += self.Ainv[points]
+        keep = ~self.fixed_e[points].ravel()
+        return Q * keep[:, None] * keep[None, :]
