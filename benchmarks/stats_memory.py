@@ -30,6 +30,7 @@ statistics.
 
 Run: .venv/bin/python benchmarks/stats_memory.py [--network wall|aicon|both]
 [--stations 500 --points 100000 --rays 10] [--seed 0] [--no-report]
+(``--no-report`` needs the command's ``--no-report`` option of item 1).
 Ends with one line ``RESULT key=value ...``.
 """
 
