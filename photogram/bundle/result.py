@@ -32,7 +32,7 @@ def residual_columns(problem, redundancy):
     for k, blk in enumerate(problem.blocks):
         if blk.name != "image points":
             continue
-        e, _ = blk.evaluate(problem.state)
+        e, _ = blk.evaluate(problem.state, jacobians=False)      # residuals only
         cols["station"].append(blk.station)
         cols["point"].append(blk.point)
         cols["x"].append(blk.xy[:, 0])

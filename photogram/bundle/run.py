@@ -57,12 +57,35 @@ def adjust(project, *, fix_interior=False) -> BundleResult:
                                  "and the approximate values of the stations and points") from exc
 
 
+def _peak_rss_mb():
+    """Peak resident set size of this process so far (MB): ``VmHWM`` of
+    /proc/self/status on Linux (``ru_maxrss`` of a child keeps its
+    parent's size across fork and exec), else ``ru_maxrss``; NaN without
+    either (Windows)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return float(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    try:
+        import resource
+    except ImportError:         # Windows
+        return float("nan")
+    import sys
+    kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return kb / (1024.0 * 1024.0) if sys.platform == "darwin" else kb / 1024.0
+
+
 def _adjust(project, fix_interior):
     t0 = time.perf_counter()
+    c0 = time.process_time()
     adj = project.adjustment
     summary = {"datum": adj.datum, "warnings": list(project.warnings)}
     project = approximate_if_needed(project, summary)
     t_approx = time.perf_counter()
+    c_approx = time.process_time()
     built = build_problem(project, fix_interior=fix_interior)
     problem = built.problem
     for text in built.warnings or []:
@@ -113,6 +136,8 @@ def _adjust(project, fix_interior):
         s = solve(problem, opts)
         iterations += s.iterations
     t_solve = time.perf_counter()
+    c_solve = time.process_time()
+    rss_solve = _peak_rss_mb()
 
     cof = cofactors(problem)
     if built.rigs is not None:         # the composed stations of rig images
@@ -125,6 +150,7 @@ def _adjust(project, fix_interior):
     result.residuals = residual_columns(problem, red)
     flag_weak_points(result, problem, summary)
     t_stats = time.perf_counter()
+    c_stats = time.process_time()
     summary.update({
         "status": s.status, "message": s.message, "iterations": iterations,
         "sigma0": s.sigma0, "sigma0_image": s.sigma0 * apriori_image_sigma(problem),
@@ -136,7 +162,11 @@ def _adjust(project, fix_interior):
                    "exterior": int(problem.layout.free[problem.layout.station_cols].sum()),
                    "points": int(problem.layout.free[problem.layout.point_cols].sum())},
         "timings": {"approximation": t_approx - t0, "adjustment": t_solve - t_approx,
-                    "statistics": t_stats - t_solve, "total": t_stats - t0},
+                    "statistics": t_stats - t_solve, "total": t_stats - t0,
+                    "cpu": {"approximation": c_approx - c0, "adjustment": c_solve - c_approx,
+                            "statistics": c_stats - c_solve, "total": c_stats - c0},
+                    "peak_rss_mb": {"after_adjustment": rss_solve,
+                                    "after_statistics": _peak_rss_mb()}},
     })
     if s.status != "converged":
         summary["warnings"].append(s.message)

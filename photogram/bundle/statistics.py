@@ -44,8 +44,8 @@ def with_calibration_covariance(result, built, s0sq, summary):
     covariance is known (covariance.npz beside the cameras file), report the
     covariance of the stations including that uncertainty, with the
     interior-exterior cross-covariances (photogram.stats.interior.py)."""
-    from photogram.stats.interior import (
-        calibration_covariance, interior_sensitivity, station_rotation_to_angles)
+    from photogram.geometry import angle_increment_map
+    from photogram.stats.interior import calibration_covariance, interior_sensitivity
     found = calibration_covariance(result.project)
     if found is None or built is None:
         return
@@ -56,14 +56,15 @@ def with_calibration_covariance(result, built, s0sq, summary):
         return
     labels, Sio, folder = found
     D, cof = interior_sensitivity(built.problem, built.camera_names, result.project, labels)
-    T = station_rotation_to_angles(built.problem)
-    D = T @ D                                         # angles instead of rotation increments
-    n_s = len(built.problem.state.X0)
+    _, E = angle_increment_map(built.problem.state.R)
+    n_s = len(E)
+    ang = (6 * np.arange(n_s)[:, None] + 3 + np.arange(3)).ravel()
+    D[ang] = np.matmul(E, D[ang].reshape(n_s, 3, -1)).reshape(3 * n_s, -1)   # angles
     lab_st = [f"{st}.{p}" for st in result.project.stations.names
               for p in ("X0", "Y0", "Z0", "omega", "phi", "kappa")]
     cols = built.problem.layout.station_cols.ravel()
-    Q_st = cof.Qcc[np.ix_(cols, cols)]
-    S_full = s0sq * T @ Q_st @ T.T + D @ Sio @ D.T
+    Q_st = _angles_in_place(cof.Qcc[np.ix_(cols, cols)], E, 0)
+    S_full = s0sq * Q_st + D @ Sio @ D.T
     cov = np.block([[Sio, Sio @ D.T], [D @ Sio, S_full]])
     result.station_sigma = np.sqrt(np.clip(np.diag(S_full), 0, None)).reshape(n_s, 6)
     idx = np.arange(n_s)[:, None] * 6 + np.arange(6)
@@ -155,17 +156,29 @@ def orientation_covariance(cof, problem, project, camera_names, s0sq, interior=N
     n_s = len(project.stations)         # rigs add their sensor poses after the stations
     cols = np.concatenate([io_cols, lay.station_cols[:n_s].ravel()])
     Q = cof.Qcc[np.ix_(cols, cols)]
-    n_io = len(io_cols)
-    T = np.eye(len(cols))
     from photogram.geometry import angle_increment_map
     _, E = angle_increment_map(problem.state.R[:n_s])
-    for s in range(len(E)):
-        i = n_io + 6 * s + 3
-        T[i:i + 3, i:i + 3] = E[s]
+    _angles_in_place(Q, E, len(io_cols))
+    Q *= s0sq
     labels = list(io_labels)
     labels += [f"{st}.{p}" for st in project.stations.names
                for p in ("X0", "Y0", "Z0", "omega", "phi", "kappa")]
-    return labels, s0sq * T @ Q @ T.T
+    return labels, Q
+
+
+def _angles_in_place(Q, E, n_io):
+    """``Q <- T Q T^T`` with ``T`` the identity except the 3x3 blocks ``E``
+    (n_s, 3, 3) at the rotation rows of the stations (the 6 columns of
+    station s start at ``n_io + 6 s``), block by block instead of two dense
+    products."""
+    n_s = len(E)
+    if n_s == 0:
+        return Q
+    ang = (n_io + 6 * np.arange(n_s)[:, None] + 3 + np.arange(3)).ravel()
+    n = len(Q)
+    Q[ang] = np.matmul(E, Q[ang].reshape(n_s, 3, n)).reshape(3 * n_s, n)
+    Q[:, ang] = np.einsum("nsj,sij->nsi", Q[:, ang].reshape(n, n_s, 3), E).reshape(n, 3 * n_s)
+    return Q
 
 
 def _rig_sensors(out, plan, state, S):

@@ -11,20 +11,27 @@ With ``K = [[A, U], [U^T, D]]`` (points eliminated, ``U = [W^T, G_e]``) and
 Fixed parameters get zero variance.
 
 ``V_p = (A^-1 U)_p`` is never a dense matrix: it is the sum of the E-rows'
-``A_p^-1 W_a^T`` (3 x s, at their reduced columns), so ``Q_ee`` is summed
-over the pairs of E-rows of each point (the pattern of the reduced camera
-system) and ``Q_ec`` is computed only for the rows asked for. Cameras and
-3x3 point blocks are therefore available for BAL-sized problems (10^4 - 10^5
-points) at the cost of one inverse of the reduced matrix.
+``A_p^-1 W_a^T`` (3 x s, at their reduced columns), a 3 x u_p matrix over
+the u_p columns the point touches, so ``Q_ee`` and the cross cofactors of a
+point with the columns asked for are computed point by point, in chunks
+(:mod:`photogram.stats.point_blocks`). Cameras, stations, 3x3 point blocks,
+redundancy numbers and w-tests therefore cost one inverse of the reduced
+matrix plus memory that grows with the observations and points, never a
+(3 n_e x n_r), (n_obs x n_obs) or (n_unknowns x n_unknowns) matrix.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+import scipy.linalg as la
+
 from photogram.adjust import kernels
 from photogram.geometry import angle_increment_map
 from photogram.adjust.schur import solve as schur_solve
+from photogram.stats.point_blocks import PointBlocks
+
+_potri = la.get_lapack_funcs("potri", (np.zeros((1, 1)),))
 
 
 class Cofactors:
@@ -32,17 +39,23 @@ class Cofactors:
 
     ``Qcc`` (n_r, n_r) of the reduced unknowns (interior and exterior
     orientation, coupled points) and ``Qee`` (n_e, 3, 3) of every eliminated
-    point are computed at once; the cross cofactors ``Qec`` (3 n_e, n_r)
-    only on request (:meth:`block` computes just the rows it needs), so that
-    a problem with 10^5 points does not need a dense 3 n_e x n_r matrix.
+    point are computed at once; the cross cofactors of points and reduced
+    unknowns only for the (point, columns) pairs asked for (:meth:`cross`,
+    :meth:`block`), through the Schur structure
+    (:class:`photogram.stats.point_blocks.PointBlocks`), so that a problem
+    with 10^5 points never forms a 3 n_e x n_r matrix. :attr:`Qec` still
+    builds that matrix on request (small problems, tests).
     """
 
-    def __init__(self, layout, Qcc, Qec, Qee, qec_rows=None):
+    def __init__(self, layout, Qcc, Qec, Qee, qec_rows=None, cross=None, ce_times=None):
         self.layout = layout
         self.Qcc = Qcc
         self.Qee = Qee
         self._Qec = Qec
         self._qec_rows = qec_rows       # callable: points -> (len, 3, n_r)
+        self._cross = cross             # callable: (points, cols) -> (len, 3, sr)
+        self._ce_times = ce_times       # callable: (n_e, 3, q) -> (n_r, q)
+        self._blocks = None             # PointBlocks of the factorization (joint_points)
 
     @property
     def Qec(self) -> np.ndarray:
@@ -58,6 +71,53 @@ class Cofactors:
             Q = self.Qec
             return Q.reshape(self.layout.n_eliminated, 3, -1)[points]
         return self._qec_rows(points)
+
+    def cross(self, points, cols, chunk_entries=4_000_000):
+        """Cross cofactors (len(points), 3, sr) of the eliminated points
+        ``points`` (one per row) and the reduced columns ``cols`` (len, sr)
+        of the same row."""
+        points = np.asarray(points, dtype=np.int64)
+        cols = np.asarray(cols, dtype=np.int64).reshape(len(points), -1)
+        if self._cross is not None and self._Qec is None:
+            return self._cross(points, cols)
+        out = np.zeros((len(points), 3, cols.shape[1]))    # whole rows, chunk by chunk
+        pts, inv = np.unique(points, return_inverse=True)
+        inv = inv.ravel()
+        order = np.argsort(inv, kind="stable")
+        bounds = np.searchsorted(inv[order], np.arange(len(pts) + 1))
+        step = max(1, chunk_entries // (3 * max(self.layout.n_reduced, 1)))
+        for lo in range(0, len(pts), step):
+            Q = self._qec_of_points(pts[lo:lo + step])                # (c, 3, n_r)
+            q = order[bounds[lo]:bounds[min(lo + step, len(pts))]]
+            out[q] = Q[(inv[q] - lo)[:, None, None], np.arange(3)[None, :, None],
+                       cols[q][:, None, :]]
+        return out
+
+    def ce_times(self, Ne, chunk_entries=4_000_000):
+        """``sum_p Q_ce[:, p] Ne[p]`` (n_r, q): the cofactors of the reduced
+        unknowns and the eliminated points times ``Ne`` (n_e, 3, q)."""
+        Ne = np.asarray(Ne, dtype=float)
+        if self._ce_times is not None and self._Qec is None:
+            return self._ce_times(Ne)
+        n_e, n_r = self.layout.n_eliminated, self.layout.n_reduced
+        out = np.zeros((n_r, Ne.shape[2]))
+        step = max(1, chunk_entries // (3 * max(n_r, 1)))
+        for lo in range(0, n_e, step):
+            Q = self._qec_of_points(np.arange(lo, min(lo + step, n_e)))   # (c, 3, n_r)
+            out += np.einsum("cin,ciq->nq", Q, Ne[lo:lo + step])
+        return out
+
+    def joint_points(self, points):
+        """The joint cofactors (3 n, 3 n) of the points ``points`` (point
+        numbers of the layout), the cross blocks between points included:
+        the full covariance of chosen points, on request (n^2 memory)."""
+        lay = self.layout
+        cols = lay.point_cols[np.asarray(points, dtype=np.int64)].ravel()
+        n_r = lay.n_reduced
+        if self._blocks is not None and self._Qec is None and np.all(cols >= n_r):
+            return self._blocks.joint((cols[::3] - n_r) // 3)
+        raise NotImplementedError("joint point cofactors need the Schur factorization of "
+                                  "eliminated points (cofactors(problem))")
 
     def block(self, cols_a, cols_b):
         """Cofactors between per-row column sets (N, sa) and (N, sb).
@@ -76,10 +136,8 @@ class Cofactors:
             if not mask.any():
                 continue
             ce, cr = ce[mask], cr[mask]
-            pts, inv = np.unique((ce[:, 0] - n_r) // 3, return_inverse=True)
-            Q = self._qec_of_points(pts)                       # (len, 3, n_r)
-            comp = (ce - n_r) % 3
-            vals = Q[inv.ravel()[:, None, None], comp[:, :, None], cr[:, None, :]]
+            Q = self.cross((ce[:, 0] - n_r) // 3, cr)                  # (len, 3, sr)
+            vals = np.take_along_axis(Q, ((ce - n_r) % 3)[:, :, None], axis=1)
             out[mask] = np.swapaxes(vals, 1, 2) if swap else vals
         m = ~red_a & ~red_b
         if m.any():
@@ -113,29 +171,56 @@ def _cofactors(problem, G):
     lay = problem.layout
     n_r, n_e = lay.n_reduced, lay.n_eliminated
     st = system.structure
-    Minv = fact.reduced_inverse()
-    m = Minv.shape[0] - n_r
-    # Minv with a zero dummy row/column n_r (the padding of the row plan);
-    # the datum conditions follow at g0 = n_r + 1
-    ext = np.zeros((n_r + 1 + m, n_r + 1 + m))
-    keep = np.r_[0:n_r, n_r + 1:n_r + 1 + m]
-    ext[np.ix_(keep, keep)] = Minv
+    fixed = ~lay.free
+    ext = _extended_inverse(fact, n_r, fixed[:n_r])
+    m = ext.shape[0] - n_r - 1
     AinvGe3 = (fact.AinvGe.reshape(n_e, 3, m) if fact.AinvGe is not None
                else np.zeros((n_e, 3, 0)))
-    Qee = _point_cofactors(st, system.WT, fact.Ainv, ext, AinvGe3, n_r + 1)
-    fixed = ~lay.free
-    Qcc = Minv[:n_r, :n_r].copy()
-    Qcc[fixed[:n_r], :] = 0.0
-    Qcc[:, fixed[:n_r]] = 0.0
+    blocks = PointBlocks(st, system.WT, fact.Ainv, ext, AinvGe3, fixed)
+    Qee = _point_cofactors(st, system.WT, fact.Ainv, ext, AinvGe3, n_r + 1, blocks)
+    Qcc = ext[:n_r, :n_r]                     # a view: fixed rows and columns are zero
     fe3 = fixed[n_r:].reshape(-1, 3)
     Qee = Qee * (~fe3[:, :, None]) * (~fe3[:, None, :])
 
     def qec_rows(points):
         return _qec_rows(st, system.WT, fact.Ainv, ext, AinvGe3, n_r, points, fixed)
 
-    cof = Cofactors(lay, Qcc, None, Qee, qec_rows)
+    cof = Cofactors(lay, Qcc, None, Qee, qec_rows, blocks.cross, blocks.ce_times)
+    cof._blocks = blocks
     cof.factorization = fact
     return cof
+
+
+def _extended_inverse(fact, n_r, fixed_c):
+    """``M^-1`` with a zero dummy row/column ``n_r`` (the padding of the
+    E-rows' columns) before the datum conditions (from ``n_r + 1``); the
+    rows and columns of fixed parameters zero (they are decoupled in M:
+    nothing else changes). One (n_r + 1 + m)^2 matrix; the inverse of a
+    Cholesky factor in place (LAPACK potri) when M is not bordered."""
+    if fact.cho is not None:
+        c, lower = fact.cho
+        Minv, info = _potri(c, lower=lower)
+        if info:
+            raise np.linalg.LinAlgError(f"potri failed (info {info})")
+        Minv = np.tril(Minv) if lower else np.triu(Minv)
+        Minv += Minv.T
+        Minv[np.diag_indices(len(Minv))] *= 0.5
+        d = fact.scale
+        Minv *= d[:, None]
+        Minv *= d[None, :]
+    else:
+        Minv = fact.reduced_inverse()
+    m = Minv.shape[0] - n_r
+    ext = np.zeros((n_r + 1 + m, n_r + 1 + m))
+    ext[:n_r, :n_r] = Minv[:n_r, :n_r]
+    if m:
+        ext[:n_r, n_r + 1:] = Minv[:n_r, n_r:]
+        ext[n_r + 1:, :n_r] = Minv[n_r:, :n_r]
+        ext[n_r + 1:, n_r + 1:] = Minv[n_r:, n_r:]
+    del Minv
+    ext[:n_r][fixed_c] = 0.0
+    ext[:, :n_r][:, fixed_c] = 0.0
+    return ext
 
 
 def s_transform(cof, T, Tp, QTp, layout=None):
@@ -175,12 +260,23 @@ def s_transform(cof, T, Tp, QTp, layout=None):
         Tq, Uq = Te[points], Ue[points]
         return (old(points) - Uq @ Tc.T - Tq @ Uc.T + Tq @ (H @ Tc.T))
 
-    return Cofactors(lay, Qcc, None, Qee, qec_rows)
+    def cross(points, cols):
+        Tq, Uq = Te[points], Ue[points]                        # (n, 3, k)
+        Tk, Uk = np.swapaxes(Tc[cols], 1, 2), np.swapaxes(Uc[cols], 1, 2)   # (n, k, sr)
+        return cof.cross(points, cols) - Uq @ Tk - Tq @ Uk + Tq @ (H @ Tk)
+
+    def ce_times(Ne):
+        UN = np.einsum("pik,piq->kq", Ue, Ne)
+        TN = np.einsum("pik,piq->kq", Te, Ne)
+        return cof.ce_times(Ne) - Tc @ UN - Uc @ TN + Tc @ (H.T @ TN)
+
+    return Cofactors(lay, Qcc, None, Qee, qec_rows, cross, ce_times)
 
 
-def _point_cofactors(st, WT, Ainv, ext, AinvGe3, g0):
-    """``Q_ee,p = A_p^-1 + V_p M^-1 V_p^T`` for every eliminated point,
-    summed over the pairs of its E-rows (compiled or numpy, in chunks)."""
+def _point_cofactors(st, WT, Ainv, ext, AinvGe3, g0, blocks):
+    """``Q_ee,p = A_p^-1 + V_p M^-1 V_p^T`` for every eliminated point:
+    compiled (summed over the pairs of E-rows of each point) or numpy
+    (:meth:`PointBlocks.point_cofactors`, chunks of points)."""
     n_e = len(Ainv)
     if st.n_e_rows == 0 or st.s == 0:
         Qee = Ainv.copy()
@@ -193,23 +289,7 @@ def _point_cofactors(st, WT, Ainv, ext, AinvGe3, g0):
         kernels.compiled().point_cofactors(WT, Ainv, st.pt_ptr, st.pt_rows, st.e_rcols, ext,
                                 np.ascontiguousarray(AinvGe3), g0, Qee)
         return Qee
-    Z = np.matmul(Ainv[st.e_point], WT)                           # (n, 3, s)
-    Qee = Ainv.copy()
-    flat9 = np.arange(9)
-    for pt, a, b in st.point_pairs(budget=500_000):
-        Mab = ext[st.e_rcols[a][:, :, None], st.e_rcols[b][:, None, :]]       # (c, s, s)
-        contrib = np.matmul(np.matmul(Z[a], Mab), np.swapaxes(Z[b], 1, 2))  # (c, 3, 3)
-        Qee += np.bincount((pt[:, None] * 9 + flat9).ravel(), weights=contrib.ravel(),
-                           minlength=9 * n_e).reshape(n_e, 3, 3)
-    m = AinvGe3.shape[2]
-    if m:
-        rows = st.pt_rows
-        Xr = np.matmul(Z[rows], ext[st.e_rcols[rows]][:, :, g0:])           # (n, 3, m)
-        X = np.zeros((n_e, 3, m))
-        np.add.at(X, st.e_point[rows], Xr)
-        XA = np.matmul(X, np.swapaxes(AinvGe3, 1, 2))
-        Qee += XA + np.swapaxes(XA, 1, 2) + AinvGe3 @ ext[g0:, g0:] @ np.swapaxes(AinvGe3, 1, 2)
-    return Qee
+    return blocks.point_cofactors()
 
 
 def _qec_rows(st, WT, Ainv, ext, AinvGe3, n_r, points, fixed, chunk_entries=4_000_000):

@@ -82,14 +82,19 @@ def interior_sensitivity(problem, camera_names, project, labels):
         np.add.at(add_st, blk.station, prod_st)
         N_pt[:, :, cols[ok]] += add_pt
         N_st[:, :, cols[ok]] += add_st
-    st_cols = lay.station_cols                                         # (n_s, 6)
-    D = np.zeros((n_s, 6, n_io))
-    for s in range(n_s):      # stations are few; each row set against all unknowns
-        a = np.repeat(st_cols[s][None], n_s, axis=0)
-        D[s] -= np.einsum("kab,kbq->aq", cof.block(a, st_cols), N_st)
-        a = np.repeat(st_cols[s][None], n_p, axis=0)
-        D[s] -= np.einsum("kab,kbq->aq", cof.block(a, lay.point_cols), N_pt)
-    return D.reshape(6 * n_s, n_io), cof
+    # D = -(Q N)[stations], N the stacked N_st and N_pt: the station block of
+    # Q_cc times N_st plus the cross cofactors times N_pt (point by point)
+    st_cols = lay.station_cols.ravel()                                # (6 n_s,)
+    D = -(cof.Qcc[np.ix_(st_cols, st_cols)] @ N_st.reshape(6 * n_s, n_io))
+    elim = ~lay.reduced_points
+    if elim.all():
+        D -= cof.ce_times(N_pt)[st_cols]
+    else:                     # coupled points are reduced unknowns: Q_cc
+        pc = lay.point_cols[~elim].ravel()
+        D -= cof.Qcc[np.ix_(st_cols, pc)] @ N_pt[~elim].reshape(-1, n_io)
+        if elim.any():
+            D -= cof.ce_times(N_pt[elim])[st_cols]
+    return D, cof
 
 
 def station_rotation_to_angles(problem):

@@ -16,20 +16,21 @@ from scipy.stats import chi2, norm
 
 from photogram.adjust.solver import solve
 from photogram.stats.covariance import cofactors
+from photogram.stats.leverage import leverage_diagonal
 
 
 def redundancy_numbers(problem, cof=None):
     """Redundancy number of every residual of every block: list of (N, d)
-    arrays (0 for observations that are not used)."""
+    arrays (0 for observations that are not used).
+
+    Blockwise (:func:`photogram.stats.leverage.leverage_diagonal`): each
+    row needs the cofactors of its own columns only, so the memory grows
+    with the observations and points."""
     cof = cof if cof is not None else cofactors(problem)
     _, Js = problem.evaluate(problem.state)
     out = []
     for k, (blk, J) in enumerate(zip(problem.blocks, Js)):
-        h = np.zeros((len(blk), blk.dim))
-        for a, (Ja, ca) in enumerate(zip(J, blk.slot_cols)):
-            for b, (Jb, cb) in enumerate(zip(J, blk.slot_cols)):
-                Q = cof.block(ca, cb)
-                h += np.einsum("nda,nab,ndb->nd", Ja, Q, Jb)
+        h = leverage_diagonal(cof, J, blk.slot_cols)
         used = problem.weights(k) > 0
         out.append(np.where(used, 1.0 - h, 0.0))
     return out
@@ -84,14 +85,10 @@ def leverages(problem, cof, k, rows):
     with np.errstate(divide="ignore"):
         wgt = 1.0 / (blk.sigma[rows] * np.sqrt(problem.variance[blk.group]))
     wgt = np.where(np.isfinite(wgt), wgt, 0.0)
-    h = np.zeros((len(rows), blk.dim))
-    for a, (Ja, ca) in enumerate(zip(J, blk.slot_cols)):
-        Ja = Ja[rows] * wgt[:, :, None] * problem.layout.free[ca[rows]][:, None, :]
-        for b, (Jb, cb) in enumerate(zip(J, blk.slot_cols)):
-            Jb = Jb[rows] * wgt[:, :, None] * problem.layout.free[cb[rows]][:, None, :]
-            Q = cof.block(ca[rows], cb[rows])
-            h += np.einsum("nda,nab,ndb->nd", Ja, Q, Jb)
-    return h
+    free = problem.layout.free
+    Jw = [Ja[rows] * wgt[:, :, None] * free[ca[rows]][:, None, :]
+          for Ja, ca in zip(J, blk.slot_cols)]
+    return leverage_diagonal(cof, Jw, [ca[rows] for ca in blk.slot_cols])
 
 
 @dataclass

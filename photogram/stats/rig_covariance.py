@@ -71,3 +71,29 @@ def with_rig_cofactors(cof, problem) -> None:
         cof._qec_rows = qec_rows
     if cof._Qec is not None:
         cof._Qec = np.asarray((A @ cof._Qec.T).T)
+    if cof._ce_times is not None:
+        inner_times = cof._ce_times
+        cof._ce_times = lambda Ne: np.asarray(A @ inner_times(Ne))
+    if cof._cross is not None:
+        cof._cross = _mapped_cross(cof._cross, A)
+
+
+def _mapped_cross(inner, A):
+    """The cross cofactors ``Q_ec A^T`` at given columns: each column c
+    of a row expands to the (at most 12) columns of ``A``'s row c."""
+    A = sp.csr_matrix(A)
+    nnz = np.diff(A.indptr)
+    width = max(int(nnz.max(initial=1)), 1)
+    pos = np.arange(A.shape[0])[:, None]
+    k = np.arange(width)[None, :]
+    take = np.minimum(A.indptr[:-1][:, None] + k, max(len(A.indices) - 1, 0))
+    ok = k < nnz[:, None]
+    cols_of = np.where(ok, A.indices[take], pos)                  # (n_r, width)
+    vals_of = np.where(ok, A.data[take], 0.0)
+
+    def cross(points, cols):
+        n, sr = cols.shape
+        Q = inner(points, cols_of[cols].reshape(n, sr * width)).reshape(n, 3, sr, width)
+        return np.einsum("nisw,nsw->nis", Q, vals_of[cols])
+
+    return cross
