@@ -47,8 +47,8 @@ def run(project, *, command, output=None, fix_interior=False, report=True):
                       point_extra=result.point_extra,
                       log_text=_log_text(command, project.path, result.summary))
         _write_covariance(stage.path / "covariance.npz", result)
-        if report:
-            write_report(stage.path)
+        if report:                  # the project as read (adjust works on a copy)
+            write_report(stage.path, project=project)
     if result.summary["status"] != "converged":
         raise GeometryError(f"{result.summary['message']}; the unconverged results are in {folder}",
                             hint="raise [adjustment] max_iterations or improve the approximate values")
