@@ -153,12 +153,19 @@ def _control_rows(data):
     return rows
 
 
+def _largest(values) -> float:
+    """The largest finite value (NaN when there is none: printed as '-')."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    return float(v.max()) if v.size else float("nan")
+
+
 def _diff_table(doc, data, rows, title, note=None):
     lu = data.length_unit
     out = []
     for pid, d, prior in rows:
         out.append([pid, num(d[0], 3), num(d[1], 3), num(d[2], 3), num(np.hypot(d[0], d[1]), 3),
-                     num(np.linalg.norm(d), 3)] + ([sig(np.nanmax(prior))] if prior is not None
+                     num(np.linalg.norm(d), 3)] + ([sig(_largest(prior))] if prior is not None
                                                    else []))
     if rows:
         D = np.array([d for _, d, _ in rows])
