@@ -9,7 +9,7 @@ from matplotlib.ticker import MaxNLocator
 
 from photogram.report.layout import decorate, equal_limits
 from photogram.report.registry import section
-from photogram.report.shapes import dense
+from photogram.report.shapes import dense, ray_layer
 
 _STYLE = {"control": ("^", "tab:red", 14), "check": ("s", "tab:orange", 12),
           "tie": ("o", "0.3", 3)}
@@ -41,6 +41,12 @@ def _equal_box(ax, xyz):
     ax.set_box_aspect((1, 1, 1))
 
 
+def _plan_limits(ax, allp, size):
+    """Equal-scale limits of the plan view around every point and camera."""
+    pad = 0.05 * size
+    equal_limits(ax, allp[:, :2].min(axis=0) - pad, allp[:, :2].max(axis=0) + pad)
+
+
 @section("network", "Network", 70, applies=lambda d: len(d.results.stations) > 0)
 def build(doc, data):
     lu = data.length_unit
@@ -56,7 +62,8 @@ def build(doc, data):
         "points (red triangles: control, orange squares: check, grey dots: tie or object "
         "points) in 3D and in plan; " + (
             "in the plan view every ray from a camera to a point it measured (used "
-            "observations of residuals.csv) is drawn as a thin blue line." if rays else
+            "observations of residuals.csv) is drawn as a thin blue line (beyond 2500 rays as "
+            "one image of the stacked lines, darker where more rays cross)." if rays else
             "no rays are drawn: residuals.csv lists no used observation of these stations.")))
     ax3, = doc.axes(4.4, projection="3d", pad_left=0.3, pad_bottom=0.2, pad_top=0.1)
     for kind, (marker, colour, ms) in _STYLE.items():
@@ -90,10 +97,12 @@ def build(doc, data):
         idx = pd.Series({n: i for i, n in enumerate(names)})
         a = C[idx.loc[r["station"].to_numpy()[ok]].to_numpy(int), :2]
         b = pts.loc[r["point"].to_numpy()[ok], ["X", "Y"]].to_numpy(float)
-        # limits: equal_limits below (autolim would measure every ray)
-        ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors="tab:blue",
-                                         lw=0.3, alpha=0.15, rasterized=dense(len(a))),
-                          autolim=False)
+        if dense(len(a)):       # one image of the stacked rays (ray_layer), limits first
+            _plan_limits(ax, allp, size)
+            ray_layer(ax, a, b, "tab:blue", 0.15, zorder=1)
+        else:                   # limits: _plan_limits below (autolim would measure every ray)
+            ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors="tab:blue",
+                                             lw=0.3, alpha=0.15), autolim=False)
     for kind, (marker, colour, ms) in _STYLE.items():
         m = kinds == kind
         if m.any():
@@ -105,8 +114,7 @@ def build(doc, data):
                   scale=1 / (0.12 * size), width=0.003, color="black", zorder=4)
         for c, n in zip(C, names):
             ax.annotate(n, c[:2], xytext=(3, 3), textcoords="offset points", size=6.5)
-    pad = 0.05 * size
-    equal_limits(ax, allp[:, :2].min(axis=0) - pad, allp[:, :2].max(axis=0) + pad)
+    _plan_limits(ax, allp, size)
     ax.grid(True, lw=0.3)
     ax.ticklabel_format(useOffset=False, style="plain")
     decorate(ax, "plan (X, Y)", f"X [{lu}]", f"Y [{lu}]", ypad=0.75)

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 __all__ = ["convex_hull", "polygon_area", "ellipse", "nice", "coverage_fraction",
-           "segments_path", "cell_means"]
+           "segments_path", "cell_means", "ray_counts", "ray_layer"]
 
 
 def convex_hull(xy) -> np.ndarray:
@@ -214,3 +214,82 @@ def cell_means(xy, v, size, ncols: int = 24):
     full = np.flatnonzero(n)
     centres = np.stack([(full % ncols + 0.5) * cell, (full // ncols + 0.5) * cell], axis=1)
     return centres, sums[full] / n[full, None], n.reshape(nrows, ncols)
+
+
+def ray_counts(a, b, extent, shape, chunk: int = 1_000_000) -> np.ndarray:
+    """How many of the segments ``a[i] -> b[i]`` cross each pixel of a grid.
+
+    Every segment is walked as a digital line (DDA): one sample per pixel
+    step along its longer axis and one at its end (unless that falls in the
+    pixel of the step before), so a segment counts once in each pixel
+    column (or row) it crosses, as a one-pixel aliased line. Samples outside
+    the grid are dropped.
+
+    Parameters
+    ----------
+    a, b : array_like (n, 2)
+        Segment ends in data coordinates.
+    extent : (x0, x1, y0, y1)
+        The data rectangle the grid covers.
+    shape : (rows, cols)
+        Grid size in pixels; row 0 is at ``y0`` (``imshow(origin="lower")``).
+    chunk : int
+        Samples handled at once (bounds the memory).
+
+    Returns
+    -------
+    ndarray (rows, cols) of int
+    """
+    a, b = np.asarray(a, float).reshape(-1, 2), np.asarray(b, float).reshape(-1, 2)
+    rows, cols = int(shape[0]), int(shape[1])
+    x0, x1, y0, y1 = (float(v) for v in extent)
+    scale = np.array([cols / (x1 - x0), rows / (y1 - y0)])
+    pa = (a - [x0, y0]) * scale                     # pixel coordinates
+    pb = (b - [x0, y0]) * scale
+    ok = np.all(np.isfinite(pa) & np.isfinite(pb), axis=1)
+    pa, pb = pa[ok], pb[ok]
+    length = np.abs(pb - pa).max(axis=1)            # along the longer axis, in pixels
+    steps = np.ceil(length).astype(np.int64) + 1
+    counts = np.zeros(rows * cols, np.int64)
+    ends = np.cumsum(steps)
+    start = 0
+    while start < len(steps):                       # segments in chunks of samples
+        stop = int(np.searchsorted(ends, ends[start - 1] + chunk if start else chunk,
+                                   side="right"))
+        stop = max(stop, start + 1)
+        n = steps[start:stop]
+        seg = np.repeat(np.arange(start, stop), n)
+        k = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+        L = length[seg]
+        t = np.minimum(k, L) / np.maximum(L, 1e-300)  # one pixel steps, the last to the end
+        xy = pa[seg] + t[:, None] * (pb[seg] - pa[seg])
+        ij = np.floor(xy).astype(np.int64)
+        last = np.zeros(len(k), bool)
+        last[np.cumsum(n) - 1] = True
+        again = np.zeros(len(k), bool)              # the end in the pixel of the step before
+        again[1:] = last[1:] & (k[1:] > 0) & np.all(ij[1:] == ij[:-1], axis=1)
+        inside = ((ij[:, 0] >= 0) & (ij[:, 0] < cols) & (ij[:, 1] >= 0) & (ij[:, 1] < rows)
+                  & ~again)
+        counts += np.bincount(ij[inside, 1] * cols + ij[inside, 0], minlength=rows * cols)
+        start = stop
+    return counts.reshape(rows, cols)
+
+
+def ray_layer(ax, a, b, color, alpha: float, dpi: float = 150.0, **kwargs):
+    """Draw many segments as one image: each pixel gets the colour with the
+    opacity of its stacked lines, ``1 - (1 - alpha)^count``
+    (:func:`ray_counts`), as a collection of lines of opacity ``alpha``
+    composites. Call after the axes limits are final.
+    Returns the AxesImage."""
+    from matplotlib.colors import to_rgb
+
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    bbox = ax.get_window_extent().transformed(ax.figure.dpi_scale_trans.inverted())
+    shape = (max(int(round(bbox.height * dpi)), 1), max(int(round(bbox.width * dpi)), 1))
+    counts = ray_counts(a, b, (x0, x1, y0, y1), shape)
+    rgba = np.empty(shape + (4,))
+    rgba[..., :3] = to_rgb(color)
+    rgba[..., 3] = 1.0 - (1.0 - alpha) ** counts
+    return ax.imshow(rgba, extent=(x0, x1, y0, y1), origin="lower", interpolation="nearest",
+                     aspect="auto", **kwargs)
