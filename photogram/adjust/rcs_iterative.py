@@ -52,14 +52,18 @@ class SchurOperator:
         self.n_r, self.n_e = st.n_r, st.layout.n_eliminated
         rows = st.pt_rows
         self.ptr = st.pt_ptr
-        self.WTp = system.WT[rows]                          # (n, 3, s), by point
         self.rcp = st.e_rcols[rows]
         self.pidx = st.e_point[rows]
         self.grp = st.e_group[rows]
         self.fast = kernels.active(st.n_e_rows)
+        # numba: W_o^T copied into point order; numpy: W^T as a CSR matrix
+        self.WTp = system.WT[rows] if self.fast else None
+        self.Wt = None if self.fast else _wt_matrix(st, system.WT)
 
     def w_times_e(self, y):
         """``W y`` (n_r,) for y (n_e, 3)."""
+        if self.Wt is not None:
+            return (self.Wt.T @ y.ravel())[:self.n_r]
         u = np.einsum("nis,ni->ns", self.WTp, y[self.pidx])
         return np.bincount(self.rcp.ravel(), weights=u.ravel(), minlength=self.n_r + 1)[:self.n_r]
 
@@ -69,28 +73,71 @@ class SchurOperator:
             out = np.zeros(self.n_r + 1)
             kernels.compiled().schur_matvec(self.WTp, self.rcp, self.ptr, self.Ainv, x_ext, out)
             return self.Ncc @ x - out[:self.n_r]
-        v = np.einsum("nis,ns->ni", self.WTp, x_ext[self.rcp])
-        y = np.stack([np.bincount(self.pidx, weights=v[:, i], minlength=self.n_e)
-                      for i in range(3)], axis=1)
-        z = np.einsum("nij,nj->ni", self.Ainv, y)
+        y = (self.Wt @ x_ext).reshape(self.n_e, 3)
+        A = self.Ainv
+        z = A[:, :, 0] * y[:, :1] + A[:, :, 1] * y[:, 1:2] + A[:, :, 2] * y[:, 2:]
         return self.Ncc @ x - self.w_times_e(z)
+
+
+def _wt_matrix(st, WT):
+    """``W^T`` as a CSR matrix (3 n_e x (n_r + 1), the last column the
+    padding dummy): row ``3 p + i`` holds ``WT[o, i, :]`` of every
+    coupling E-row o of point p. The pattern (where each entry of ``WT``
+    goes) is computed once per structure; then one scatter per
+    linearization (the numpy path's products are scipy's compiled sparse
+    products)."""
+    s = WT.shape[2]
+    plan = getattr(st, "_wt_plan", None)
+    if plan is None:
+        ptr, pt_rows = st.pt_ptr, st.pt_rows
+        n = len(pt_rows)
+        n_e = len(ptr) - 1
+        c = np.diff(ptr)
+        rows = np.sort(pt_rows)                                  # E-row order
+        k = np.empty(st.n_e_rows, dtype=np.int64)
+        k[pt_rows] = np.arange(n)
+        k = k[rows]                                              # place in point order
+        p = st.e_point[rows]
+        base = 3 * s * ptr[p] + (k - ptr[p]) * s
+        dest = (base[:, None, None] + (np.arange(3) * s)[None, :, None] * c[p][:, None, None]
+                + np.arange(s)[None, None, :])
+        itype = np.int32 if 3 * s * n < 2 ** 31 - 1 else np.int64
+        dest = dest.astype(itype).ravel()
+        indices = np.empty(3 * s * n, dtype=itype)
+        indices[dest] = np.broadcast_to(st.e_rcols[rows][:, None, :], (len(rows), 3, s)).ravel()
+        indptr = (3 * s * ptr[:-1, None] + np.arange(3)[None, :] * s * c[:, None]).ravel()
+        indptr = np.append(indptr, 3 * s * n).astype(itype)
+        whole = len(rows) == st.n_e_rows
+        plan = (dest, indices, indptr, n_e, None if whole else rows)
+        st._wt_plan = plan
+    dest, indices, indptr, n_e, rows = plan
+    data = np.empty(len(dest))
+    data[dest] = (WT if rows is None else WT[rows]).ravel()
+    Wt = sp.csr_matrix((3 * n_e, st.n_r + 1))
+    Wt.data, Wt.indices, Wt.indptr = data, indices, indptr
+    return Wt
+
+
+def _merged_rows_plan(op):
+    """Starts of the (group, point) runs of the point-ordered coupling
+    rows, or None when every point has at most one row per group."""
+    st = op.system.structure
+    if getattr(st, "_gp_plan", None) is None:
+        key = op.pidx * max(st.n_groups, 1) + op.grp          # sorted by point, then group
+        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else None
+        st._gp_plan = ("merge", None if starts is None or len(starts) == len(key) else starts)
+    return st._gp_plan[1]
 
 
 def _merged_rows(op):
     """Per (group, point) the summed ``W_gp^T`` (3 x s), its group and
-    point; the E-rows themselves when no point has two rows in one group
-    (the plan is cached on the structure)."""
-    st = op.system.structure
-    plan = getattr(st, "_gp_plan", None)
-    if plan is None:
-        key = op.pidx * max(st.n_groups, 1) + op.grp          # point-major, sorted by point
-        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else None
-        plan = None if starts is None or len(starts) == len(key) else starts
-        st._gp_plan = ("merge", plan)
-    starts = st._gp_plan[1]
+    point; the point-ordered E-rows themselves when no point has two rows
+    in one group."""
+    starts = _merged_rows_plan(op)
+    WTp = op.WTp if op.WTp is not None else op.system.WT[op.system.structure.pt_rows]
     if starts is None:
-        return op.WTp, op.grp, op.pidx
-    return np.add.reduceat(op.WTp, starts, axis=0), op.grp[starts], op.pidx[starts]
+        return WTp, op.grp, op.pidx
+    return np.add.reduceat(WTp, starts, axis=0), op.grp[starts], op.pidx[starts]
 
 
 def _ncc_group_blocks(Ncc, gc, n_r):
@@ -106,6 +153,41 @@ def _ncc_group_blocks(Ncc, gc, n_r):
     return vals
 
 
+def _cholesky3(A):
+    """Lower Cholesky factors (n, 3, 3) of SPD 3x3 blocks (closed form)."""
+    L = np.zeros_like(A)
+    L[:, 0, 0] = l00 = np.sqrt(A[:, 0, 0])
+    L[:, 1, 0] = l10 = A[:, 1, 0] / l00
+    L[:, 2, 0] = l20 = A[:, 2, 0] / l00
+    L[:, 1, 1] = l11 = np.sqrt(np.maximum(A[:, 1, 1] - l10 * l10, 0.0))
+    L[:, 2, 1] = l21 = (A[:, 2, 1] - l20 * l10) / np.where(l11 > 0, l11, 1.0)
+    L[:, 2, 2] = np.sqrt(np.maximum(A[:, 2, 2] - l20 * l20 - l21 * l21, 0.0))
+    return L
+
+
+def _group_schur_grams(system, Ainv):
+    """``sum_o W_o A_p^-1 W_o^T`` per row group (n_g, s, s), numpy path:
+    with ``A_p^-1 = L L^T`` every row gives ``V_o = L^T W_o^T`` (3 x s) and
+    a group's sum is one BLAS Gram matrix of its stacked ``V_o`` (the
+    E-rows of a group are contiguous)."""
+    st = system.structure
+    rows = np.sort(st.pt_rows)
+    WT = system.WT if len(rows) == st.n_e_rows else system.WT[rows]
+    grp = st.e_group[rows]
+    L = _cholesky3(Ainv)[st.e_point[rows]]                   # (n, 3, 3)
+    V = np.empty_like(WT)
+    for i in range(3):
+        V[:, i, :] = sum(L[:, k, i, None] * WT[:, k, :] for k in range(i, 3))
+    n_g, s = st.group_cols.shape
+    out = np.zeros((n_g, s, s))
+    starts = np.flatnonzero(np.r_[True, grp[1:] != grp[:-1]])
+    ends = np.r_[starts[1:], len(grp)]
+    for g, lo, hi in zip(grp[starts], starts, ends):
+        Vg = V[lo:hi].reshape(-1, s)
+        out[g] += Vg.T @ Vg
+    return out
+
+
 def schur_jacobi(op):
     """The Schur-Jacobi preconditioner of a :class:`SchurOperator`: a
     function ``z = P^-1 r``."""
@@ -116,15 +198,18 @@ def schur_jacobi(op):
     n_g, s = gc.shape
     blocks = _ncc_group_blocks(Ncc, gc, n_r)
     if len(st.pt_rows) and s:
-        WT, grp, pt = _merged_rows(op)
-        if op.fast:
-            kernels.compiled().jacobi_rows(WT, Ainv, grp, pt, blocks)
+        if not op.fast and _merged_rows_plan(op) is None:
+            blocks -= _group_schur_grams(system, Ainv)
         else:
-            Y = np.matmul(Ainv[pt], WT)                      # (n, 3, s)
-            Z = np.einsum("nis,nit->nst", WT, Y).reshape(len(WT), -1)
-            flat = blocks.reshape(n_g, -1)
-            for k in range(s * s):
-                flat[:, k] -= np.bincount(grp, weights=Z[:, k], minlength=n_g)
+            WT, grp, pt = _merged_rows(op)
+            if op.fast:
+                kernels.compiled().jacobi_rows(WT, Ainv, grp, pt, blocks)
+            else:
+                Y = np.matmul(Ainv[pt], WT)                  # (n, 3, s)
+                Z = np.einsum("nis,nit->nst", WT, Y).reshape(len(WT), -1)
+                flat = blocks.reshape(n_g, -1)
+                for k in range(s * s):
+                    flat[:, k] -= np.bincount(grp, weights=Z[:, k], minlength=n_g)
     pad = gc >= n_r
     blocks[:, np.arange(s), np.arange(s)] += pad
     try:
