@@ -110,17 +110,20 @@ def test_schur_jacobi_blocks_are_the_diagonal_blocks_of_the_rcs(kernel_path):
     np.testing.assert_allclose(apply(x), np.linalg.solve(block, x), rtol=1e-8)
 
 
-def test_automatic_choice():
+def test_automatic_choice(kernel_path):
     small = _sphere(n=12)                          # 108 reduced columns
     opt = SolverOptions()
-    assert opt.linear_solver == "auto" and opt.iterative_min_columns == 1500
+    assert opt.linear_solver == "auto" and opt.iterative_min_columns is None
     assert rcs_method(small, opt) == "dense"
     assert rcs_method(small, SolverOptions(iterative_min_columns=100)) == "iterative"
     assert rcs_method(small, SolverOptions(linear_solver="iterative")) == "iterative"
-    big = _sphere(n=170, obs=30)                   # 1530 reduced columns
+    mid = _sphere(n=170, obs=30)                   # 1530 reduced columns
+    # the default switch: 1500 columns with the numba kernels, 4000 without
+    assert rcs_method(mid, opt) == ("iterative" if kernel_path == "numba" else "dense")
+    big = _sphere(n=450, obs=12)                   # 4050 reduced columns
     assert rcs_method(big, opt) == "iterative"
     assert rcs_method(big, SolverOptions(linear_solver="dense")) == "dense"
-    inner = _sphere(n=170, obs=30, datum="inner")  # datum conditions: dense only
+    inner = _sphere(n=450, obs=12, datum="inner")  # datum conditions: dense only
     assert rcs_method(inner, opt) == "dense"
     with pytest.raises(ValueError):
         rcs_method(inner, SolverOptions(linear_solver="iterative"))

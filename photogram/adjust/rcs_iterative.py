@@ -52,13 +52,21 @@ class SchurOperator:
         self.n_r, self.n_e = st.n_r, st.layout.n_eliminated
         rows = st.pt_rows
         self.ptr = st.pt_ptr
-        self.rcp = st.e_rcols[rows]
-        self.pidx = st.e_point[rows]
-        self.grp = st.e_group[rows]
+        if getattr(st, "_pt_index", None) is None:       # fixed: once per structure
+            st._pt_index = (st.e_rcols[rows], st.e_point[rows], st.e_group[rows])
+        self.rcp, self.pidx, self.grp = st._pt_index
         self.fast = kernels.active(st.n_e_rows)
         # numba: W_o^T copied into point order; numpy: W^T as a CSR matrix
-        self.WTp = system.WT[rows] if self.fast else None
-        self.Wt = None if self.fast else _wt_matrix(st, system.WT)
+        # (once per linearization: repeated damped solves reuse it)
+        cache = system.__dict__.setdefault("_rcs_cache", {})
+        if self.fast:
+            if "WTp" not in cache:
+                cache["WTp"] = system.WT[rows]
+            self.WTp, self.Wt = cache["WTp"], None
+        else:
+            if "Wt" not in cache:
+                cache["Wt"] = _wt_matrix(st, system.WT)
+            self.WTp, self.Wt = None, cache["Wt"]
 
     def w_times_e(self, y):
         """``W y`` (n_r,) for y (n_e, 3)."""

@@ -22,12 +22,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from photogram.adjust import kernels
 from photogram.adjust.diagnostics import worst_observations
 from photogram.adjust.normal import Structure, assemble
 from photogram.adjust.schur import RCS_METHODS, solve as schur_solve
 from photogram.errors import GeometryError
 
 DAMPINGS = ("none", "lm", "armijo", "trust_region")
+# reduced columns from which "auto" solves the RCS iteratively: {numba: n}
+ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000}
 
 
 @dataclass
@@ -51,8 +54,9 @@ class SolverOptions:
     with the Schur-Jacobi preconditioner, never forming the RCS: Ceres'
     ITERATIVE_SCHUR; :mod:`photogram.adjust.rcs_iterative`) or ``"auto"``
     (default): iterative when the problem has no datum conditions (inner
-    constraints) and at least ``iterative_min_columns`` reduced columns,
-    dense otherwise. CG stops when the preconditioned residual has
+    constraints) and at least ``iterative_min_columns`` reduced columns
+    (None: 1500 when the numba kernels run, 4000 on the pure-numpy path,
+    the crossovers measured on SIMULATED BAL problems), dense otherwise. CG stops when the preconditioned residual has
     fallen by ``cg_tolerance`` or after ``cg_max_iterations`` steps.
     """
 
@@ -74,7 +78,7 @@ class SolverOptions:
     max_invalid_steps: int = 10
     # the reduced camera system
     linear_solver: str = "auto"       # auto | dense | iterative
-    iterative_min_columns: int = 1500
+    iterative_min_columns: int | None = None   # None: 1500 with numba kernels, 4000 without
     cg_tolerance: float = 1e-2
     cg_max_iterations: int = 500
 
@@ -261,7 +265,10 @@ def rcs_method(problem: Problem, options: SolverOptions) -> str:
                          "(inner constraints); use 'dense'")
     if choice != "auto":
         return choice
-    big = problem.layout.n_reduced >= options.iterative_min_columns
+    least = options.iterative_min_columns
+    if least is None:
+        least = ITERATIVE_MIN_COLUMNS[kernels.active(problem.structure.n_e_rows)]
+    big = problem.layout.n_reduced >= least
     return "iterative" if big and problem.G is None and problem.structure.n_e_rows else "dense"
 
 
