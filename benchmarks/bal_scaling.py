@@ -25,12 +25,14 @@ cameras for DENSE_SCHUR, linear otherwise) or at more than
 ``--ceres-max-obs`` observations.
 
 Run: /work/venv-bal/bin/python benchmarks/bal_scaling.py
-     [--cameras 100,333,1000,3333] [--iterations 5] [--no-numpy] [--seed 1]
+     [--cameras 100,333,1000,3333] [--iterations 4] [--no-numpy] [--seed 1]
+     [--ceres-from earlier_output.txt]
 Prints a table and ``RESULT key=value ...``.
 """
 
 import argparse
 import math
+import re
 import sys
 import time
 from pathlib import Path
@@ -91,6 +93,23 @@ def ceres_run(bal, iterations, kind, threads):
             "final": cs.final_cost}
 
 
+def earlier_ceres(path):
+    """Ceres rows of an earlier output: {cameras: {(kind, threads): row}}."""
+    out, n_c = {}, None
+    for line in path.read_text().splitlines():
+        words = line.split()
+        if len(words) > 2 and words[1] == "cameras," and words[0].isdigit():
+            n_c = int(words[0])
+            out[n_c] = {}
+        elif words[:1] == ["Ceres"] and n_c is not None:
+            key = (words[1], int(words[2]))
+            m = re.search(r"thr\s+([\d.]+) \(\s*([\d.]+)\)\s+(\d+) it, cost (\S+)", line)
+            out[n_c][key] = None if m is None else {
+                "cpu": float(m[1]), "wall": float(m[2]), "iterations": int(m[3]),
+                "final": float(m[4])}
+    return out
+
+
 def predicted(history, kind, n_cams, iterations):
     """Extrapolated CPU seconds of a Ceres setting at ``n_cams`` cameras
     from its largest run so far (None: no run yet)."""
@@ -110,13 +129,16 @@ def fit_exponent(obs, t):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cameras", default="100,333,1000,3333")
-    ap.add_argument("--iterations", type=int, default=5)
+    ap.add_argument("--iterations", type=int, default=4)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-numpy", action="store_true", help="skip the pure-numpy path")
     ap.add_argument("--no-ceres", action="store_true")
     ap.add_argument("--ceres-limit", type=float, default=600.0)
     ap.add_argument("--ceres-max-obs", type=float, default=1.1e7)
     ap.add_argument("--numpy-max-obs", type=float, default=1.1e7)
+    ap.add_argument("--ceres-from", type=Path, default=None,
+                    help="take the Ceres rows from this earlier output of the script (same "
+                         "--seed and --iterations) instead of running Ceres again")
     args = ap.parse_args()
     try:
         import pycolmap  # noqa: F401
@@ -140,7 +162,9 @@ def main():
         if not args.no_numpy and n_obs <= args.numpy_max_obs:
             row["numpy"] = photogram_run(bal, args.iterations, False)
         row["ceres"] = {}
-        if have_ceres and n_obs <= args.ceres_max_obs:
+        if args.ceres_from is not None:
+            row["ceres"] = earlier_ceres(args.ceres_from).get(n_c, {})
+        elif have_ceres and n_obs <= args.ceres_max_obs:
             for kind, threads in SETTINGS:
                 guess = predicted(hist[(kind, threads)], kind, n_c, args.iterations)
                 if guess is not None and guess > args.ceres_limit:
