@@ -217,8 +217,9 @@ def summary(rows):
         if len(have) > 1:
             res[f"exponent_{key}"] = f"{fit_exponent(*zip(*have)):.2f}"
     res["max_obs"] = max(obs)
-    res["max_ratio_numba_ceres"] = f"{worst_nb:.2f}"
-    res["max_ratio_numpy_ceres"] = f"{worst_np:.2f}"
+    compared = any(any(r["ceres"].values()) for r in rows)
+    res["max_ratio_numba_ceres"] = f"{worst_nb:.2f}" if compared and worst_nb else "n/a"
+    res["max_ratio_numpy_ceres"] = f"{worst_np:.2f}" if compared and worst_np else "n/a"
     res["ceres_max_obs"] = max((r["obs"] for r in rows if any(r["ceres"].values())), default=0)
     res["data"] = "SIMULATED"
     print("RESULT " + " ".join(f"{k}={v}" for k, v in res.items()))
