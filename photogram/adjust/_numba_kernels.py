@@ -272,3 +272,50 @@ def bal_rows(xy, points, R, X0, io, point, station, camera, r, JX, JS, JI, jac):
         JI[o, 1, 1] = -f * r2 * ty
         JI[o, 0, 2] = -f * r2 * r2 * tx
         JI[o, 1, 2] = -f * r2 * r2 * ty
+
+
+@njit
+def schur_matvec(WT, rcols, ptr, Ainv, x, out):
+    """``out += W A^-1 W^T x`` point by point (E-rows in point order,
+    ``ptr`` their CSR pointer; ``x`` padded with a zero at the dummy
+    column)."""
+    s = WT.shape[2]
+    for p in range(len(ptr) - 1):
+        lo, hi = ptr[p], ptr[p + 1]
+        if hi == lo:
+            continue
+        y0 = y1 = y2 = 0.0
+        for o in range(lo, hi):
+            for j in range(s):
+                xv = x[rcols[o, j]]
+                y0 += WT[o, 0, j] * xv
+                y1 += WT[o, 1, j] * xv
+                y2 += WT[o, 2, j] * xv
+        z0 = Ainv[p, 0, 0] * y0 + Ainv[p, 0, 1] * y1 + Ainv[p, 0, 2] * y2
+        z1 = Ainv[p, 1, 0] * y0 + Ainv[p, 1, 1] * y1 + Ainv[p, 1, 2] * y2
+        z2 = Ainv[p, 2, 0] * y0 + Ainv[p, 2, 1] * y1 + Ainv[p, 2, 2] * y2
+        for o in range(lo, hi):
+            for j in range(s):
+                out[rcols[o, j]] += WT[o, 0, j] * z0 + WT[o, 1, j] * z1 + WT[o, 2, j] * z2
+
+
+@njit
+def jacobi_rows(WT, Ainv, group, point, blocks):
+    """``blocks[group_o] -= W_o A_p^-1 W_o^T`` (s x s) for every row o
+    (the Schur-Jacobi diagonal blocks)."""
+    n, _, s = WT.shape
+    Y = np.empty((3, s))
+    for o in range(n):
+        p = point[o]
+        g = group[o]
+        for i in range(3):
+            for j in range(s):
+                Y[i, j] = Ainv[p, i, 0] * WT[o, 0, j] + Ainv[p, i, 1] * WT[o, 1, j] \
+                    + Ainv[p, i, 2] * WT[o, 2, j]
+        for a in range(s):
+            w0, w1, w2 = WT[o, 0, a], WT[o, 1, a], WT[o, 2, a]
+            for b in range(a, s):
+                v = w0 * Y[0, b] + w1 * Y[1, b] + w2 * Y[2, b]
+                blocks[g, a, b] -= v
+                if b != a:
+                    blocks[g, b, a] -= v

@@ -334,19 +334,23 @@ class NormalSystem:
         st = self.structure
         n_r = st.n_r
         dc, de = dx[:n_r], dx[n_r:].reshape(-1, 3)
-        q = float(dc @ self.Ncc @ dc) + float(np.einsum("ni,nij,nj->", de, self.A, de))
+        q = float(dc @ (self.Ncc @ dc)) + float(np.einsum("ni,nij,nj->", de, self.A, de))
         if st.n_e_rows:
             q += 2.0 * float(np.sum(self.wt_times_c(dc) * de))
         return q
 
 
-def assemble(structure: Structure, residuals, jacobians) -> NormalSystem:
+def assemble(structure: Structure, residuals, jacobians, sparse: bool = False) -> NormalSystem:
     """Sum ``J^T J`` and ``J^T r`` into the normal equations.
 
     Parameters
     ----------
     residuals : list of (N_b, d_b) whitened residuals per block.
     jacobians : list of list of (N_b, d_b, s) whitened Jacobians per slot.
+    sparse : bool
+        ``N_cc`` as a scipy CSR matrix instead of a dense array (the
+        iterative solve of the reduced camera system,
+        :mod:`photogram.adjust.rcs_iterative`: no ``n_r^2`` array).
     """
     st = structure
     lay = st.layout
@@ -356,7 +360,7 @@ def assemble(structure: Structure, residuals, jacobians) -> NormalSystem:
     A = np.zeros((n_e, 3, 3))
     g_e = np.zeros((n_e, 3))
     g_c = np.zeros(m)
-    Ncc = np.zeros(m * m)
+    Ncc = _NccSum(m, sparse)
     s = st.s
     WT = np.zeros((st.n_e_rows, 3, s))
     G = np.zeros((st.n_groups, s, s))
@@ -397,7 +401,7 @@ def assemble(structure: Structure, residuals, jacobians) -> NormalSystem:
         WT[sl, :, :sc] = np.matmul(JeT, Jc)
         _group_sums(cls, Jc, r, G[gs, :sc, :sc], g_grp[gs, :sc])
     if st.n_groups:
-        Ncc += np.bincount(st._g_scatter, weights=G.ravel(), minlength=m * m)
+        Ncc.add(st._g_scatter, G.ravel())
         g_c += np.bincount(st.group_cols.ravel(), weights=g_grp.ravel(), minlength=m)
     for cls in st.c_classes:
         if cls.s == 0:
@@ -409,11 +413,39 @@ def assemble(structure: Structure, residuals, jacobians) -> NormalSystem:
         _group_sums(cls, Jc, r, Gc, gc)
         gcols = cls.group_cols
         idx = (gcols[:, :, None] * m + gcols[:, None, :]).ravel()
-        Ncc += np.bincount(idx, weights=Gc.ravel(), minlength=m * m)
+        Ncc.add(idx, Gc.ravel())
         g_c += np.bincount(gcols.ravel(), weights=gc.ravel(), minlength=m)
     g = np.concatenate([g_c[:n_r], g_e.ravel()])
-    Ncc = Ncc.reshape(m, m)[:n_r, :n_r]
-    return NormalSystem(np.ascontiguousarray(Ncc), A, g, cost, WT, st)
+    return NormalSystem(Ncc.matrix(), A, g, cost, WT, st)
+
+
+class _NccSum:
+    """``N_cc`` summed from flat indices ``row * m + col`` of the padded
+    (n_r + 1)^2 matrix: a dense array (bincount) or, with ``sparse``, a
+    CSR matrix without the padding row and column."""
+
+    def __init__(self, m, sparse):
+        self.m, self.sparse = m, sparse
+        self.flat = np.zeros(0 if sparse else m * m)
+        self.parts = []
+
+    def add(self, idx, values):
+        if self.sparse:
+            self.parts.append((idx, values))
+        else:
+            self.flat += np.bincount(idx, weights=values, minlength=self.m * self.m)
+
+    def matrix(self):
+        m, n_r = self.m, self.m - 1
+        if not self.sparse:
+            return np.ascontiguousarray(self.flat.reshape(m, m)[:n_r, :n_r])
+        if not self.parts:
+            return sp.csr_matrix((n_r, n_r))
+        idx = np.concatenate([p[0] for p in self.parts])
+        val = np.concatenate([p[1] for p in self.parts])
+        rows, cols = idx // m, idx % m
+        keep = (rows < n_r) & (cols < n_r)
+        return sp.csr_matrix((val[keep], (rows[keep], cols[keep])), shape=(n_r, n_r))
 
 
 def _group_grams(cls, parts, G):

@@ -164,17 +164,25 @@ def damped(system, layout, damping=0.0):
     n_r = layout.n_reduced
     fixed = ~layout.free
     A = system.A.copy()
-    Ncc = system.Ncc.copy()
     di = np.arange(3)
     if damping:
         A[:, di, di] *= 1.0 + damping
-        Ncc[np.diag_indices(n_r)] *= 1.0 + damping
     A[:, di, di] += fixed[n_r:].reshape(-1, 3)
+    if sp.issparse(system.Ncc):
+        d = system.Ncc.diagonal()
+        return (system.Ncc + sp.diags(d * damping + fixed[:n_r])).tocsr(), A
+    Ncc = system.Ncc.copy()
+    if damping:
+        Ncc[np.diag_indices(n_r)] *= 1.0 + damping
     Ncc[np.diag_indices(n_r)] += fixed[:n_r]
     return Ncc, A
 
 
-def solve(system, layout, damping=0.0, G=None, point_labels=None):
+RCS_METHODS = ("dense", "iterative")
+
+
+def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense",
+          cg_tolerance=1e-2, cg_max_iterations=500):
     """One Gauss-Newton (or damped, Levenberg-Marquardt) step.
 
     Parameters
@@ -187,17 +195,32 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None):
         Datum conditions ``G^T dx = 0`` (inner constraints).
     point_labels : sequence, optional
         Labels of the eliminated points, for messages.
+    method : "dense" or "iterative"
+        The reduced camera system: formed and factorized by a dense
+        Cholesky (exact; the factorization serves the covariance), or
+        solved by conjugate gradients on the implicit Schur complement
+        with the Schur-Jacobi preconditioner
+        (:mod:`photogram.adjust.rcs_iterative`; inexact to
+        ``cg_tolerance``, not with datum conditions ``G``, no
+        factorization: ``fact`` is None).
 
     Returns
     -------
     dx : (n_columns,) step
-    fact : Factorization
+    fact : Factorization (None with ``method="iterative"``)
     """
+    if method not in RCS_METHODS:
+        raise ValueError(f"unknown reduced-camera-system method {method!r}")
     n_r, n_e = layout.n_reduced, layout.n_eliminated
     fixed = ~layout.free
     Ncc, A = damped(system, layout, damping)
     g_c, g_e = system.g[:n_r], system.g[n_r:]
     Ainv = invert_point_blocks(A, point_labels)
+    if method == "iterative":
+        if G is not None:
+            raise ValueError("the iterative reduced-camera-system solve takes no datum "
+                             "conditions G (use method='dense')")
+        return _solve_iterative(system, Ncc, Ainv, layout, cg_tolerance, cg_max_iterations)
     S, YGe = reduced_camera_system(system, Ainv, Ncc)
     rhs_c = -g_c + YGe
 
@@ -246,6 +269,26 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None):
         raise GeometryError("the adjustment produced a non-finite step (divergence)",
                             hint="check the approximate values and the datum")
     return dx, Factorization(Ainv, M, cho, d if G is None else dd, AinvGe, n_r, system)
+
+
+def _solve_iterative(system, Ncc, Ainv, layout, tolerance, max_iterations):
+    """The step by conjugate gradients on the reduced camera system."""
+    from photogram.adjust import rcs_iterative
+    n_r, n_e = layout.n_reduced, layout.n_eliminated
+    g_c, g_e = system.g[:n_r], system.g[n_r:].reshape(n_e, 3)
+    op = rcs_iterative.SchurOperator(system, Ncc, Ainv)
+    rhs_c = -g_c + op.w_times_e(np.einsum("nij,nj->ni", Ainv, g_e))
+    rhs_c[~layout.free[:n_r]] = 0.0
+    dx_c, _ = rcs_iterative.pcg(op, rhs_c, rcs_iterative.schur_jacobi(op),
+                                tolerance, max_iterations)
+    rhs_e = -g_e - system.wt_times_c(dx_c)
+    dx_e = np.matmul(Ainv, rhs_e[:, :, None])[:, :, 0].ravel()
+    dx = np.concatenate([dx_c, dx_e])
+    dx[~layout.free] = 0.0
+    if not np.all(np.isfinite(dx)):
+        raise GeometryError("the adjustment produced a non-finite step (divergence)",
+                            hint="check the approximate values and the datum")
+    return dx, None
 
 
 def _w_times(system, X):

@@ -22,12 +22,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from photogram.adjust import kernels
 from photogram.adjust.diagnostics import worst_observations
 from photogram.adjust.normal import Structure, assemble
-from photogram.adjust.schur import solve as schur_solve
+from photogram.adjust.schur import RCS_METHODS, solve as schur_solve
 from photogram.errors import GeometryError
 
 DAMPINGS = ("none", "lm", "armijo", "trust_region")
+# reduced columns from which "auto" solves the RCS iteratively: {numba: n}
+ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000}
 
 
 @dataclass
@@ -44,6 +47,17 @@ class SolverOptions:
     ``tolerance`` is left at this class's default), ``parameter_tolerance``
     bounds the step (``|dx| <= ptol (|x| + ptol)``) and
     ``gradient_tolerance`` the largest gradient entry.
+
+    ``linear_solver`` chooses how the reduced camera system (RCS) is
+    solved: ``"dense"`` (formed and factorized by a dense Cholesky),
+    ``"iterative"`` (conjugate gradients on the implicit Schur complement
+    with the Schur-Jacobi preconditioner, never forming the RCS: Ceres'
+    ITERATIVE_SCHUR; :mod:`photogram.adjust.rcs_iterative`) or ``"auto"``
+    (default): iterative when the problem has no datum conditions (inner
+    constraints) and at least ``iterative_min_columns`` reduced columns
+    (None: 1500 when the numba kernels run, 4000 on the pure-numpy path,
+    the crossovers measured on SIMULATED BAL problems), dense otherwise. CG stops when the preconditioned residual has
+    fallen by ``cg_tolerance`` or after ``cg_max_iterations`` steps.
     """
 
     max_iterations: int = 50
@@ -62,6 +76,11 @@ class SolverOptions:
     parameter_tolerance: float = 1e-8
     gradient_tolerance: float = 1e-10
     max_invalid_steps: int = 10
+    # the reduced camera system
+    linear_solver: str = "auto"       # auto | dense | iterative
+    iterative_min_columns: int | None = None   # None: 1500 with numba kernels, 4000 without
+    cg_tolerance: float = 1e-2
+    cg_max_iterations: int = 500
 
 
 @dataclass
@@ -80,6 +99,7 @@ class Summary:
     timings: dict = field(default_factory=dict)
     successful_steps: int = 0
     unsuccessful_steps: int = 0
+    linear_solver: str = ""             # dense | iterative (the RCS solve used)
 
     def to_dict(self) -> dict:
         return {k: v for k, v in self.__dict__.items()}
@@ -107,6 +127,9 @@ class Problem:
         self._free_masks = [[layout.free[c][:, None, :] for c in b.slot_cols] for b in self.blocks]
         self._all_free = [[bool(np.all(m)) for m in ms] for ms in self._free_masks]
         self._all_fixed = [[not np.any(m) for m in ms] for ms in self._free_masks]
+        # how solve_linear solves the reduced camera system (set by solve()
+        # for its run from SolverOptions; dense otherwise)
+        self.rcs = {"method": "dense", "cg_tolerance": 1e-2, "cg_max_iterations": 500}
 
     def weights(self, k):
         """sqrt of the weight of every residual of block k (0 = not used)."""
@@ -156,11 +179,14 @@ class Problem:
     def linearize(self, state):
         """The normal equations at ``state`` (residuals, Jacobians, sums)."""
         rs, Js = self.evaluate(state)
-        return assemble(self.structure, rs, Js)
+        return assemble(self.structure, rs, Js, sparse=self.rcs["method"] == "iterative")
 
     def solve_linear(self, system, damping=0.0):
-        """The (damped) step of assembled normal equations: ``(dx, fact)``."""
-        return schur_solve(system, self.layout, damping, self.G, self.point_labels)
+        """The (damped) step of assembled normal equations: ``(dx, fact)``
+        (``fact`` is None when the reduced camera system is solved
+        iteratively, ``self.rcs``)."""
+        return schur_solve(system, self.layout, damping, self.G, self.point_labels,
+                           **self.rcs)
 
     def reset(self, state):
         """Start again from ``state`` (a copy is taken); the structure, the
@@ -212,8 +238,38 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
 
     See :func:`_solve`; runs with one BLAS thread (:func:`single_thread_blas`).
     """
-    with single_thread_blas():
-        return _solve(problem, options)
+    opt = options or SolverOptions()
+    saved = dict(problem.rcs)
+    problem.rcs.update(method=rcs_method(problem, opt), cg_tolerance=opt.cg_tolerance,
+                       cg_max_iterations=opt.cg_max_iterations)
+    try:
+        with single_thread_blas():
+            s = _solve(problem, opt)
+    finally:
+        method = problem.rcs["method"]
+        problem.rcs = saved
+    s.linear_solver = method
+    return s
+
+
+def rcs_method(problem: Problem, options: SolverOptions) -> str:
+    """``"dense"`` or ``"iterative"``: the solve of the reduced camera
+    system that ``options.linear_solver`` asks for (``"auto"``: iterative
+    from ``options.iterative_min_columns`` reduced columns on, when there
+    are no datum conditions and there are points to eliminate)."""
+    choice = options.linear_solver
+    if choice not in ("auto",) + RCS_METHODS:
+        raise ValueError(f"unknown linear_solver {choice!r} (auto, dense or iterative)")
+    if choice == "iterative" and problem.G is not None:
+        raise ValueError("linear_solver='iterative' takes no datum conditions "
+                         "(inner constraints); use 'dense'")
+    if choice != "auto":
+        return choice
+    least = options.iterative_min_columns
+    if least is None:
+        least = ITERATIVE_MIN_COLUMNS[kernels.active(problem.structure.n_e_rows)]
+    big = problem.layout.n_reduced >= least
+    return "iterative" if big and problem.G is None and problem.structure.n_e_rows else "dense"
 
 
 def _solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
