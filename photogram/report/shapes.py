@@ -275,7 +275,7 @@ def ray_counts(a, b, extent, shape, chunk: int = 1_000_000) -> np.ndarray:
     return counts.reshape(rows, cols)
 
 
-def ray_layer(ax, a, b, color, alpha: float, dpi: float = 150.0, **kwargs):
+def ray_layer(ax, a, b, color, alpha: float, dpi: float = 100.0, **kwargs):
     """Draw many segments as one image: each pixel gets the colour with the
     opacity of its stacked lines, ``1 - (1 - alpha)^count``
     (:func:`ray_counts`), as a collection of lines of opacity ``alpha``
