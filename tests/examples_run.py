@@ -56,6 +56,8 @@ STEPS = [
      True, []),
 ]
 
+#: commands run with --no-report (measure's is in its STEPS entry; simulate writes none)
+NO_REPORT = ("calibrate", "orient", "intersect", "mocap")
 #: summary.json keys compared as written (nested dicts compared whole)
 SUMMARY_KEYS = ("sigma0", "redundancy", "iterations", "reprojection", "limb_lengths",
                 "bone_cv_mean", "accuracy", "reconstruction", "metrics_mean")
@@ -104,7 +106,10 @@ def run_examples(dest: Path, *, with_shared: bool | None = None) -> dict:
     for name, argv, folder, shared, tables in STEPS:
         if shared and not with_shared:
             continue
-        args = [argv[0], str(projects / argv[1]), *_options(argv[2:], projects), "-q"]
+        # the examples' figures are in summary.json and the tables: no report.pdf
+        # (it costs more CPU than the adjustment; tests/test_report*.py test it)
+        no_report = ["--no-report"] if argv[0] in NO_REPORT else []
+        args = [argv[0], str(projects / argv[1]), *_options(argv[2:], projects), "-q", *no_report]
         # a fresh interpreter per step, as a user runs it: photogram then sets
         # one BLAS thread before numpy loads (inside pytest numpy is already
         # loaded, and threaded BLAS changes the last digits of the estimate)

@@ -25,16 +25,18 @@ def measure_lab(folder: Path) -> Path:
     return Path(folder) / "results-measure" / "image_points.csv"
 
 
-def stage_lab(dest: Path, *, calibrate: bool = False) -> Path:
+def stage_lab(dest: Path, *, calibrate: bool = False, report: bool = False) -> Path:
     """Copy projects/lab (without results folders) to ``dest`` and measure
-    it (and calibrate it); returns ``dest``."""
+    it (and calibrate it; its report.pdf only with ``report``: the report
+    costs more CPU than the adjustment); returns ``dest``."""
     dest = Path(dest)
     shutil.copytree(LAB, dest, ignore=shutil.ignore_patterns("results", "results-*", ".*"))
     measure_lab(dest)
     if calibrate:
         from photogram_cli.main import main
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            code = main(["calibrate", str(dest / "lab.prj"), "-q"])
+            code = main(["calibrate", str(dest / "lab.prj"), "-q",
+                         *([] if report else ["--no-report"])])
         if code != 0:
             raise RuntimeError(f"photogram calibrate {dest}/lab.prj failed ({code})")
     return dest

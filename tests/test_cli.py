@@ -81,18 +81,19 @@ def test_check_output_writes_a_normalised_copy(tmp_path, capsys):
 
 
 def test_mocap_needs_a_mocap_section(capsys):
-    assert main(["mocap", str(DATA / "lab" / "lab.prj")]) == 2
+    assert main(["mocap", "--no-report", str(DATA / "lab" / "lab.prj")]) == 2
     err = capsys.readouterr().err
     assert err.startswith(str(DATA / "lab" / "lab.prj")) and "no [mocap] section" in err
 
 
 def test_montecarlo_needs_a_montecarlo_section(capsys):
-    assert main(["montecarlo", str(DATA / "lab" / "lab.prj")]) == 2
+    assert main(["montecarlo", "--no-report", str(DATA / "lab" / "lab.prj")]) == 2
     err = capsys.readouterr().err
     assert err.startswith(str(DATA / "lab" / "lab.prj")) and "no [montecarlo] section" in err
 
 
 def test_demo_runs_the_lab_and_field_chain(tmp_path, monkeypatch, capsys):
+    import functools
     import shutil
 
     import photogram.demo as demo
@@ -105,7 +106,12 @@ def test_demo_runs_the_lab_and_field_chain(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(demo, "PROJECTS", tmp_path / "projects")
     all_steps = demo.steps
     assert [s[0] for s in all_steps()[:3]] == ["measure", "calibrate", "orient"]
-    monkeypatch.setattr(demo, "steps", lambda: all_steps()[:3])
+    # the first three steps, calibrate and orient without report.pdf (not
+    # under test here: tests/test_report*.py; the report costs more CPU
+    # than the adjustment)
+    monkeypatch.setattr(demo, "steps", lambda: [
+        (c, functools.partial(f, report=False) if c in ("calibrate", "orient") else f, p, n)
+        for c, f, p, n in all_steps()[:3]])
     assert main(["demo"]) == 0
     out = capsys.readouterr().out
     # the photographs are measured first, checked against the typed table, then calibrated
@@ -139,7 +145,7 @@ def test_registered_function_gets_project_and_output(fake_command, tmp_path, cap
         seen["project"], seen["folder"] = project, project.output_folder()
         return 0
     fake_command(run)
-    assert main(["calibrate", str(DATA / "lab" / "lab.prj"), "--output", str(tmp_path)]) == 0
+    assert main(["calibrate", "--no-report", str(DATA / "lab" / "lab.prj"), "--output", str(tmp_path)]) == 0
     assert seen["project"].name == "lab" and seen["folder"] == tmp_path
 
 
@@ -147,7 +153,7 @@ def test_internal_error_is_one_line_exit_1(fake_command, capsys):
     def run(project, args):
         raise ValueError("boom\nsecond line")
     fake_command(run)
-    assert main(["calibrate", str(DATA / "lab" / "lab.prj")]) == 1
+    assert main(["calibrate", "--no-report", str(DATA / "lab" / "lab.prj")]) == 1
     err = capsys.readouterr().err
     assert err == ("internal error: ValueError: boom second line (please report; "
                    "rerun with -v for the traceback)\n")
@@ -157,7 +163,7 @@ def test_internal_error_verbose_has_traceback(fake_command, capsys):
     def run(project, args):
         raise ValueError("boom")
     fake_command(run)
-    assert main(["calibrate", "-v", str(DATA / "lab" / "lab.prj")]) == 1
+    assert main(["calibrate", "--no-report", "-v", str(DATA / "lab" / "lab.prj")]) == 1
     err = capsys.readouterr().err
     assert "Traceback" in err and err.splitlines()[-1].startswith("internal error")
 
@@ -166,14 +172,14 @@ def test_keyboard_interrupt_exit_130(fake_command, capsys):
     def run(project, args):
         raise KeyboardInterrupt
     fake_command(run)
-    assert main(["calibrate", str(DATA / "lab" / "lab.prj")]) == 130
+    assert main(["calibrate", "--no-report", str(DATA / "lab" / "lab.prj")]) == 130
     assert capsys.readouterr().err == "photogram calibrate: interrupted\n"
 
 
 def test_missing_third_party_package_is_reported(monkeypatch, capsys):
     monkeypatch.setitem(COMMANDS, "calibrate",
                         Command("no_such_package_xyz.engine:run", "the adjustment engine", "t"))
-    assert main(["calibrate", str(DATA / "lab" / "lab.prj")]) == 2
+    assert main(["calibrate", "--no-report", str(DATA / "lab" / "lab.prj")]) == 2
     err = capsys.readouterr().err
     assert "needs the Python package 'no_such_package_xyz'" in err
 
@@ -181,13 +187,13 @@ def test_missing_third_party_package_is_reported(monkeypatch, capsys):
 def test_module_without_function_is_not_built(monkeypatch, capsys):
     monkeypatch.setitem(COMMANDS, "calibrate",
                         Command("photogram.errors:calibrate", "the adjustment engine", "t"))
-    assert main(["calibrate", str(DATA / "lab" / "lab.prj")]) == 2
+    assert main(["calibrate", "--no-report", str(DATA / "lab" / "lab.prj")]) == 2
     assert "not built yet" in capsys.readouterr().err
 
 
 def test_calibrate_writes_results_where_asked(tmp_path, capsys):
     out = tmp_path / "res"
-    assert main(["calibrate", str(DATA / "lab" / "lab.prj"), "--output", str(out)]) == 0
+    assert main(["calibrate", "--no-report", str(DATA / "lab" / "lab.prj"), "--output", str(out)]) == 0
     import json
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "converged"
@@ -213,7 +219,7 @@ def test_intersect_writes_the_jump_results(tmp_path, capsys):
     text = "\n".join(line for line in text.splitlines() if not line.startswith("orientation ="))
     prj.write_text(text)
     out = tmp_path / "out"
-    assert main(["intersect", str(prj), "--output", str(out)]) == 0
+    assert main(["intersect", "--no-report", str(prj), "--output", str(out)]) == 0
     assert "intersect: 24 exposures" in capsys.readouterr().out
     frame = pd.read_csv(out / "exposures.csv")
     assert len(frame) == 24 and {"alpha", "sigma_alpha", "v", "sigma_v"} <= set(frame.columns)

@@ -140,7 +140,7 @@ def test_forward_model_through_the_command_line(tmp_path, runs):
     from photogram.project import read_results
     from photogram_cli.main import main
     out = tmp_path / "out"
-    assert main(["calibrate", str(lens_project(tmp_path, -1)), "--output", str(out),
+    assert main(["calibrate", "--no-report", str(lens_project(tmp_path, -1)), "--output", str(out),
                  "-q"]) == 0
     cam = read_results(out).cameras["C4040Z"]
     assert cam.model == "brown_forward"

@@ -246,7 +246,7 @@ def test_camcal_reproduces_dbat(camcal):
 
 def test_camcal_through_the_command_line(tmp_path):
     out = tmp_path / "out"
-    assert main(["calibrate", str(PROJECTS / "camcal" / "camcal.prj"), "--output",
+    assert main(["calibrate", "--no-report", str(PROJECTS / "camcal" / "camcal.prj"), "--output",
                  str(out), "-q"]) == 0
     results = read_results(out)
     report = dbat_report(CAMCAL / "dbat-report.txt")

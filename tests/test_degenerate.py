@@ -42,7 +42,7 @@ def write(tmp_path, prj, datum="control"):
 
 def run(capsys, tmp_path, prj, command="orient", datum="control"):
     out = tmp_path / f"r{len(list(tmp_path.glob('net*')))}"
-    code = main([command, str(write(tmp_path, prj, datum)), "--output", str(out)])
+    code = main([command, "--no-report", str(write(tmp_path, prj, datum)), "--output", str(out)])
     err = capsys.readouterr().err
     return code, err, out
 

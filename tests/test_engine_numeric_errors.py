@@ -10,7 +10,7 @@ from photogram_cli.main import main
 
 
 def _run(capsys, prj, tmp_path):
-    code = main(["orient", "-q", str(prj), "--output", str(tmp_path / "out")])
+    code = main(["orient", "--no-report", "-q", str(prj), "--output", str(tmp_path / "out")])
     err = capsys.readouterr().err.strip().splitlines()
     return code, err
 

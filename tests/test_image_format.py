@@ -28,7 +28,7 @@ def _scaled(factor):
 
 
 def _run(capsys, prj, tmp_path, command="orient"):
-    code = main([command, "-q", str(prj), "--output", str(tmp_path / "out")])
+    code = main([command, "-q", *(["--no-report"] if command != "check" else []), str(prj), "--output", str(tmp_path / "out")])
     return code, capsys.readouterr().err.strip().splitlines()
 
 

@@ -30,7 +30,7 @@ def test_a_point_missing_at_one_exposure_leaves_a_gap_not_a_zero_sigma(tmp_path,
     kept = [r for r in rows if not r.startswith("007,") or ",P2," not in r]
     assert len(rows) - len(kept) == 3                      # P2@007 in S1, S2, S3
     (tmp_path / "jumper_points.csv").write_text("\n".join(kept) + "\n")
-    run = subprocess.run([sys.executable, "-m", "photogram_cli", "intersect", str(prj)],
+    run = subprocess.run([sys.executable, "-m", "photogram_cli", "intersect", "--no-report", str(prj)],
                          capture_output=True, text=True, cwd=tmp_path)
     assert run.returncode == 0, run.stderr
     pts = pd.read_csv(tmp_path / "results" / "points3d.csv", dtype={"exposure": str})
@@ -53,7 +53,7 @@ def test_a_ski_seen_in_one_image_is_a_gap_with_a_warning(tmp_path, oriented_proj
     kept = [r for r in rows if not r.startswith(drop)]
     assert len(rows) - len(kept) == 30                     # 15 points in each of 2 images
     (tmp_path / "ski_lines.csv").write_text("\n".join(kept) + "\n")
-    run = subprocess.run([sys.executable, "-m", "photogram_cli", "intersect", str(prj)],
+    run = subprocess.run([sys.executable, "-m", "photogram_cli", "intersect", "--no-report", str(prj)],
                          capture_output=True, text=True, cwd=tmp_path)
     assert run.returncode == 0, run.stderr
     import json

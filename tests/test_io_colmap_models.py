@@ -511,7 +511,7 @@ def test_rational_camera_through_orient_and_back(tmp_path):
     from photogram_cli.main import main
     write_bin(tmp_path / "m", *scene("FULL_OPENCV"))
     prj = import_project("colmap", tmp_path / "m", tmp_path / "imp")
-    assert main(["orient", "-q", str(prj), "--output", str(tmp_path / "out")]) == 0
+    assert main(["orient", "--no-report", "-q", str(prj), "--output", str(tmp_path / "out")]) == 0
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["sigma0"] < 1e-9
     assert main(["export", "-q", "colmap-bin", str(tmp_path / "out"), "--to",
@@ -662,7 +662,7 @@ def test_rigs_survive_an_adjustment_and_the_export_of_its_results(tmp_path):
     from photogram_cli.main import main
     write_bin(tmp_path / "m", *rig_scene())
     prj = import_project("colmap", tmp_path / "m", tmp_path / "imp")
-    assert main(["calibrate", str(prj)]) == 0
+    assert main(["calibrate", "--no-report", str(prj)]) == 0
     res = prj.parent / "results"
     summary = json.loads((res / "summary.json").read_text())
     assert summary["counts"]["exterior"] == 6 * 3 + 6

@@ -35,9 +35,9 @@ def chain(tmp_path_factory):
         shutil.copytree(PROJECTS / name, root / name,
                         ignore=shutil.ignore_patterns("results*", ".*"))
     stage_lab(root / "lab")                   # copied and its photographs measured
-    assert main(["calibrate", "-q", str(root / "lab" / "lab.prj")]) == 0
-    assert main(["orient", "-q", str(root / "field" / "field.prj")]) == 0
-    assert main(["intersect", "-q", str(root / "jumps" / "jumps.prj")]) == 0
+    assert main(["calibrate", "--no-report", "-q", str(root / "lab" / "lab.prj")]) == 0
+    assert main(["orient", "--no-report", "-q", str(root / "field" / "field.prj")]) == 0
+    assert main(["intersect", "--no-report", "-q", str(root / "jumps" / "jumps.prj")]) == 0
     return root
 
 
@@ -46,7 +46,7 @@ def mocap_results(tmp_path_factory):
     root = tmp_path_factory.mktemp("i16mocap")
     shutil.copytree(PROJECTS / "ski-ptz", root / "ski-ptz",
                     ignore=shutil.ignore_patterns("results*"))
-    assert main(["mocap", "-q", str(root / "ski-ptz" / "ski-ptz.prj")]) == 0
+    assert main(["mocap", "--no-report", "-q", str(root / "ski-ptz" / "ski-ptz.prj")]) == 0
     return root / "ski-ptz" / "results"
 
 
@@ -75,7 +75,7 @@ def test_orientation_of_the_lab_alone_is_refused(chain, capsys, tmp_path):
     line = 1 + prj.read_text().splitlines().index(
         next(ln for ln in prj.read_text().splitlines() if ln.startswith("orientation =")))
     out = tmp_path / "out"
-    assert main(["intersect", str(prj), "--output", str(out)]) == 2
+    assert main(["intersect", "--no-report", str(prj), "--output", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
     assert err[0].startswith(f"{prj}:{line}: [intersect] orientation")
@@ -84,7 +84,7 @@ def test_orientation_of_the_lab_alone_is_refused(chain, capsys, tmp_path):
     # lab and field together (the field's joint covariance covers the stations) run
     both = _variant(chain, "jumps-both.prj", 'orientation = ["../field/results"]',
                     'orientation = ["../lab/results", "../field/results"]')
-    assert main(["intersect", "-q", str(both), "--output", str(tmp_path / "both")]) == 0
+    assert main(["intersect", "--no-report", "-q", str(both), "--output", str(tmp_path / "both")]) == 0
 
 
 # ---------------------------------------------------------------- item 11
@@ -120,7 +120,7 @@ def test_a_jumper_in_the_wrong_unit_is_flagged(chain, capsys, tmp_path):
     assert not [w for w in good if w.startswith("implausible")]
     prj = _variant(chain, "jumps-m.prj", 'length_unit = "dm"', 'length_unit = "m"')
     out = tmp_path / "m"
-    done = subprocess.run([sys.executable, "-m", "photogram_cli", "intersect", str(prj),
+    done = subprocess.run([sys.executable, "-m", "photogram_cli", "intersect", "--no-report", str(prj),
                            "--output", str(out)], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     err = done.stderr.strip().splitlines()

@@ -43,7 +43,7 @@ def video_project(tmp_path_factory):
 
 def test_estimate_from_videos_reports_the_featureless_camera(video_project):
     prj, sim = video_project
-    assert main(["mocap", str(prj), "-q"]) == 0
+    assert main(["mocap", "--no-report", str(prj), "-q"]) == 0
     out = prj.parent / "results-estimate"
     summary = json.loads((out / "summary.json").read_text())
     rot = summary["rotation"]
@@ -68,12 +68,12 @@ def test_estimated_rotations_feed_back_as_known(video_project, tmp_path):
     prj, sim = video_project
     out = prj.parent / "results-estimate"
     if not (out / "rotations.csv").is_file():
-        main(["mocap", str(prj), "-q"])
+        main(["mocap", "--no-report", str(prj), "-q"])
     known = prj.parent / "known.prj"
     text = (prj.parent / "ski.prj").read_text().replace(
         'camera_frames = "camera_frames.csv"', 'camera_frames = "results-estimate/rotations.csv"')
     known.write_text(text.replace('folder = "results"', 'folder = "results-known"'))
-    assert main(["mocap", str(known), "-q"]) == 0
+    assert main(["mocap", "--no-report", str(known), "-q"]) == 0
     summary = json.loads((prj.parent / "results-known" / "summary.json").read_text())
     assert summary["accuracy"]["mpjpe"] < 0.3
 
@@ -104,7 +104,7 @@ def test_malformed_rotation_differences_is_one_line(tmp_path, capsys):
     prj = write_estimate_project(sim, tmp_path, name="ski")
     (tmp_path / "rotation_differences.csv").write_text(
         "frame,camera,rx,ry,rz,inliers,matches,ok\n0,C1,0.1,zero,0,40,50,1\n")
-    assert main(["mocap", str(prj)]) == 2
+    assert main(["mocap", "--no-report", str(prj)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "rotation_differences.csv:2" in err[0], err
 

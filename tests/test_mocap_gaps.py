@@ -73,7 +73,7 @@ def _views_written(res: Path, n_frames: int) -> np.ndarray:
 def _run(tmp_path, n_cameras):
     sim, one, none = _blanked(n_cameras)
     write_simulated_project(sim, tmp_path, name="ski")
-    assert main(["mocap", str(tmp_path / "ski.prj"), "-q"]) == 0
+    assert main(["mocap", "--no-report", str(tmp_path / "ski.prj"), "-q"]) == 0
     return sim, one, none, tmp_path / "results"
 
 
@@ -176,7 +176,7 @@ def test_a_non_finite_energy_is_an_error_and_writes_no_results(tmp_path, monkeyp
     sim = simulate_session(seed=5, n_runs=1, frames_per_run=30, n_cameras=2)
     write_simulated_project(sim, tmp_path, name="ski")
     _nan_energy(monkeypatch)
-    assert main(["mocap", str(tmp_path / "ski.prj")]) == 2
+    assert main(["mocap", "--no-report", str(tmp_path / "ski.prj")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "not finite" in err and "ski.prj" in err
     assert "stage 5 of 5" in err and "nan" in err

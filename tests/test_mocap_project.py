@@ -34,7 +34,7 @@ def small_project(tmp_path_factory):
 @pytest.mark.filterwarnings("ignore:No analog data")
 def test_mocap_command_writes_the_results_folder(small_project, capsys):
     prj, sim = small_project
-    assert main(["mocap", str(prj)]) == 0
+    assert main(["mocap", "--no-report", str(prj)]) == 0
     out = capsys.readouterr().out
     assert out.startswith("mocap: 120 frames x 6 cameras x 24 joints (ski24)") and "MPJPE" in out
     res = prj.parent / "results"
@@ -90,7 +90,7 @@ def test_bad_input_is_one_line_and_exit_2(small_project, tmp_path, capsys, edit,
     text = (tmp_path / "ski.prj").read_text()
     assert edit[0] in text
     (tmp_path / "ski.prj").write_text(text.replace(edit[0], edit[1], 1))
-    assert main(["mocap", str(tmp_path / "ski.prj")]) == 2
+    assert main(["mocap", "--no-report", str(tmp_path / "ski.prj")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err and "ski.prj:" in err
 

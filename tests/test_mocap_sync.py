@@ -199,7 +199,7 @@ def test_injected_bias_in_results_and_estimate_reported(project):
     _shift_csv_pixels(project.parent / "detections.csv", "C3", 25.0, -15.0)
     text = project.read_text().replace("[mocap]\n", '[mocap]\noffsets = "report"\n', 1)
     project.write_text(text)
-    assert main(["mocap", "-q", str(project)]) == 0
+    assert main(["mocap", "--no-report", "-q", str(project)]) == 0
     s = json.loads((project.parent / "results" / "summary.json").read_text())
     r = s["reprojection"]["C3"]
     assert abs(r["median_dx_px"] - 25) < 3 and abs(r["median_dy_px"] + 15) < 3
@@ -237,7 +237,7 @@ def test_bad_offsets_are_one_line_and_exit_2(project, capsys, value, words):
     text = project.read_text().replace("[mocap]\n", f"[mocap]\noffsets = {value}\n", 1)
     project.write_text(text)
     capsys.readouterr()
-    assert main(["mocap", str(project)]) == 2
+    assert main(["mocap", "--no-report", str(project)]) == 2
     out, err = capsys.readouterr()
     assert out == "" and len(err.strip().splitlines()) == 1, err
     assert "ski.prj" in err
@@ -284,7 +284,7 @@ def test_offsets_applied_and_estimated_in_a_run(project):
 
     def run(extra):
         project.write_text(text.replace("[mocap]\n", f"[mocap]\n{extra}\n", 1))
-        assert main(["mocap", "-q", "--force", str(project)]) == 0
+        assert main(["mocap", "--no-report", "-q", "--force", str(project)]) == 0
         return json.loads((project.parent / "results" / "summary.json").read_text())
 
     raw, given, est = run(""), run("offsets = { C3 = 2 }"), run('offsets = "estimate"')

@@ -299,7 +299,7 @@ def test_bad_montecarlo_section_is_one_line_with_file_and_line(net, tmp_path, bo
         read_project(path)
     assert message in str(err.value)
     assert err.value.file == str(path) and err.value.line is not None
-    assert main(["montecarlo", str(path)]) == 2
+    assert main(["montecarlo", "--no-report", str(path)]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"{path}:") and message in lines[0]
 
@@ -307,9 +307,9 @@ def test_bad_montecarlo_section_is_one_line_with_file_and_line(net, tmp_path, bo
 def test_bad_command_line_values_exit_2(net, capsys):
     from photogram_cli.main import main
     path = _chain_file(net, 'orient = "net.prj"\nruns = 5', name="ok.prj")
-    assert main(["montecarlo", str(path), "--runs", "0"]) == 2
+    assert main(["montecarlo", "--no-report", str(path), "--runs", "0"]) == 2
     assert "--runs must be at least 1" in capsys.readouterr().err
-    assert main(["montecarlo", str(path), "--scheduler", "localhost:1"]) == 2
+    assert main(["montecarlo", "--no-report", str(path), "--scheduler", "localhost:1"]) == 2
     assert "tcp://HOST:PORT" in capsys.readouterr().err
 
 
@@ -317,7 +317,7 @@ def test_command_line_run_writes_the_results(net, tmp_path, capsys):
     from photogram_cli.main import main
     path = _chain_file(net, 'orient = "net.prj"\nruns = 20\nchunk = 5\nseed = 2',
                        name="cli.prj")
-    assert main(["montecarlo", str(path), "--output", str(tmp_path), "--seed", "4"]) == 0
+    assert main(["montecarlo", "--no-report", str(path), "--output", str(tmp_path), "--seed", "4"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("montecarlo: 20 runs (0 failed)")
     summary = json.loads((tmp_path / "summary.json").read_text())

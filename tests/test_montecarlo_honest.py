@@ -179,10 +179,10 @@ def test_force_on_the_command_line_always_recomputes(net, tmp_path, caplog):
     from photogram_cli.main import main
     path = _chain(net)
     out = tmp_path / "out"
-    assert main(["montecarlo", str(path), "--output", str(out), "-q"]) == 0
+    assert main(["montecarlo", "--no-report", str(path), "--output", str(out), "-q"]) == 0
     caplog.clear()
     with caplog.at_level(logging.INFO, logger="photogram"):
-        assert main(["montecarlo", str(path), "--output", str(out), "-q", "--force"]) == 0
+        assert main(["montecarlo", "--no-report", str(path), "--output", str(out), "-q", "--force"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["execution"]["runs_resumed"] == 0
     assert summary["execution"]["runs_computed"] == 40
@@ -223,7 +223,7 @@ def test_a_project_file_cannot_name_a_dask_cluster(net, tmp_path, capsys, monkey
     assert err.value.file == str(path)
     assert err.value.line == path.read_text().splitlines().index(
         'scheduler = "tcp://127.0.0.1:9"') + 1
-    assert main(["montecarlo", str(path)]) == 2
+    assert main(["montecarlo", "--no-report", str(path)]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"{path}:") and "--scheduler" in lines[0]
     assert contacted == [] and not (net / "out").exists()
@@ -276,10 +276,10 @@ def demo_chain(tmp_path_factory):
     mp = pytest.MonkeyPatch()
     mp.setattr(photogram.report, "write_report", lambda *a, **k: None)
     try:
-        assert main(["calibrate", str(root / "lab" / "lab.prj"), "-q"]) == 0
-        assert main(["orient", str(root / "field" / "field.prj"), "-q"]) == 0
-        assert main(["intersect", str(root / "jumps" / "jumps.prj"), "-q"]) == 0
-        assert main(["montecarlo", str(root / "jumps" / "montecarlo.prj"), "-q", "--runs", "20",
+        assert main(["calibrate", "--no-report", str(root / "lab" / "lab.prj"), "-q"]) == 0
+        assert main(["orient", "--no-report", str(root / "field" / "field.prj"), "-q"]) == 0
+        assert main(["intersect", "--no-report", str(root / "jumps" / "jumps.prj"), "-q"]) == 0
+        assert main(["montecarlo", "--no-report", str(root / "jumps" / "montecarlo.prj"), "-q", "--runs", "20",
                      "--workers", "1", "--output", str(root / "mc")]) == 0
     finally:
         mp.undo()

@@ -55,14 +55,14 @@ def _digest(folder: Path) -> dict:
 def test_calibrate_twice_needs_force_and_inputs_stay(tmp_path, capsys):
     prj = stage_lab(tmp_path / "lab")            # copied and measured (its input)
     before = _digest(prj)
-    assert main(["calibrate", str(prj / "lab.prj"), "-q"]) == 0
+    assert main(["calibrate", "--no-report", str(prj / "lab.prj"), "-q"]) == 0
     first = (prj / "results" / "summary.json").read_bytes()
     capsys.readouterr()
-    assert main(["calibrate", str(prj / "lab.prj"), "-q"]) == 2
+    assert main(["calibrate", "--no-report", str(prj / "lab.prj"), "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "earlier run" in err[0] and "--force" in err[0], err
     assert (prj / "results" / "summary.json").read_bytes() == first      # untouched
-    assert main(["calibrate", str(prj / "lab.prj"), "-q", "--force"]) == 0
+    assert main(["calibrate", "--no-report", str(prj / "lab.prj"), "-q", "--force"]) == 0
     # the inputs are byte for byte what they were (beside them: the empty lock
     # file of the results folder, photogram.project.results_folder)
     after = {k: v for k, v in _digest(prj).items() if k.split("/")[0] != "results"}
@@ -70,7 +70,7 @@ def test_calibrate_twice_needs_force_and_inputs_stay(tmp_path, capsys):
     assert after == before
     # results written into the project folder itself would overwrite inputs: refused
     capsys.readouterr()
-    assert main(["calibrate", str(prj / "lab.prj"), "-q", "--force", "--output", str(prj)]) == 2
+    assert main(["calibrate", "--no-report", str(prj / "lab.prj"), "-q", "--force", "--output", str(prj)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "never writes over its inputs" in err[0], err
     assert {k: v for k, v in _digest(prj).items()
@@ -108,7 +108,7 @@ def test_interrupted_mocap_resumes_with_the_next_camera(tmp_path, monkeypatch):
 
     monkeypatch.setattr(homography, "rotation_differences", interrupted)
     out = tmp_path / "results-estimate"
-    assert main(["mocap", str(prj), "-q"]) != 0                # interrupted
+    assert main(["mocap", "--no-report", str(prj), "-q"]) != 0                # interrupted
     # the unfinished run waits in the staging folder; no results folder yet
     staging = tmp_path / ".results-estimate.incomplete"
     assert sorted(p.name for p in (staging / PARTIAL / "rotation_differences").iterdir()) == \
@@ -117,13 +117,13 @@ def test_interrupted_mocap_resumes_with_the_next_camera(tmp_path, monkeypatch):
     calls.clear()
     monkeypatch.setattr(homography, "rotation_differences", lambda *a, **k: (calls.append(1),
                                                                             real(*a, **k))[1])
-    assert main(["mocap", str(prj), "-q"]) == 0                # resumed, no --force needed
+    assert main(["mocap", "--no-report", str(prj), "-q"]) == 0                # resumed, no --force needed
     assert len(calls) == 4                                     # C3..C6 only
     assert not (out / PARTIAL).exists() and not staging.exists()   # cleaned up when complete
     resumed = (out / "rotations.csv").read_text()
     # the same as a run that was never interrupted
     monkeypatch.setattr(homography, "rotation_differences", real)
-    assert main(["mocap", str(prj), "-q", "--output", str(tmp_path / "clean")]) == 0
+    assert main(["mocap", "--no-report", str(prj), "-q", "--output", str(tmp_path / "clean")]) == 0
     assert (tmp_path / "clean" / "rotations.csv").read_text() == resumed
     summary = json.loads((out / "summary.json").read_text())
     assert np.isfinite(summary["accuracy"]["mpjpe"])

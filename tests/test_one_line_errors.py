@@ -141,7 +141,7 @@ def test_csv_cell_over_128_kib_in_the_rotation_differences(tmp_path, capsys):
     row[2] = "1" * (128 * 1024 + 1)
     lines[k] = ",".join(row)
     table.write_text("\n".join(lines) + "\n")
-    assert main(["mocap", "-q", str(folder / "ski-ptz-estimate.prj"),
+    assert main(["mocap", "--no-report", "-q", str(folder / "ski-ptz-estimate.prj"),
                  "--output", str(tmp_path / "out")]) == 2
     assert _one_line(capsys).startswith(f"{table}:{k + 1}: a cell of this record is longer "
                                         f"than 131072 characters (128 KiB)")
@@ -234,7 +234,7 @@ def test_output_folder_of_the_project_file_is_a_symlink_loop(tmp_path, capsys):
     prj = make_project(tmp_path)
     _loop(prj.parent)
     prj.write_text(prj.read_text().replace('folder = "results"', 'folder = "loopA"'))
-    assert main(["calibrate", str(prj)]) == 2
+    assert main(["calibrate", "--no-report", str(prj)]) == 2
     assert _one_line(capsys).startswith(f"{prj.parent / 'loopA'}: [output] folder: a loop of "
                                         f"symbolic links")
 
@@ -253,7 +253,7 @@ def test_report_output_symlink_loop(results, tmp_path, capsys):
 def results(tmp_path_factory):
     """A calibrate results folder of tests/data/lab."""
     folder = tmp_path_factory.mktemp("item21") / "results"
-    assert main(["calibrate", "-q", str(DATA / "lab" / "lab.prj"), "--output", str(folder)]) == 0
+    assert main(["calibrate", "--no-report", "-q", str(DATA / "lab" / "lab.prj"), "--output", str(folder)]) == 0
     return folder
 
 
@@ -360,7 +360,7 @@ def test_orient_with_a_pickled_covariance_beside_the_cameras(tmp_path, capsys):
     prj = make_project(tmp_path, "field")
     marker = tmp_path / "unpickled"
     _pickled_covariance(prj.parent / "covariance.npz", marker)
-    assert main(["orient", "-q", str(prj)]) == 2
+    assert main(["orient", "--no-report", "-q", str(prj)]) == 2
     assert _one_line(capsys) == f"{prj.parent / 'covariance.npz'}: {PICKLED}"
     assert not marker.exists()
 
@@ -369,7 +369,7 @@ def test_covariance_with_mismatched_arrays(tmp_path, capsys):
     prj = make_project(tmp_path, "field")
     np.savez(prj.parent / "covariance.npz", labels=np.array(["K1.c", "K1.x0"]),
              matrix=np.eye(3))
-    assert main(["orient", "-q", str(prj)]) == 2
+    assert main(["orient", "--no-report", "-q", str(prj)]) == 2
     assert _one_line(capsys).startswith(
         f"{prj.parent / 'covariance.npz'}: the covariance file does not hold 2 labels and a "
         f"finite 2 x 2 matrix")
@@ -407,7 +407,7 @@ def test_mocap_image_folder_with_a_40000_square_png(tmp_path, capsys):
                    if not line.startswith("rotation_differences ="))
     text += "\n[mocap.images]\n" + "".join(f'C{i} = "frames/C1"\n' for i in range(1, 7))
     prj.write_text(text)
-    assert main(["mocap", "-q", str(prj), "--output", str(tmp_path / "out")]) == 2
+    assert main(["mocap", "--no-report", "-q", str(prj), "--output", str(tmp_path / "out")]) == 2
     assert _one_line(capsys) == f"{png}: {BIG}"
 
 
@@ -506,7 +506,7 @@ def test_memory_and_recursion_errors_are_one_line_naming_the_input(tmp_path, cap
 
     monkeypatch.setattr(project_pkg, "read_project", read_project)
     prj = tmp_path / "p.prj"
-    assert main(["calibrate", str(prj)]) == 2
+    assert main(["calibrate", "--no-report", str(prj)]) == 2
     line = _one_line(capsys)
     assert line.startswith(f"{prj}: photogram calibrate") and words in line, line
 
@@ -547,7 +547,7 @@ def test_mocap_video_with_40000_square_frames(tmp_path, capsys, monkeypatch):
     text += "\n[mocap.images]\n" + "".join(f'C{i} = "C1.avi"\n' for i in range(1, 7))
     prj.write_text(text)
     monkeypatch.setattr(cv2, "VideoCapture", _HugeVideo)
-    assert main(["mocap", "-q", str(prj), "--output", str(tmp_path / "out")]) == 2
+    assert main(["mocap", "--no-report", "-q", str(prj), "--output", str(tmp_path / "out")]) == 2
     assert _one_line(capsys) == (
         f"{video}: the video frame is 40000 x 40000 pixels, more than photogram reads "
         f"(250 megapixels) (scale it down, or check that the file is not damaged)")

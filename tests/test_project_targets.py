@@ -136,7 +136,7 @@ def test_calibrate_command_with_targets(tmp_path, capsys):
     import json
     path = make_project(tmp_path)
     _with_columns(path, {"1": "0.03,0,-1,0", "5": "0.03,0,-1,0", "C1": "0.03,0,-1,0"})
-    assert main(["calibrate", str(path)]) == 0
+    assert main(["calibrate", "--no-report", str(path)]) == 0
     res = path.parent / "results"
     assert json.loads((res / "summary.json").read_text())["status"] == "converged"
     with open(res / "residuals.csv", encoding="utf-8") as f:

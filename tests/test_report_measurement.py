@@ -26,7 +26,7 @@ def _pages(path):
 
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory):
-    return stage_lab(tmp_path_factory.mktemp("report") / "lab", calibrate=True)
+    return stage_lab(tmp_path_factory.mktemp("report") / "lab", calibrate=True, report=True)
 
 
 def _measurement_text(pages):

@@ -95,7 +95,7 @@ def rig_set(tmp_path_factory):
 
 def test_calibrate_board_project_writes_cameras_near_the_truth(rig_set, capsys):
     folder, (cams, poses) = rig_set
-    assert main(["calibrate", str(_prj(folder))]) == 0
+    assert main(["calibrate", "--no-report", str(_prj(folder))]) == 0
     out = folder / "results"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "converged"
@@ -125,7 +125,7 @@ def test_no_floor_frame_takes_the_pose_seen_by_most_cameras(rig_set, tmp_path, c
     text = _prj(folder).read_text().replace('floor = "0000"\n', "")
     p = folder / "rig2.prj"
     p.write_text(text)
-    assert main(["calibrate", str(p), "--output", str(tmp_path / "out")]) == 0
+    assert main(["calibrate", "--no-report", str(p), "--output", str(tmp_path / "out")]) == 0
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["floor_given"] is False and s["floor_frame"]
 
@@ -148,7 +148,7 @@ def test_bad_board_projects_get_one_line_and_exit_2(rig_set, tmp_path, capsys, c
     lines.insert(i - 1, change)
     p = folder / f"bad_{key}.prj"
     p.write_text("\n".join(lines) + "\n")
-    code = main(["calibrate", str(p), "--output", str(tmp_path / "o")])
+    code = main(["calibrate", "--no-report", str(p), "--output", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2
     assert len(err) == 1 and expect in err[0] and "Traceback" not in err[0]
@@ -164,7 +164,7 @@ def test_a_camera_that_never_sees_the_board_is_named(rig_set, tmp_path, capsys):
     text = _prj(folder).read_text().replace('cam03 = "cam03"', 'cam03 = "blank"')
     p = folder / "blank.prj"
     p.write_text(text)
-    code = main(["calibrate", str(p), "--output", str(tmp_path / "o")])
+    code = main(["calibrate", "--no-report", str(p), "--output", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "cam03" in err[0] and "not found" in err[0]
 
@@ -201,7 +201,7 @@ def test_scene_points_give_the_world(rig_set, tmp_path, capsys):
                             'sigma_image = 0.3 }\n')
     p = folder / "scene.prj"
     p.write_text(text)
-    assert main(["calibrate", str(p), "--output", str(tmp_path / "out")]) == 0
+    assert main(["calibrate", "--no-report", str(p), "--output", str(tmp_path / "out")]) == 0
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["world"] == "scene" and s["scene_rms_px"] < 1.0
     table = pd.read_csv(tmp_path / "out" / "cameras.csv")
@@ -214,7 +214,7 @@ def test_scene_points_give_the_world(rig_set, tmp_path, capsys):
         assert np.linalg.norm(dC) < 0.05
     bad = text.replace('marks.csv', 'scene.csv')
     p.write_text(bad)
-    assert main(["calibrate", str(p), "--output", str(tmp_path / "o2")]) == 2
+    assert main(["calibrate", "--no-report", str(p), "--output", str(tmp_path / "o2")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "scene.csv" in err[0]
 
@@ -242,13 +242,13 @@ def test_videos_are_read_by_time_step_and_must_share_their_frame_rate(rig_set, t
     text = text.replace('floor = "0000"', 'floor = "0"\nstep = 0.2')
     p = folder / "video.prj"
     p.write_text(text)
-    assert main(["calibrate", str(p), "--output", str(tmp_path / "v")]) == 0
+    assert main(["calibrate", "--no-report", str(p), "--output", str(tmp_path / "v")]) == 0
     s = json.loads((tmp_path / "v" / "summary.json").read_text())
     # 24 frames at 10 fps, one every 0.2 s: frames 0, 2, ..., 22
     assert all(c["frames_read"] == 12 for c in s["cameras"].values())
     assert s["floor_frame"] == "0"
     _to_video(folder, "cam03", 25.0)
     p.write_text(text.replace('cam03 = "cam03_10.avi"', 'cam03 = "cam03_25.avi"'))
-    code = main(["calibrate", str(p), "--output", str(tmp_path / "v2")])
+    code = main(["calibrate", "--no-report", str(p), "--output", str(tmp_path / "v2")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "cam03" in err[0] and "25" in err[0]

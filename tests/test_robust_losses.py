@@ -68,7 +68,7 @@ def _max_shift(a, b, columns):
 @pytest.fixture(scope="module")
 def clean(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("clean")
-    assert main(["orient", "-q", str(field_copy(tmp)), "--output", str(tmp / "out")]) == 0
+    assert main(["orient", "--no-report", "-q", str(field_copy(tmp)), "--output", str(tmp / "out")]) == 0
     return _stations_points(tmp / "out")
 
 
@@ -76,7 +76,7 @@ def clean(tmp_path_factory):
 def test_every_loss_works_on_the_field_network_with_blunders(tmp_path, clean, loss, capsys):
     prj = field_copy(tmp_path, adjustment={"robust": f'"{loss}"'},
                      **{"field_image_points.csv": _with_blunders})
-    code = main(["orient", "-q", str(prj), "--output", str(tmp_path / "out")])
+    code = main(["orient", "--no-report", "-q", str(prj), "--output", str(tmp_path / "out")])
     assert code == 0, capsys.readouterr().err
     st, pt = _stations_points(tmp_path / "out")
     shift_st = _max_shift(clean[0], st, ("X0", "Y0", "Z0", "omega", "phi", "kappa"))

@@ -77,7 +77,7 @@ def test_track_writes_the_tables_intersect_reads(tmp_path, rendered, oriented_pr
     text = (JUMPS / "jumps-video.prj").read_text().replace('"../',
                                                           f'"{oriented_projects.as_posix()}/')
     (tmp_path / "jumps-video.prj").write_text(text)
-    run = _run("intersect", tmp_path / "jumps-video.prj")
+    run = _run("intersect", "--no-report", tmp_path / "jumps-video.prj")
     assert run.returncode == 0, run.stderr
     ex = pd.read_csv(tmp_path / "results-video" / "exposures.csv", dtype={"exposure": str})
     assert len(ex) == 24

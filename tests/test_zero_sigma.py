@@ -116,7 +116,7 @@ def test_control_datum_says_that_control_sigmas_are_ignored(tmp_path, capsys):
     import json
     from photogram_cli.main import main
     prj = field_copy(tmp_path, adjustment={"datum": '"control"'})
-    assert main(["orient", "-q", str(prj), "--output", str(tmp_path / "out")]) == 0
+    assert main(["orient", "--no-report", "-q", str(prj), "--output", str(tmp_path / "out")]) == 0
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     text = [w for w in summary["warnings"] if w.startswith('datum = "control"')]
     assert len(text) == 1

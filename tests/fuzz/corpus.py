@@ -68,7 +68,8 @@ def _results(base: Path) -> None:
 
     from photogram_cli.main import main
     for command, prj, *more in (("measure", "lab/frame.toml", "--no-report"),
-                                ("calibrate", "lab/lab.prj"), ("orient", "field/field.prj")):
+                                ("calibrate", "lab/lab.prj", "--no-report"),
+                                ("orient", "field/field.prj", "--no-report")):
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             code = main([command, str(base / prj), "-q", *more])
         if code != 0:

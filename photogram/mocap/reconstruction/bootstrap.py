@@ -129,12 +129,15 @@ def size_trilateration(X0: np.ndarray, size: np.ndarray, extent: float = 2.0,
     ls = np.where(ok, np.log(np.where(ok, size, 1.0)), 0.0)
     P = np.repeat(centre[None], F, 0)
     n = np.maximum(ok.sum(axis=1), 1)
-    for s0 in range(0, F, 64):                      # chunks of frames (memory)
-        o, L = ok[s0:s0 + 64], ls[s0:s0 + 64]
+    # chunks of frames with (f, N, C) temporaries of at most ~32 MB each: a
+    # fine grid (N ~ 10^6 points) in chunks of 64 frames took 2 GB
+    f = int(min(64, max(1, 2 ** 25 // (8 * G.shape[0] * C))))
+    for s0 in range(0, F, f):
+        o, L = ok[s0:s0 + f], ls[s0:s0 + f]
         v = (logd[None] + L[:, None, :]) * o[:, None, :]                  # (f, N, C)
-        mean = v.sum(-1) / n[s0:s0 + 64, None]
+        mean = v.sum(-1) / n[s0:s0 + f, None]
         var = np.sum(((v - mean[..., None]) * o[:, None, :]) ** 2, -1)
-        P[s0:s0 + 64] = G[np.argmin(var, axis=1)]
+        P[s0:s0 + f] = G[np.argmin(var, axis=1)]
     if smooth > 1:
         P = median_filter(P, size=(smooth, 1), mode="nearest")
     P[ok.sum(axis=1) < 3] = centre
