@@ -69,16 +69,23 @@ def _chosen(P, skis):
     return [i for i in complete if i % EVERY == 0] or complete[::EVERY]
 
 
-def tall(data) -> bool | None:
-    """True when the figure fits a portrait page better than a landscape one
-    (a steep or long descent); None when there is nothing to draw."""
+def _selection(data):
+    """``(stick_arrays(data), chosen exposures)``, or None when there is
+    nothing to draw."""
     arrays = stick_arrays(data)
     if arrays is None:
         return None
-    _, P, _, skis, _ = arrays
-    idx = _chosen(P, skis)
-    if not idx:
+    idx = _chosen(arrays[1], arrays[3])
+    return (arrays, idx) if idx else None
+
+
+def tall(data) -> bool | None:
+    """True when the figure fits a portrait page better than a landscape one
+    (a steep or long descent); None when there is nothing to draw."""
+    chosen = _selection(data)
+    if chosen is None:
         return None
+    (_, P, _, skis, _), idx = chosen
     pts = np.concatenate([P[idx].reshape(-1, 3), skis[idx].reshape(-1, 3)])
     r = np.ptp(pts[np.all(np.isfinite(pts), axis=1)], axis=0) + 1e-9
     return (r[2] + max(r[1], 0.12 * r[0])) / r[0] > 0.55
@@ -87,13 +94,10 @@ def tall(data) -> bool | None:
 def draw_figure(doc, data, units: str) -> bool:
     """The side view (X, Z) above the plan (X, Y) at equal scales, as wide
     as the page allows; False if there is nothing to draw."""
-    arrays = stick_arrays(data)
-    if arrays is None:
+    chosen = _selection(data)
+    if chosen is None:
         return False
-    ids, P, O, skis, v = arrays
-    idx = _chosen(P, skis)
-    if not idx:
-        return False
+    (ids, P, O, skis, v), idx = chosen
     lu, speed = data.length_unit, f"{data.length_unit}/s"
     if units == "coach":
         k = LENGTH_UNITS.get(lu, 1.0)
