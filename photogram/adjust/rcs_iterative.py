@@ -242,7 +242,7 @@ def schur_jacobi(op):
     return apply
 
 
-def pcg(op, b, precond, tolerance=1e-2, max_iterations=500):
+def pcg(op, b, precond, tolerance=0.1, max_iterations=500):
     """Preconditioned conjugate gradients for ``op(x) = b`` from ``x = 0``;
     stops when ``sqrt(r^T P^-1 r) <= tolerance * sqrt(b^T P^-1 b)``.
     Returns ``(x, iterations)``."""
@@ -275,7 +275,7 @@ def pcg(op, b, precond, tolerance=1e-2, max_iterations=500):
     return x, it
 
 
-def solve_reduced(system, Ncc, Ainv, rhs_c, tolerance=1e-2, max_iterations=500):
+def solve_reduced(system, Ncc, Ainv, rhs_c, tolerance=0.1, max_iterations=500):
     """``dx_c`` of ``S dx_c = rhs_c`` by preconditioned CG (``Ncc``
     damped, sparse or dense; ``Ainv`` the inverse damped point blocks).
     Returns ``(dx_c, cg_iterations)``."""

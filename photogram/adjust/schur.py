@@ -182,7 +182,7 @@ RCS_METHODS = ("dense", "iterative")
 
 
 def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense",
-          cg_tolerance=1e-2, cg_max_iterations=500):
+          cg_tolerance=0.1, cg_max_iterations=500):
     """One Gauss-Newton (or damped, Levenberg-Marquardt) step.
 
     Parameters

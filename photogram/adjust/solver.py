@@ -79,7 +79,7 @@ class SolverOptions:
     # the reduced camera system
     linear_solver: str = "auto"       # auto | dense | iterative
     iterative_min_columns: int | None = None   # None: 1500 with numba kernels, 4000 without
-    cg_tolerance: float = 1e-2
+    cg_tolerance: float = 0.1         # Ceres' eta (ITERATIVE_SCHUR)
     cg_max_iterations: int = 500
 
 
@@ -129,7 +129,7 @@ class Problem:
         self._all_fixed = [[not np.any(m) for m in ms] for ms in self._free_masks]
         # how solve_linear solves the reduced camera system (set by solve()
         # for its run from SolverOptions; dense otherwise)
-        self.rcs = {"method": "dense", "cg_tolerance": 1e-2, "cg_max_iterations": 500}
+        self.rcs = {"method": "dense", "cg_tolerance": 0.1, "cg_max_iterations": 500}
 
     def weights(self, k):
         """sqrt of the weight of every residual of block k (0 = not used)."""
