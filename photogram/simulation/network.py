@@ -37,15 +37,15 @@ class SyntheticNetwork:
         return matrix_to_opk(self.R)
 
 
-def observe(model_name, io, station_camera, R, X0, points, image_size,
-            sigma=0.0, rng=None, margin=0.0) -> SyntheticNetwork:
-    """Project every point into every station; keep those inside the image
-    (with ``margin`` px) and in front of the camera; add N(0, sigma) noise."""
-    model = camera_model(model_name)
-    io = np.atleast_2d(np.asarray(io, dtype=float))
-    S, P = len(X0), len(points)
-    st = np.repeat(np.arange(S), P)
-    pt = np.tile(np.arange(P), S)
+_PAIRS = 200_000
+
+
+def _observe_stations(model, io, station_camera, R, X0, points, image_size, margin, stations):
+    """(station, point, xy) of the points the given stations see (in front,
+    inside the image less ``margin``), station-major as :func:`observe`."""
+    P = len(points)
+    st = np.repeat(stations, P)
+    pt = np.tile(np.arange(P), len(stations))
     Xc_z = np.einsum("nj,nj->n", R[st][:, 2, :], points[pt] - X0[st])
     front = Xc_z < 0
     st, pt = st[front], pt[front]
@@ -53,7 +53,24 @@ def observe(model_name, io, station_camera, R, X0, points, image_size,
     w, h = image_size
     inside = ((xy[:, 0] >= margin) & (xy[:, 0] <= w - margin)
               & (xy[:, 1] >= margin) & (xy[:, 1] <= h - margin))
-    st, pt, xy = st[inside], pt[inside], xy[inside]
+    return st[inside], pt[inside], xy[inside]
+
+
+def observe(model_name, io, station_camera, R, X0, points, image_size,
+            sigma=0.0, rng=None, margin=0.0) -> SyntheticNetwork:
+    """Project every point into every station; keep those inside the image
+    (with ``margin`` px) and in front of the camera; add N(0, sigma) noise.
+    Stations are projected a few at a time (about ``_PAIRS`` station-point
+    pairs), so the memory stays bounded; the result does not depend on it."""
+    model = camera_model(model_name)
+    io = np.atleast_2d(np.asarray(io, dtype=float))
+    S, P = len(X0), len(points)
+    step = max(1, _PAIRS // max(P, 1))
+    parts = [_observe_stations(model, io, station_camera, R, X0, points, image_size, margin,
+                               np.arange(s0, min(s0 + step, S)))
+             for s0 in range(0, S, step)] or [(np.zeros(0, int), np.zeros(0, int),
+                                               np.zeros((0, 2)))]
+    st, pt, xy = (np.concatenate(a) for a in zip(*parts))
     rng = rng if rng is not None else np.random.default_rng(0)
     noisy = xy + (rng.normal(0.0, sigma, xy.shape) if sigma > 0 else 0.0)
     return SyntheticNetwork(model_name, io, tuple(image_size), np.asarray(station_camera),
