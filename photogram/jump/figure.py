@@ -20,11 +20,22 @@ import numpy as np
 
 from photogram.errors import InputError
 from photogram.jump import definitions as defs
+from photogram.jump.coach import KMH_PER_MS
 from photogram.project.atomic import atomic_write_bytes
 
-__all__ = ["plot_stick_figure", "time_series_figure", "draw_stick"]
+__all__ = ["plot_stick_figure", "time_series_figure", "draw_stick", "chosen_exposures"]
 
 _RIGHT, _LEFT, _BODY = "tab:red", "tab:blue", "black"
+
+
+def chosen_exposures(P, skis, every: int) -> list[int]:
+    """The exposures a stick figure draws: every ``every``-th one whose
+    points and skis are all measured; where gaps (points or skis not
+    measured, e.g. flagged by photogram track) leave none of those, every
+    ``every``-th complete one."""
+    complete = [i for i in range(len(P))
+                if np.all(np.isfinite(P[i])) and np.all(np.isfinite(skis[i]))]
+    return [i for i in complete if i % int(every) == 0] or complete[::int(every)]
 
 
 def _new_figure(size):
@@ -138,13 +149,8 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
         from photogram.project.model import LENGTH_UNITS
         k, unit, speed = LENGTH_UNITS[unit], "m", "km/h"
     P, O, skis = model.P * k, model.O * k, model.skis * k
-    v = model.values["v"] * (k * 3.6 if coach else 1.0)
-    complete = [i for i in range(len(model))
-                if np.all(np.isfinite(model.P[i])) and np.all(np.isfinite(model.skis[i]))]
-    # every ``every``-th exposure; where gaps (points or skis not measured,
-    # e.g. flagged by photogram track) leave none of those, every
-    # ``every``-th complete one
-    idx = [i for i in complete if i % int(every) == 0] or complete[::int(every)]
+    v = model.values["v"] * (k * KMH_PER_MS if coach else 1.0)
+    idx = chosen_exposures(model.P, model.skis, every)
     if not idx:
         with _style():
             fig = _new_figure((8, 2))

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from photogram.jump.coach import KMH_PER_MS
-from photogram.jump.figure import draw_stick
+from photogram.jump.figure import chosen_exposures, draw_stick
 from photogram.jump.stick import ski_segments
 from photogram.project.model import LENGTH_UNITS, IntersectSettings
 from photogram.report.layout import decorate
@@ -63,19 +63,13 @@ def stick_arrays(data):
     return ids, P, O, seg, v
 
 
-def _chosen(P, skis):
-    complete = [i for i in range(len(P))
-                if np.all(np.isfinite(P[i])) and np.all(np.isfinite(skis[i]))]
-    return [i for i in complete if i % EVERY == 0] or complete[::EVERY]
-
-
 def _selection(data):
     """``(stick_arrays(data), chosen exposures)``, or None when there is
     nothing to draw."""
     arrays = stick_arrays(data)
     if arrays is None:
         return None
-    idx = _chosen(arrays[1], arrays[3])
+    idx = chosen_exposures(arrays[1], arrays[3], EVERY)
     return (arrays, idx) if idx else None
 
 
