@@ -27,11 +27,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from scipy.special import chdtri
+from scipy.stats import binom
 
 import photogram
 from photogram.project.atomic import atomic_write_text
 
-__all__ = ["statistics", "write_report", "ratio_band"]
+__all__ = ["statistics", "write_report", "ratio_band", "band_warnings"]
 
 
 def ratio_band(n, level=0.95):
@@ -44,6 +45,55 @@ def ratio_band(n, level=0.95):
     lo = chdtri(n - 1, 1 - a) / (n - 1)
     hi = chdtri(n - 1, a) / (n - 1)
     return [float(np.sqrt(lo)), float(np.sqrt(hi))]
+
+
+def band_warnings(frame, band, *, level=0.95, alpha=0.01, worst=3) -> list[str]:
+    """Warnings for groups whose ratios ``sigma_mc / sigma_prop`` leave the
+    band too often.
+
+    If every propagated sigma were right, each ratio would fall outside its
+    ``level`` band with probability ``1 - level``, and the number ``k`` of
+    the ``n`` quantities of a group outside it would be at most binomial
+    (n, 1 - level) (the quantities of a group are correlated, which widens
+    the spread of ``k`` but not its mean). A group is named when ``P(K >=
+    k) < alpha`` under that binomial, with its ``worst`` ratios farthest from
+    the band (in log scale), so a reader sees which sigmas are too small or
+    too large.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        The summary table (:func:`statistics`): columns ``quantity``,
+        ``group``, ``ratio``.
+    band : sequence of 2 floats
+        The band (:func:`ratio_band`); NaN bounds give no warnings.
+
+    Returns
+    -------
+    list of str
+        One line per group that leaves its band too often.
+    """
+    lo, hi = (float(b) for b in band)
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return []
+    out = []
+    for group, part in frame.groupby("group", sort=False):
+        r = part.ratio.to_numpy(dtype=float)
+        keep = np.isfinite(r) & (r > 0)
+        r, names = r[keep], part.quantity.to_numpy()[keep]
+        outside = (r < lo) | (r > hi)
+        k, n = int(outside.sum()), int(len(r))
+        if k == 0 or binom.sf(k - 1, n, 1 - level) >= alpha:
+            continue
+        dist = np.maximum(np.log(lo / r), np.log(r / hi))
+        order = np.argsort(-dist)[:min(worst, k)]
+        named = ", ".join(f"{names[i]} {r[i]:.3g}" for i in order)
+        side = ("too small" if np.all(r[outside] > hi) else
+                "too large" if np.all(r[outside] < lo) else "too small or too large")
+        out.append(f"montecarlo: {k} of {n} {group} quantities have sigma_mc/sigma_prop outside "
+                   f"the {level:.0%} band {lo:.3f}..{hi:.3f} (about {(1 - level) * n:.1f} "
+                   f"expected by chance): the propagated sigmas look {side}; farthest: {named}")
+    return out
 
 
 def statistics(chain, samples, failed, sigma_prop, sigma_cmd):
@@ -136,7 +186,8 @@ def write_report(folder, chain, samples, failed, sigma_prop, sigma_cmd, info, pr
     summary = {
         "command": "montecarlo", "status": "ok", "software_version": photogram.__version__,
         "project": project_info(project),
-        "warnings": list(getattr(project, "warnings", None) or []),
+        "warnings": (list(getattr(project, "warnings", None) or []) +
+                     band_warnings(frame, ratio_band(n_ok))),
         "runs": int(len(samples)), "failed": int(failed.sum()),
         "seed": int(info.get("seed", 0)), "perturb": list(s.perturb), "truth": s.truth,
         "chain": {"orient": s.orient, "calibrate": s.calibrate, "intersect": s.intersect,
