@@ -47,6 +47,26 @@ def _new_figure(size):
     return fig
 
 
+def keep_labels_inside(fig, margin_px: float = 4.0) -> float:
+    """Widen the left margin until every axis' y label and tick labels lie
+    inside the figure; return the leftmost label edge (px) after it.
+
+    ``tight_layout`` places the axes before ``set_aspect("equal",
+    adjustable="box")`` moves them, so a tall side view's y label could end
+    left of the figure (stick.png's "Z" label was clipped)."""
+    for _ in range(3):
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        x0 = min(min([ax.yaxis.label.get_window_extent(renderer).x0] +
+                     [t.get_window_extent(renderer).x0 for t in ax.get_yticklabels()
+                      if t.get_text()]) for ax in fig.axes)
+        if x0 >= margin_px:
+            return float(x0)
+        width = fig.get_figwidth() * fig.dpi
+        fig.subplots_adjust(left=fig.subplotpars.left + (margin_px - x0) / width)
+    return float(x0)
+
+
 def _save(fig, path: str | Path, dpi: int) -> Path:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
@@ -193,6 +213,7 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
         ax_p.plot([], [], color=_LEFT, label="left ski (L2)")
         ax_p.legend(loc="upper right", fontsize=7)
         fig.tight_layout()
+        keep_labels_inside(fig)
         return _save(fig, path_png, dpi)
 
 
