@@ -168,7 +168,11 @@ def write_jump(folder, result, project, units="project"):
         markers[f"{ski}_tail"] = result.model.skis[:, j, 0] * to_m
         markers[f"{ski}_tip"] = result.model.skis[:, j, 1] * to_m
     write_trc(folder / "jump.trc", result.times, markers, units="m")
-    plot_stick_figure(result.model, folder / "stick.png", coach=coach)
+    profile = None
+    if project.intersect.landing_profile:
+        from photogram.jump.coach import read_landing_profile
+        profile = read_landing_profile(project.intersect.landing_profile)
+    plot_stick_figure(result.model, folder / "stick.png", coach=coach, profile=profile)
     if coach:
         shown = to_coach(table, unit, project.units.length)
         shown.attrs.update(angle_unit="deg", length_unit="m", speed_unit="km/h")

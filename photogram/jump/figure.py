@@ -26,6 +26,7 @@ from photogram.project.atomic import atomic_write_bytes
 __all__ = ["plot_stick_figure", "time_series_figure", "draw_stick", "chosen_exposures"]
 
 _RIGHT, _LEFT, _BODY = "tab:red", "tab:blue", "black"
+_SLOPE = "tab:brown"
 
 
 def chosen_exposures(P, skis, every: int) -> list[int]:
@@ -135,8 +136,24 @@ def draw_stick(ax_s, ax_p, P, O, skis, v, idx, *, side, plan, speed, fontsize=7,
                           ha="center", fontsize=fontsize)
 
 
+def _profile_in_view(profile, k, along, x_lo, x_hi):
+    """The profile's (x, z) inside ``[x_lo, x_hi]`` (scaled by ``k``, ends
+    interpolated), or None (no profile, abscissa not world X, no overlap)."""
+    if profile is None or along != "x":
+        return None
+    x = np.asarray(profile.x, float) * k
+    z = np.asarray(profile.z, float) * k
+    lo, hi = max(x_lo, x[0]), min(x_hi, x[-1])
+    if not lo < hi:
+        return None
+    inside = (x > lo) & (x < hi)
+    gx = np.concatenate([[lo], x[inside], [hi]])
+    return gx, np.interp(gx, x, z)
+
+
 def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str = "x",
-                      dpi: int = 100, title: str | None = None, coach: bool = False) -> Path:
+                      dpi: int = 100, title: str | None = None, coach: bool = False,
+                      profile=None) -> Path:
     """The stick model at evenly spaced exposures in side and plan view.
 
     Parameters
@@ -154,6 +171,11 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
     coach : bool
         Lengths in m and the speed in km/h (default: the model's length
         unit and that unit per second).
+    profile : ProfileGround, optional
+        The landing-slope profile (world X, Z in the model's length unit,
+        :func:`photogram.jump.coach.read_landing_profile`), drawn in the side
+        view under the jumper when ``along`` is "x" (the profile's abscissa);
+        the view's height range takes it in.
 
     Returns
     -------
@@ -191,6 +213,9 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
     xs, zs = side(pts)
     _, ys = plan(pts)
     pad = 0.05 * (np.ptp(xs) + 1e-9)
+    ground = _profile_in_view(profile, k, along, xs.min() - pad, xs.max() + pad)
+    if ground is not None:
+        zs = np.concatenate([zs, ground[1]])
     xr = np.ptp(xs) + 2 * pad
     zr, yr = np.ptp(zs) + 2 * pad, max(np.ptp(ys) + 2 * pad, 0.15 * xr)
     height = float(np.clip(11.0 * (zr + yr) / xr + 1.5, 4.0, 14.0))
@@ -204,6 +229,9 @@ def plot_stick_figure(model, path_png: str | Path, every: int = 3, *, along: str
         ax_p.set_ylim(ymid - yr / 2, ymid + yr / 2)
         draw_stick(ax_s, ax_p, P, O, skis, v, idx, side=side, plan=plan,
                    speed=lambda x: f"{x:.1f} {speed}")
+        if ground is not None:
+            ax_s.plot(*ground, color=_SLOPE, lw=1.2, label="landing slope (profile)")
+            ax_s.legend(loc="upper right", fontsize=7)
         ax_s.set_ylabel(f"Z [{unit}]")
         ax_p.set_ylabel(f"{ly} [{unit}]")
         ax_p.set_xlabel(f"{lx} [{unit}]")
