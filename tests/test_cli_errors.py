@@ -79,3 +79,13 @@ def test_console_process_mocap_without_mocap_section(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.startswith("lab/lab.prj: this project has no [mocap] section")
     assert proc.stderr.count("\n") == 1
+
+
+def test_the_parser_is_built_once_per_command_table(monkeypatch):
+    from photogram_cli import main as cli
+    first = cli._parser()
+    assert cli._parser() is first
+    monkeypatch.setitem(cli.COMMANDS, "extra", cli.Command("photogram.nowhere:run", "x", "x"))
+    other = cli._parser()
+    assert other is not first
+    assert other.parse_args(["extra", "p.prj"]).command == "extra"
