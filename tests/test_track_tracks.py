@@ -239,10 +239,9 @@ def test_bad_tables_are_input_errors(cams, separate):
 # ----------------------------------------------------------------------------
 # the rendered jump videos (photogram.simulation.jump_video, colleague's branch)
 
-def _rendered(settings):
-    jv = pytest.importorskip("photogram.simulation.jump_video")
-    v = jv.render_jump_videos(settings)
-    return v
+def _rendered(kind):
+    from jump_videos import rendered_videos      # rendered once per session
+    return rendered_videos(kind)
 
 
 def _run_rendered(v):
@@ -260,8 +259,7 @@ def _run_rendered(v):
 
 
 def test_rendered_normal_meets_the_goals():
-    jv = pytest.importorskip("photogram.simulation.jump_video")
-    res, m, err, wrong = _run_rendered(_rendered(jv.VideoSettings()))
+    res, m, err, wrong = _run_rendered(_rendered("normal"))
     assert wrong.sum() == 0
     assert np.sqrt(np.mean(err ** 2)) <= 0.2
     vis = m.visible.astype(str) == "True"
@@ -282,8 +280,7 @@ def test_rendered_normal_meets_the_goals():
     "section 4."))
 def test_rendered_harsh_reported_with_a_looser_bound():
     """Not tuned on: no wrong label allowed still, the centres to 0.3 px."""
-    jv = pytest.importorskip("photogram.simulation.jump_video")
-    res, m, err, wrong = _run_rendered(_rendered(jv.harsh_settings()))
+    res, m, err, wrong = _run_rendered(_rendered("harsh"))
     print("harsh:", res.offsets, m.status.value_counts().to_dict(),
           "rms", float(np.sqrt(np.mean(err[~wrong] ** 2))), "wrong", int(wrong.sum()))
     assert wrong.sum() == 0
