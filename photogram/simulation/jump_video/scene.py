@@ -40,9 +40,16 @@ def _value_noise(x, y, scale, table):
     fu, fv = u - i, v - j
     fu, fv = fu * fu * (3 - 2 * fu), fv * fv * (3 - 2 * fv)
     n = len(table)
+    if n & (n - 1) == 0 and table.shape == (n, n):
+        # a power of two: the wrapped index is the low bits (a % n for
+        # negative a too), one lookup into the flat table
+        flat, low = table.ravel(), n - 1
 
-    def at(a, b):
-        return table[a % n, b % n]
+        def at(a, b):
+            return flat[((a & low) * n) | (b & low)]
+    else:
+        def at(a, b):
+            return table[a % n, b % n]
     top = at(i, j) * (1 - fu) + at(i + 1, j) * fu
     bot = at(i, j + 1) * (1 - fu) + at(i + 1, j + 1) * fu
     return top * (1 - fv) + bot * fv
