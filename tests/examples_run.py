@@ -5,7 +5,8 @@ change when the code is only restructured (issue 17, "no behaviour change").
 temporary folder beside a link to ``../shared`` (so the real-data projects
 find their tables by the same relative paths), runs every example's command
 through the command-line entry point (``python -m photogram_cli``, a fresh
-interpreter per step), and returns per step:
+interpreter per step; the test runs them in its own process with one BLAS
+thread, :func:`_run_step`), and returns per step:
 
 * ``summary``: the figures of ``summary.json`` that the issue names (sigma0,
   redundancy; for motion capture the reprojection, limb and accuracy
@@ -22,7 +23,9 @@ by the code before the restructuring (commit def3da7); it was written with
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import io
 import json
 import shutil
 import subprocess
@@ -96,9 +99,32 @@ def _options(options: list[str], projects: Path) -> list[str]:
             for k, a in enumerate(options)]
 
 
-def run_examples(dest: Path, *, with_shared: bool | None = None) -> dict:
+def _run_step(args: list[str], cwd: Path, in_process: bool) -> tuple[int, str]:
+    """``photogram ARGS`` with ``cwd`` as the working folder: (exit code,
+    stderr). In a fresh interpreter, as a user runs it: photogram then sets
+    one BLAS thread before numpy loads (inside pytest numpy is already
+    loaded, and threaded BLAS changes the last digits of the estimate). Or
+    ``in_process``: through the same entry point in this process with BLAS
+    held to one thread (threadpoolctl), which gives the same numbers without
+    the interpreter's start and imports (about 1.5 s CPU a step)."""
+    if not in_process:
+        done = subprocess.run([sys.executable, "-m", "photogram_cli", *args],
+                              capture_output=True, text=True, cwd=cwd)
+        return done.returncode, done.stderr
+    from threadpoolctl import threadpool_limits
+
+    from photogram_cli.main import main
+    err = io.StringIO()
+    with threadpool_limits(limits=1, user_api="blas"), contextlib.chdir(cwd), \
+            contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        code = main(args)
+    return code, err.getvalue()
+
+
+def run_examples(dest: Path, *, with_shared: bool | None = None,
+                 in_process: bool = False) -> dict:
     """Run every example step in a copy under ``dest``; returns the figures
-    per step (see the module docstring)."""
+    per step (see the module docstring; ``in_process``: :func:`_run_step`)."""
     if with_shared is None:
         with_shared = have_shared_data()
     projects = stage_projects(dest)
@@ -110,14 +136,9 @@ def run_examples(dest: Path, *, with_shared: bool | None = None) -> dict:
         # (it costs more CPU than the adjustment; tests/test_report*.py test it)
         no_report = ["--no-report"] if argv[0] in NO_REPORT else []
         args = [argv[0], str(projects / argv[1]), *_options(argv[2:], projects), "-q", *no_report]
-        # a fresh interpreter per step, as a user runs it: photogram then sets
-        # one BLAS thread before numpy loads (inside pytest numpy is already
-        # loaded, and threaded BLAS changes the last digits of the estimate)
-        done = subprocess.run([sys.executable, "-m", "photogram_cli", *args],
-                              capture_output=True, text=True, cwd=dest)
-        if done.returncode != 0:
-            raise RuntimeError(f"photogram {' '.join(args)} exited {done.returncode}: "
-                               f"{done.stderr[-3000:]}")
+        code, err = _run_step(args, dest, in_process)
+        if code != 0:
+            raise RuntimeError(f"photogram {' '.join(args)} exited {code}: {err[-3000:]}")
         results = projects / folder
         entry = {"tables": {}}
         summary_path = results / "summary.json"

@@ -13,22 +13,20 @@ case unless PHOTOGRAM_FUZZ_FULL=1)."""
 
 from __future__ import annotations
 
-import atexit
 import os
-import shutil
 import tempfile
 from pathlib import Path
 
 import pytest
 
-from fuzz.corpus import build_cases, run_case, stage
+from fuzz.corpus import build_cases, run_case, staged_base
 
 # `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
 pytestmark = pytest.mark.slow
 
-# the example projects, copied once (the cases are built from them at collection)
-BASE = stage(Path(tempfile.mkdtemp(prefix="fuzz-corpus-")))
-atexit.register(shutil.rmtree, BASE, ignore_errors=True)
+# the example projects, copied once per session (the cases are built from them
+# at collection; tests/test_fuzz_hypothesis.py uses the same copy)
+BASE = staged_base()
 # `make test` runs every third case (all files and mutation kinds still appear;
 # about 25 s); PHOTOGRAM_FUZZ_FULL=1 or benchmarks/fuzz.py runs all of them
 CASES = build_cases(BASE)[::1 if os.environ.get("PHOTOGRAM_FUZZ_FULL") else 3]

@@ -10,9 +10,6 @@ examples every time (benchmarks/fuzz.py counts them)."""
 from __future__ import annotations
 
 import os
-
-import atexit
-import shutil
 import tempfile
 from collections import Counter
 from pathlib import Path
@@ -20,7 +17,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzz.corpus import Case, run_case, stage
+from fuzz.corpus import Case, run_case, staged_base
 import pytest
 
 # `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
@@ -38,8 +35,7 @@ SETTINGS = dict(deadline=None, derandomize=True, database=None,
 #: outcomes of every example run (benchmarks/fuzz.py reads them)
 STATS: Counter = Counter()
 
-_BASE = stage(Path(tempfile.mkdtemp(prefix="fuzz-hypothesis-")))
-atexit.register(shutil.rmtree, _BASE, ignore_errors=True)
+_BASE = staged_base()        # shared with tests/test_fuzz_corpus.py
 
 
 def _lines(rel: str) -> list[str]:

@@ -1,8 +1,10 @@
 """Issue 16, items 4, 10 (intersect plausibility), 11, 12 and 15: honest
 intersect results and exports (docs/reliability.md, the issue 16 section).
 
-The chain lab -> field -> jumps runs once per module on copies of the
-example projects (about 40 s); the mocap results of ski-ptz once (5 s).
+The chain lab -> field -> jumps runs once per module: a copy of the
+session's calibrated lab and oriented field (conftest.py's
+``oriented_projects``), then intersect jumps; the mocap results of ski-ptz
+once (5 s).
 """
 
 from __future__ import annotations
@@ -16,7 +18,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from lab_stage import stage_lab
 
 import photogram
 from photogram_cli.main import main
@@ -28,15 +29,11 @@ PROJECTS = Path(photogram.__file__).resolve().parents[1] / "projects"
 
 
 @pytest.fixture(scope="module")
-def chain(tmp_path_factory):
-    """calibrate lab, orient field, intersect jumps (copies of the examples)."""
-    root = tmp_path_factory.mktemp("i16")
-    for name in ("field", "jumps"):
-        shutil.copytree(PROJECTS / name, root / name,
-                        ignore=shutil.ignore_patterns("results*", ".*"))
-    stage_lab(root / "lab")                   # copied and its photographs measured
-    assert main(["calibrate", "--no-report", "-q", str(root / "lab" / "lab.prj")]) == 0
-    assert main(["orient", "--no-report", "-q", str(root / "field" / "field.prj")]) == 0
+def chain(tmp_path_factory, oriented_projects):
+    """calibrate lab, orient field (a copy of the session's, the same
+    commands on copies of the examples), intersect jumps."""
+    root = tmp_path_factory.mktemp("i16") / "chain"
+    shutil.copytree(oriented_projects, root, symlinks=True)
     assert main(["intersect", "--no-report", "-q", str(root / "jumps" / "jumps.prj")]) == 0
     return root
 

@@ -13,7 +13,7 @@ from photogram.errors import InputError
 from photogram.project.output_policy import PARTIAL, claim_output
 from photogram_cli.main import main
 
-from lab_stage import stage_lab
+from lab_stage import copy_measured_lab
 
 # `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
 pytestmark = pytest.mark.slow
@@ -53,7 +53,7 @@ def _digest(folder: Path) -> dict:
 
 
 def test_calibrate_twice_needs_force_and_inputs_stay(tmp_path, capsys):
-    prj = stage_lab(tmp_path / "lab")            # copied and measured (its input)
+    prj = copy_measured_lab(tmp_path / "lab")    # copied and measured (its input)
     before = _digest(prj)
     assert main(["calibrate", "--no-report", str(prj / "lab.prj"), "-q"]) == 0
     first = (prj / "results" / "summary.json").read_bytes()

@@ -33,8 +33,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _lab(tmp_path) -> Path:
-    from lab_stage import stage_lab
-    return stage_lab(tmp_path / "lab") / "lab.prj"     # copied and measured
+    from lab_stage import copy_measured_lab
+    return copy_measured_lab(tmp_path / "lab") / "lab.prj"     # copied, measured once a session
 
 
 def _digest(folder: Path) -> dict:

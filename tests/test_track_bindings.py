@@ -165,12 +165,14 @@ def _renderer_pixel_offset(jv) -> float:
     return 0.5 if "top-left corner of the image at (0, 0)" in doc else 0.0
 
 
-def _rendered(settings_of):
+def _rendered(kind):
+    """The ``kind`` set (tests/jump_videos.py: rendered once per session), tracked and split."""
+    from jump_videos import rendered_videos
     jv = pytest.importorskip("photogram.simulation.jump_video")
     from photogram.track.background import estimate_background
     from photogram.track.tracks import track_markers
     from photogram.track.tracks2d import TrackSettings
-    v = jv.render_jump_videos(settings_of(jv))
+    v = rendered_videos(kind)
     ref = np.asarray(v.exposure_frames[next(iter(v.frames))])   # frames of the first camera
     ex = {f"{i + 1:03d}": int(f) for i, f in enumerate(ref)}
     bgs = {s: estimate_background(F) for s, F in v.frames.items()}
@@ -252,7 +254,7 @@ def _common_checks(before, after, rep):
 
 @pytest.fixture(scope="module")
 def normal():
-    return _rendered(lambda jv: jv.VideoSettings())
+    return _rendered("normal")
 
 
 def test_rendered_normal_set(normal):
@@ -314,7 +316,7 @@ def test_rendered_harsh_set():
     # no wrong label, error/sigma 1.5 per coordinate (int at 6ede4ee: 22 of
     # the 48 station-exposures where its tracker flags both, 0.30 px RMS,
     # no wrong label)
-    v, before, after, rep = _rendered(lambda jv: jv.harsh_settings())
+    v, before, after, rep = _rendered("harsh")
     resolved, flagged = _common_checks(before, after, rep)
     res, wrong, mid_err, mid_z = _score(v, before, after, rep)
     rms = np.sqrt(np.mean(res.err ** 2)) if len(res) else np.nan

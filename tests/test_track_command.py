@@ -5,8 +5,6 @@ and no results folder."""
 
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import cv2
@@ -23,10 +21,10 @@ JUMPS = ROOT / "projects" / "jumps"
 
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory):
-    from photogram.simulation.jump_video import render_jump_videos, write_jump_videos
-    folder = tmp_path_factory.mktemp("jump") / "video"
-    write_jump_videos(render_jump_videos(), folder)
-    return folder
+    """The normal set written once (tests/jump_videos.py); tests that change
+    its files copy it."""
+    from jump_videos import written_videos
+    return written_videos("normal", tmp_path_factory)
 
 
 def _project(tmp_path, video, oriented, **changes):
@@ -41,15 +39,23 @@ def _project(tmp_path, video, oriented, **changes):
     return prj
 
 
-def _run(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "photogram_cli", *map(str, args)],
-                          capture_output=True, text=True, cwd=cwd)
+def _run(capfd, *args):
+    """``photogram ARGS`` through the command line's entry point, in this
+    process (a fresh interpreter per run cost ~2 s CPU of imports each);
+    returns (exit code, stdout, stderr) as captured at the file
+    descriptors, so that output written below Python (OpenCV's own
+    warnings) counts as a child process's would."""
+    from photogram_cli.main import main
+    capfd.readouterr()
+    code = main([str(a) for a in args])
+    out, err = capfd.readouterr()
+    return code, out, err
 
 
-def test_track_writes_the_tables_intersect_reads(tmp_path, rendered, oriented_projects):
+def test_track_writes_the_tables_intersect_reads(tmp_path, rendered, oriented_projects, capfd):
     prj = _project(tmp_path, rendered, oriented_projects)
-    run = _run("track", prj)
-    assert run.returncode == 0, run.stderr
+    code, _, err = _run(capfd, "track", prj)
+    assert code == 0, err
     out = tmp_path / "results-track"
     for name in ("jumper_points.csv", "ski_lines.csv", "tracking.csv", "ski_checks.csv",
                  "ski_flags.csv", "contact_sheet.png", "summary.json", "log.txt"):
@@ -77,24 +83,23 @@ def test_track_writes_the_tables_intersect_reads(tmp_path, rendered, oriented_pr
     text = (JUMPS / "jumps-video.prj").read_text().replace('"../',
                                                           f'"{oriented_projects.as_posix()}/')
     (tmp_path / "jumps-video.prj").write_text(text)
-    run = _run("intersect", "--no-report", tmp_path / "jumps-video.prj")
-    assert run.returncode == 0, run.stderr
+    code, _, err = _run(capfd, "intersect", "--no-report", tmp_path / "jumps-video.prj")
+    assert code == 0, err
     ex = pd.read_csv(tmp_path / "results-video" / "exposures.csv", dtype={"exposure": str})
     assert len(ex) == 24
 
 
-def test_track_on_the_harsh_set_guesses_no_label(tmp_path, oriented_projects):
+def test_track_on_the_harsh_set_guesses_no_label(tmp_path, oriented_projects, capfd,
+                                                  tmp_path_factory):
     """The harsh set (not tuned on; its lag estimated): every marker and ski
     label right or flagged (measured: 213 of 288 markers, 0.26 px RMS; 107
     of 144 skis, 0.55 deg RMS; S3's lag of one frame found)."""
-    from photogram.simulation.jump_video import (harsh_settings, render_jump_videos,
-                                                 write_jump_videos)
-    video = tmp_path / "video"
-    write_jump_videos(render_jump_videos(harsh_settings()), video)
+    from jump_videos import written_videos
+    video = written_videos("harsh", tmp_path_factory)      # rendered and written once
     prj = _project(tmp_path, video, oriented_projects,
                    **{"[track]\n": '[track]\noffsets = "estimate"\n'})
-    run = _run("track", prj)
-    assert run.returncode == 0, run.stderr
+    code, _, err = _run(capfd, "track", prj)
+    assert code == 0, err
     s = json.loads((tmp_path / "results-track" / "summary.json").read_text())
     assert s["offsets"] == {"S1": 0, "S2": 0, "S3": 1}
     m, k = s["truth"]["markers"], s["truth"]["skis"]
@@ -120,7 +125,7 @@ def _frames_folder(src_video, dst, keep=None):
 @pytest.mark.parametrize("case", ["short video", "unknown station seed", "seed frame",
                                   "fps", "exposure outside"])
 def test_bad_input_is_one_line_and_exit_2_and_no_results(tmp_path, rendered, oriented_projects,
-                                                         case):
+                                                         case, capfd):
     video = tmp_path / "video"
     shutil.copytree(rendered, video)
     changes = {}
@@ -148,8 +153,8 @@ def test_bad_input_is_one_line_and_exit_2_and_no_results(tmp_path, rendered, ori
         (video / "frames.csv").write_text("exposure,frame\n001,12\n002,60\n")
         words = "002"
     prj = _project(tmp_path, video, oriented_projects, **changes)
-    run = _run("track", prj)
-    assert run.returncode == 2, (run.stdout, run.stderr)
-    err = run.stderr.strip()
+    code, out, err = _run(capfd, "track", prj)
+    assert code == 2, (out, err)
+    err = err.strip()
     assert len(err.splitlines()) == 1 and words in err and "Traceback" not in err, err
     assert not (tmp_path / "results-track").exists()

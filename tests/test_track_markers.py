@@ -142,8 +142,8 @@ def test_noise_alone_gives_few_candidates():
 
 @pytest.fixture(scope="module")
 def rendered_normal():
-    jv = pytest.importorskip("photogram.simulation.jump_video")
-    return jv.render_jump_videos(jv.VideoSettings())
+    from jump_videos import rendered_videos      # rendered once per session
+    return rendered_videos("normal")
 
 
 @pytest.mark.slow

@@ -276,9 +276,9 @@ def test_missing_skis_and_markers_are_flagged(field):
 
 # ----------------------------------------------------- the rendered videos
 
-def _rendered(settings):
-    jv = pytest.importorskip("photogram.simulation.jump_video")
-    v = jv.render_jump_videos(settings(jv))
+def _rendered(kind):
+    from jump_videos import rendered_videos      # rendered once per session
+    v = rendered_videos(kind)
     rng = np.random.default_rng(11)
     tm = v.truth_markers
     markers = pd.DataFrame({
@@ -298,7 +298,7 @@ def _rendered(settings):
 
 
 def test_rendered_normal_videos():
-    res, err = _rendered(lambda jv: jv.VideoSettings())
+    res, err = _rendered("normal")
     # measured on the normal set (benchmarks/track_skis.py): direction RMS
     # 0.15 deg, max 1.1 deg, 77 % of the skis within 0.1 deg, points 0.06 px
     # RMS from the true axes, 4 of 144 ski images flagged; the 0.1 deg goal
@@ -323,7 +323,7 @@ def test_rendered_harsh_videos():
     # flags and the sequence check: 1.2 deg RMS, max 7 deg, 80 % right.
     # Asserted: every ski image measured or flagged, most measured, labels
     # right, directions within a degree
-    res, err = _rendered(lambda jv: jv.harsh_settings())
+    res, err = _rendered("harsh")
     assert len(err) + len(res.flags) == 24 * 3 * 2
     assert len(err) >= 0.7 * 24 * 3 * 2
     assert (err.dist < err.dist_other).mean() > 0.9

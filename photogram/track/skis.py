@@ -265,7 +265,24 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
         (e, s): np.array([x, y], float) - PIXEL_OFFSET
         for e, s, x, y in zip(midpoints["exposure"], midpoints["station"], midpoints["x"],
                               midpoints["y"]) if np.isfinite(x) and np.isfinite(y)}
+    # (station, frame) -> (gain, noise sigma), found once for both passes;
+    # the float images themselves are made again when needed (three
+    # full-frame float64 images per view: about 0.5 GB kept over a jump)
     prepared = {}
+
+    def _prepared(st, F, fi):
+        img = F[fi].astype(float)
+        bgd = np.asarray(backgrounds[st], float)
+        if (st, fi) not in prepared:
+            # brightness of this frame against the background (auto
+            # exposure): the median ratio, the jumper a small part of it
+            g = frame_gain(img, bgd) if gain else None
+            D = (bgd * g if gain else bgd) - img
+            prepared[(st, fi)] = (g, noise_sigma(D))
+        g, sn = prepared[(st, fi)]
+        if gain:
+            bgd = bgd * g
+        return img, bgd, bgd - img, sn
 
     def one_image(i, st, prev):
         """Fit both skis in one image; updates ``prev`` (the tracking
@@ -278,16 +295,7 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             seen.flags.append((None, f"frame {fi} outside the video"))
             prev.pop(st, None)
             return seen
-        if (st, fi) not in prepared:        # once for both passes
-            img = F[fi].astype(float)
-            bgd = np.asarray(backgrounds[st], float)
-            if gain:
-                # brightness of this frame against the background (auto
-                # exposure): the median ratio, the jumper a small part of it
-                bgd = bgd * frame_gain(img, bgd)
-            D = bgd - img
-            prepared[(st, fi)] = (img, bgd, D, noise_sigma(D))
-        img, bgd, D, sn = prepared[(st, fi)]
+        img, bgd, D, sn = _prepared(st, F, fi)
         bind = [lookup.get((e, st, b)) for b in bind_names]
         from_blob = all(b is None for b in bind) and (e, st) in blob_at
         if from_blob:

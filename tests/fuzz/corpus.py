@@ -3,9 +3,11 @@ programmatically from the example projects (projects/) and from files the
 exporters write, and a runner that checks the outcome of each case.
 
 Nothing here writes below projects/: :func:`stage` copies the example
-projects into a scratch folder once; :func:`materialize` builds one case as a
-tree of symbolic links to that copy with only the mutated file (and the
-folders on its path) real. Real commands write into ``--output``.
+projects into a scratch folder once (:func:`staged_base`: once per process);
+:class:`Mirror` mirrors that copy once with hard links, and each case puts
+its mutated file in place, runs, and puts the link back
+(:func:`materialize` still builds one case as a tree of its own). Real
+commands write into ``--output``.
 
 A case passes when the command returns 0 or 2, never prints a traceback or
 "internal error", and on 2 writes exactly one line to stderr that starts with
@@ -691,16 +693,92 @@ def mocap_read(prj: Path):
         read_joints(ms.truth, source.skeleton)
 
 
+class Mirror:
+    """One mirror of the staged tree ``base`` for many cases: every folder
+    real, every file a hard link (a copy where links fail). A case replaces
+    its one file, runs, and puts the link back; building and deleting a
+    mirror per case (about 14 folders and their links) cost more than most
+    cases' commands. If a command leaves anything in the tree (it should
+    not: real commands write into ``--output``), the mirror is built anew."""
+
+    def __init__(self, base: Path, root: Path):
+        self.base, self.root = Path(base), Path(root)
+        self._build()
+
+    def _build(self) -> None:
+        shutil.rmtree(self.root, ignore_errors=True)
+        for folder, dirs, files in os.walk(self.base):
+            rel = Path(folder).relative_to(self.base)
+            (self.root / rel).mkdir(parents=True, exist_ok=True)
+            for name in files:
+                if rel == Path(".") and name == ".staged":
+                    continue
+                _link(Path(folder) / name, self.root / rel / name)
+        self._listing = self._list()
+
+    def _list(self) -> list:
+        return [(folder, sorted(dirs), sorted(files)) for folder, dirs, files in os.walk(self.root)]
+
+    def run(self, case: Case, out: Path) -> Outcome:
+        """Run ``case`` with its mutated file in place; the tree is as
+        before afterwards."""
+        target = self.root / case.rel
+        data = case.mutate((self.base / case.rel).read_bytes())
+        target.unlink()
+        target.write_bytes(data)
+        try:
+            args = argv(case, self.root, out)
+            return run_cli(args) if case.runner == "cli" else run_mocap_read(args)
+        finally:
+            target.unlink(missing_ok=True)
+            _link(self.base / case.rel, target)
+            if self._list() != self._listing:
+                self._build()
+
+
+def _link(src: Path, dst: Path) -> None:
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copyfile(src, dst)
+
+
+_MIRRORS: dict = {}
+
+
+def mirror_of(base: Path) -> Mirror:
+    """The mirror of ``base`` (built once per process, beside ``base``)."""
+    base = Path(base)
+    if base not in _MIRRORS:
+        _MIRRORS[base] = Mirror(base, base.parent / f"{base.name}.mirror")
+    return _MIRRORS[base]
+
+
+def staged_base() -> Path:
+    """The example projects staged once per process (:func:`stage`) in a
+    temporary folder removed at exit: tests/test_fuzz_corpus.py and
+    tests/test_fuzz_hypothesis.py share it (staging costs a measure, a
+    calibrate and an orient)."""
+    if "base" not in _STAGED:
+        import atexit
+        import tempfile
+        top = Path(tempfile.mkdtemp(prefix="fuzz-"))
+        atexit.register(shutil.rmtree, top, ignore_errors=True)
+        _STAGED["base"] = stage(top / "base")
+    return _STAGED["base"]
+
+
+_STAGED: dict = {}
+
+
 def run_case(case: Case, base: Path, work: Path) -> tuple[Outcome, list[str]]:
-    """Build and run ``case`` in ``work``; returns the outcome and the list
-    of problems (empty: the case passed)."""
-    root = work / "tree"
-    src = base / case.rel
-    materialize(base, root, case.rel, case.mutate(src.read_bytes()))
-    out = work / "out"
-    args = argv(case, root, out)
-    res = run_cli(args) if case.runner == "cli" else run_mocap_read(args)
-    return res, problems(case, res, root, out)
+    """Run ``case`` on the mirror of ``base`` (:class:`Mirror`), its outputs
+    in ``work``; returns the outcome and the list of problems (empty: the
+    case passed)."""
+    m = mirror_of(base)
+    out = Path(work) / "out"
+    res = m.run(case, out)
+    return res, problems(case, res, m.root, out)
 
 
 def problems(case: Case, res: Outcome, root: Path, out: Path) -> list[str]:

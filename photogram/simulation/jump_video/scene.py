@@ -40,9 +40,16 @@ def _value_noise(x, y, scale, table):
     fu, fv = u - i, v - j
     fu, fv = fu * fu * (3 - 2 * fu), fv * fv * (3 - 2 * fv)
     n = len(table)
+    if n & (n - 1) == 0 and table.shape == (n, n):
+        # a power of two: the wrapped index is the low bits (a % n for
+        # negative a too), one lookup into the flat table
+        flat, low = table.ravel(), n - 1
 
-    def at(a, b):
-        return table[a % n, b % n]
+        def at(a, b):
+            return flat[((a & low) * n) | (b & low)]
+    else:
+        def at(a, b):
+            return table[a % n, b % n]
     top = at(i, j) * (1 - fu) + at(i + 1, j) * fu
     bot = at(i, j + 1) * (1 - fu) + at(i + 1, j + 1) * fu
     return top * (1 - fv) + bot * fv
@@ -75,38 +82,45 @@ def _far(d, tables):
     return np.where(el < skyline, land, sky)
 
 
-def _ideal_grid(camera, xs, ys, step: int = 8):
-    """Ideal coordinates (len(ys) * len(xs), 2) of the sample grid xs x ys:
-    the camera model's correction on a coarse grid (every ``step`` px),
-    bilinearly interpolated (the correction is smooth: < 1e-3 px error)."""
+def _ideal_rows(camera, xs, ys, step: int = 8, rows: int = 128):
+    """Ideal coordinates of the sample grid xs x ys, ``rows`` rows of ys at a
+    time (each ``(rows * len(xs), 2)``, in the order of the grid's points,
+    row by row): the camera model's correction on a coarse grid (every
+    ``step`` px), bilinearly interpolated (the correction is smooth: < 1e-3
+    px error)."""
     from scipy.interpolate import RegularGridInterpolator
     gx = np.arange(xs.min() - step, xs.max() + 2 * step, step)
     gy = np.arange(ys.min() - step, ys.max() + 2 * step, step)
     gxx, gyy = np.meshgrid(gx, gy)
     ideal = camera.ideal(np.column_stack([gxx.ravel(), gyy.ravel()]))
-    xx, yy = np.meshgrid(xs, ys)
-    q = np.column_stack([yy.ravel(), xx.ravel()])
-    return np.column_stack([
-        RegularGridInterpolator((gy, gx), ideal[:, k].reshape(len(gy), len(gx)))(q)
-        for k in range(2)])
+    interp = [RegularGridInterpolator((gy, gx), ideal[:, k].reshape(len(gy), len(gx)))
+              for k in range(2)]
+    for r in range(0, len(ys), rows):
+        xx, yy = np.meshgrid(xs, ys[r:r + rows])
+        q = np.column_stack([yy.ravel(), xx.ravel()])
+        yield np.column_stack([f(q) for f in interp])
 
 
 def _background(camera, size, rng, ss: int = 2) -> np.ndarray:
-    """Ray-traced slope (float image, h x w), ``ss x ss`` samples per px."""
+    """Ray-traced slope (float image, h x w), ``ss x ss`` samples per px;
+    traced a band of rows at a time (the rays of the whole image at once
+    took ~0.3 GB)."""
     w, h = size
     tables = [rng.uniform(-1.0, 1.0, (_TABLE, _TABLE)) for _ in range(5)]
     sub = (np.arange(ss) + 0.5) / ss - 0.5
     xs = (np.arange(w)[:, None] + sub).ravel()
     ys = (np.arange(h)[:, None] + sub).ravel()
-    d = camera.rays(_ideal_grid(camera, xs, ys))
     # plane Z = slope_height(X): n . X = k with n = (tan a, 0, 1)
     n = np.array([-(slope_height(1.0) - slope_height(0.0)), 0.0, 1.0])
     k = float(slope_height(0.0))
-    t = (k - n @ camera.X0) / (d @ n)
-    hit = camera.X0 + t[:, None] * d
-    grey = _slope_grey(hit[:, 0], hit[:, 1], tables)
-    grey = np.where(t > 0, grey, _far(d, tables))
-    return grey.reshape(h, ss, w, ss).mean(axis=(1, 3))
+    bands = []
+    for ideal in _ideal_rows(camera, xs, ys):
+        d = camera.rays(ideal)
+        t = (k - n @ camera.X0) / (d @ n)
+        hit = camera.X0 + t[:, None] * d
+        grey = _slope_grey(hit[:, 0], hit[:, 1], tables)
+        bands.append(np.where(t > 0, grey, _far(d, tables)))
+    return np.concatenate(bands).reshape(h, ss, w, ss).mean(axis=(1, 3))
 
 
 def _target_shapes(camera, ids, X, radius):
