@@ -1,0 +1,33 @@
+"""The mocap solvers run with one BLAS thread (photogram.mocap.reconstruction.blas):
+the policy of photogram/__init__.py, applied at run time because numpy may
+have been imported first (as here, under pytest)."""
+
+import numpy as np
+from threadpoolctl import threadpool_info
+
+from photogram.mocap.reconstruction.blas import one_blas_thread
+from photogram.mocap.reconstruction.joint_solver import solve_joint
+
+
+def _blas_threads():
+    return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+
+
+def test_decorated_functions_run_with_one_blas_thread_and_restore_the_count(monkeypatch):
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    before = _blas_threads()
+    assert before, "no BLAS library found by threadpoolctl"
+    inside = one_blas_thread(_blas_threads)()
+    assert inside == [1]
+    assert _blas_threads() == before
+    assert getattr(solve_joint, "__wrapped__", None) is not None       # the solver is wrapped
+    # a decorated function still returns what it computes
+    A = np.array([[4.0, 1.0], [1.0, 3.0]])
+    assert np.allclose(one_blas_thread(np.linalg.solve)(A, [1.0, 2.0]),
+                       np.linalg.solve(A, [1.0, 2.0]))
+
+
+def test_a_thread_count_the_user_set_is_respected(monkeypatch):
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
+    before = _blas_threads()
+    assert one_blas_thread(_blas_threads)() == before
