@@ -34,3 +34,17 @@ def test_a_thread_count_the_user_set_is_respected(monkeypatch):
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
     with threadpool_limits(limits=2, user_api="blas"):
         assert one_blas_thread(_blas_threads)() == [2]
+
+
+def test_nested_calls_keep_one_thread_and_the_outer_call_restores_the_count(monkeypatch):
+    from threadpoolctl import threadpool_limits
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+
+    @one_blas_thread
+    def outer():
+        return _blas_threads(), one_blas_thread(_blas_threads)(), _blas_threads()
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        assert outer() == ([1], [1], [1])
+        assert _blas_threads() == [2]
+        assert one_blas_thread(_blas_threads)() == [1]     # a later call limits again

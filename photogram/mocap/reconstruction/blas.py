@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import threading
 
 __all__ = ["one_blas_thread", "single_blas_thread"]
 
@@ -35,10 +36,23 @@ def single_blas_thread():
         return contextlib.nullcontext()
 
 
+_DEPTH = threading.local()
+
+
 def one_blas_thread(func):
-    """Decorator: run ``func`` inside :func:`single_blas_thread`."""
+    """Decorator: run ``func`` inside :func:`single_blas_thread`; a call
+    from inside another decorated function (the solvers called per batch
+    by ``reconstruct``) skips the limit already in force (threadpoolctl's
+    scan of the loaded libraries costs about 5 ms a call)."""
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
-        with single_blas_thread():
+        depth = getattr(_DEPTH, "n", 0)
+        if depth:
             return func(*args, **kwargs)
+        _DEPTH.n = 1
+        try:
+            with single_blas_thread():
+                return func(*args, **kwargs)
+        finally:
+            _DEPTH.n = 0
     return wrapper
