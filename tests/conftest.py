@@ -4,10 +4,17 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import shutil
 from pathlib import Path
 
-import pytest
+# photogram's policy (photogram/__init__.py): one BLAS thread. Test modules
+# import numpy before photogram, which made that too late: OpenBLAS threads
+# spinning on the shared 2-core machine (a 1062 x 1062 Cholesky of the mocap
+# joint solver: 0.18-0.6 s CPU with two threads under load, 0.016 s with one).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import pytest  # noqa: E402
 
 PROJECTS = Path(__file__).resolve().parents[1] / "projects"
 

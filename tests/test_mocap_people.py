@@ -190,12 +190,11 @@ def test_pose2sim_demo_not_worse(tmp_path):
     as close to Pose2Sim's TRC as without it."""
     from photogram.mocap.pipeline import reprojection_errors, run_mocap
     from photogram.project import read_project
-    runs = {}
-    for multiview in (False, True):
-        p = read_project(ROOT / "projects" / "pose2sim-demo" / "demo.prj")
-        p.mocap.tracking["multiview"] = multiview
-        runs[multiview] = run_mocap(p)
-    before, after = runs[False], runs[True]
+    from mocap_fixtures import pose2sim_demo_run
+    p = read_project(ROOT / "projects" / "pose2sim-demo" / "demo.prj")
+    p.mocap.tracking["multiview"] = False
+    before = run_mocap(p)
+    after = pose2sim_demo_run()                 # the default: multiview = true
     people = after.info["people"]["cameras"]
     assert all(d["other_person"] == 0 for d in people.values())
     assert sum(d["used"] for d in people.values()) >= 4 * 100 - 2
@@ -240,7 +239,8 @@ def test_pose2sim_demo_with_a_nearer_bystander(tmp_path):
     for cam in ("cam_03", "cam_04"):
         assert people[cam]["other_person"] > 90 and people[cam]["used"] > 95
     assert np.all(np.nan_to_num(r.observations[:, 2:, :, 2]) != 0.95)      # never entered
-    clean = run_mocap(read_project(ROOT / "projects" / "pose2sim-demo" / "demo.prj"))
+    from mocap_fixtures import pose2sim_demo_run
+    clean = pose2sim_demo_run()
     assert abs(r.reference["mpjpe_to_reference"] - clean.reference["mpjpe_to_reference"]) < 1e-4
 
 

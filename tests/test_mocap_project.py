@@ -111,9 +111,8 @@ def test_example_project_is_reproducible(tmp_path):
 @pytest.mark.skipif(not (POSE2SIM / "Calib_qualisys.toml").is_file(),
                     reason="../shared/data/pose2sim-demo is absent")
 def test_pose2sim_demo_main_person_and_reference():
-    from photogram.mocap.pipeline import run_mocap
-    p = read_project(ROOT / "projects" / "pose2sim-demo" / "demo.prj")
-    r = run_mocap(p)
+    from mocap_fixtures import pose2sim_demo_run
+    r = pose2sim_demo_run()                     # run_mocap of demo.prj as shipped
     assert r.observations.shape == (100, 4, 25, 3) and r.skeleton.name == "body25b"
     # the bystanders (left of camera 1, right of camera 2) are never chosen
     assert np.nanmax(r.tracked[0].detected[:, 2]) > 300

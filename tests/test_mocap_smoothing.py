@@ -264,8 +264,9 @@ def test_pose2sim_demo_jerk_is_near_pose2sims():
     from dataclasses import replace
     from photogram.io.trc import read_trc
     from photogram.mocap.pipeline import reprojection_errors, run_mocap
+    from mocap_fixtures import pose2sim_demo_run
     p = read_project(ROOT / "projects" / "pose2sim-demo" / "demo.prj")
-    new = run_mocap(p)
+    new = pose2sim_demo_run()                   # run_mocap(p): the shipped defaults
     p.mocap = replace(p.mocap, reconstruction={"n_dct": 25, "sigma2": 100.0},
                       filter={"type": "none"})
     old = run_mocap(p)

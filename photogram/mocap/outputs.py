@@ -264,6 +264,7 @@ def _plot_series(result, path, unit="m"):
     b, tb = result.biomechanics, result.truth_biomechanics
     t = result.times
     fig = _fig((9, 9))
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.06, top=0.98, hspace=0.2)
     panels = [("knee flexion (deg)", ("knee_flexion_r", "knee_flexion_l")),
               ("hip flexion (deg)", ("hip_flexion_r", "hip_flexion_l")),
               ("lean (deg) / fore-aft (deg)", ("lean", "fore_aft_angle")),
@@ -279,7 +280,6 @@ def _plot_series(result, path, unit="m"):
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper right", ncol=2)
     ax.set_xlabel("time (s)")
-    fig.tight_layout()
     return _save(fig, path)
 
 
@@ -305,24 +305,27 @@ def _plot_reprojection(result, path):
 
 
 def _plot_skeletons(result, path):
+    """Up to 8 skeletons side by side; the limbs of a panel are one line
+    collection (184 single lines cost more than the rest of the figure) and
+    the margins are fixed (tight_layout drew the figure twice)."""
+    from matplotlib.collections import LineCollection
     X = result.reconstruction.joints
     sk = result.skeleton
     F = len(X)
     picks = np.unique(np.linspace(0, F - 1, min(F, 8)).astype(int))
     fig = _fig((12, 2.8))
-    L = sk.limb_indices()
+    fig.subplots_adjust(left=0.03, right=0.99, bottom=0.09, top=0.8, wspace=0.3)
+    L = np.array(sk.limb_indices()).reshape(-1, 2)
+    side = [sk.joints[a][:2] if sk.name == "ski24" else sk.joints[a][:1] for a in L[:, 0]]
+    colors = ["tab:red" if s in ("r_", "R") else "tab:blue" if s in ("l_", "L") else "black"
+              for s in side]
     for i, f in enumerate(picks):
         ax = fig.add_subplot(1, len(picks), i + 1)
         P = X[f]
         if not np.any(np.isfinite(P)):
             continue
-        c = np.nanmean(P, axis=0)
-        for a, b in L:
-            side = sk.joints[a][:2] if sk.name == "ski24" else sk.joints[a][:1]
-            col = "tab:red" if side in ("r_", "R") else "tab:blue" if side in ("l_", "L") \
-                else "black"
-            ax.plot([P[a, 0] - c[0], P[b, 0] - c[0]], [P[a, 2] - c[2], P[b, 2] - c[2]],
-                    color=col, lw=1.2)
+        xz = (P - np.nanmean(P, axis=0))[:, [0, 2]]
+        ax.add_collection(LineCollection(xz[L], colors=colors, linewidths=1.2))
         ax.set_aspect("equal")
         ax.set_title(f"frame {result.frames[f]}", fontsize=8)
         ax.tick_params(labelsize=6)
@@ -330,5 +333,4 @@ def _plot_skeletons(result, path):
         ax.set_ylim(-1.1, 1.1)
     fig.suptitle("skeletons, side view (X-Z about the mean joint; right red, left blue)",
                  fontsize=9)
-    fig.tight_layout()
     return _save(fig, path)

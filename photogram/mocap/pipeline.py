@@ -32,6 +32,7 @@ from photogram.mocap.comparisons import (REFERENCE_CONFIDENCE, compare_reference
                                          reprojection_errors)
 from photogram.mocap.evaluation.metrics import biomechanics, bone_lengths
 from photogram.mocap.files import cameras_from_project, read_camera_frames, read_limb_lengths
+from photogram.mocap.reconstruction.blas import one_blas_thread
 from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.reconstruct import (Reconstruction, ReconstructionSettings,
                                                         reconstruct)
@@ -101,6 +102,7 @@ def _observations(project, cameras: MocapCameras, allow_plugin: bool = False):
     return source, tracked, obs
 
 
+@one_blas_thread
 def run_mocap(project, *, allow_plugin: bool = False) -> MocapResult:
     """Run the whole pipeline on a project read by
     :func:`photogram.project.read_project` (with a ``[mocap]`` section);

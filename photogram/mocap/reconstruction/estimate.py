@@ -56,6 +56,7 @@ import numpy as np
 from photogram.errors import InputError
 from photogram.mocap.body.skeleton import Skeleton
 from photogram.mocap.motion.camera_motion import euler_from_matrices
+from photogram.mocap.reconstruction.blas import one_blas_thread
 from photogram.mocap.reconstruction.bootstrap import bootstrap_poses
 from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.chain_links import lagged_noise
@@ -193,6 +194,7 @@ def _pose_on_anchor(batches, coeffs, R, X0, lengths, s, F, J):
                       "iterations": iterations}
 
 
+@one_blas_thread
 def estimate_poses_and_rotations(observations, cameras: MocapCameras, skeleton: Skeleton,
                                  rotation_differences=None, difference_weights=None,
                                  settings: ReconstructionSettings | None = None,

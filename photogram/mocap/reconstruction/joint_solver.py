@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
+from photogram.mocap.reconstruction.blas import one_blas_thread
 from photogram.mocap.reconstruction.joint import JointBatch
 from photogram.mocap.reconstruction.solvers import damping_update, moved_positions
 
@@ -68,6 +69,7 @@ def _solve_free(A, b, T, J):
     return out
 
 
+@one_blas_thread
 def solve_joint(batch: JointBatch, a, g, sigma2, lengths, lambda_rep, lambda_limbs,
                 lambda_rot, max_iter=100, tol=1e-9, irls_first=5, step_tol=0.0,
                 second_order=True):
@@ -128,6 +130,7 @@ def solve_joint(batch: JointBatch, a, g, sigma2, lengths, lambda_rep, lambda_lim
     return a, g, E, it
 
 
+@one_blas_thread
 def solve_joint_lbfgs(batch: JointBatch, a, g, sigma2, lengths, lambda_rep, lambda_limbs,
                       lambda_rot, max_iter=1500, tol=1e-12):
     """The paper's solver for comparison: L-BFGS (scipy, ``maxcor`` 20) on

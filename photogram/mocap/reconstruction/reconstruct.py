@@ -53,6 +53,7 @@ import numpy as np
 
 from photogram.errors import InputError
 from photogram.mocap.body.skeleton import Skeleton
+from photogram.mocap.reconstruction.blas import one_blas_thread
 from photogram.mocap.reconstruction.cameras import MocapCameras
 from photogram.mocap.reconstruction.dct import (blend_weights, coefficients_for_cutoff,
                                                 plan_windows, trend_basis)
@@ -293,6 +294,7 @@ def _stage_plan(s: ReconstructionSettings):
     return out
 
 
+@one_blas_thread
 def reconstruct(observations: np.ndarray, cameras: MocapCameras, skeleton: Skeleton,
                 settings: ReconstructionSettings | None = None, breaks=()) -> Reconstruction:
     """Reconstruct the joints of a sequence.

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from photogram.mocap.reconstruction.blas import one_blas_thread
 from photogram.mocap.reconstruction.energy import Linearization, WindowBatch
 
 __all__ = ["solve_gauss_newton", "solve_lbfgs", "damping_update", "moved_positions"]
@@ -97,6 +98,7 @@ def _pcg(lin, damp, Pinv, rhs, tol=1e-3, max_iter=60):
     return x, it + 1
 
 
+@one_blas_thread
 def solve_gauss_newton(batch: WindowBatch, a, sigma2, L, lam_rep, lam_limbs, max_iter, tol,
                         second_order=True, irls_first: int = 5, step_tol: float = 0.0):
     """IRLS Gauss-Newton / Levenberg-Marquardt, all windows at once; with
@@ -175,6 +177,7 @@ def _subset_lin(lin, p):
                      mask=lin.mask[p])
 
 
+@one_blas_thread
 def solve_lbfgs(batch: WindowBatch, a, sigma2, L, lam_rep, lam_limbs, max_iter, tol,
                 second_order=None, step_tol=None):
     """The paper's L-BFGS on the sum of the window energies."""
