@@ -64,7 +64,7 @@ def _by_kind(data, rays) -> dict:
 
 
 @section("geometry", "Rays, intersection angles, coverage", 60,
-         applies=lambda d: d.has_residuals)
+         applies=lambda d: d.has_residuals, native=True)
 def build(doc, data):
     doc.start_section("Rays, intersection angles and image coverage", intro=_INTRO)
     rays = data.rays
@@ -99,7 +99,10 @@ def build(doc, data):
     n = rays["rays"].to_numpy(int)
     if len(n):
         ax_r.hist(n, bins=np.arange(n.min(), n.max() + 2) - 0.5, color="tab:blue", rwidth=0.8)
-    ax_r.xaxis.get_major_locator().set_params(integer=True)
+    if getattr(ax_r, "native", False):
+        ax_r.integer_ticks("x")
+    else:
+        ax_r.xaxis.get_major_locator().set_params(integer=True)
     decorate(ax_r, "rays per point", "rays [-]", "points [-]", ypad=0.42)
     a = rays["angle"].to_numpy(float)
     a = a[np.isfinite(a)]

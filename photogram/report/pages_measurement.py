@@ -75,7 +75,7 @@ def _int(v) -> int:
 
 
 @section("measurement", "Measurement (photogram measure)", 35,
-         applies=lambda d: measurement_of(d) is not None)
+         applies=lambda d: measurement_of(d) is not None, native=True)
 def build(doc, data):
     m = measurement_of(data)
     s = m["summary"]

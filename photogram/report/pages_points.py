@@ -5,8 +5,6 @@ and image coverage."""
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.collections import EllipseCollection
-
 from photogram.report.layout import decorate, equal_limits
 from photogram.report.numbers import finite, num, sig
 from photogram.report.registry import section
@@ -23,7 +21,8 @@ def _kinds(data, ids):
     return p.loc[list(ids), "kind"].astype(str).tolist()
 
 
-@section("points", "Point precision", 50, applies=lambda d: len(d.point_sigma[0]) > 0)
+@section("points", "Point precision", 50, applies=lambda d: len(d.point_sigma[0]) > 0,
+         native=True)
 def build(doc, data):
     lu = data.length_unit
     ids, s = data.point_sigma
@@ -74,10 +73,15 @@ def _covariances(data, ids):
 
 def _ellipse_panel(ax, xy, C2, k, kinds, labels):
     abt = ellipses(C2)
-    ax.add_collection(EllipseCollection(2 * k * abt[:, 0], 2 * k * abt[:, 1], abt[:, 2],
-                                        units="xy", offsets=xy, offset_transform=ax.transData,
-                                        facecolors="none", edgecolors="tab:blue", lw=0.7,
-                                        rasterized=dense(len(xy))))
+    if getattr(ax, "native", False):         # one vector path, however many
+        ax.ellipses(xy, k * abt[:, 0], k * abt[:, 1], abt[:, 2], color="tab:blue", lw=0.7)
+    else:
+        from matplotlib.collections import EllipseCollection
+
+        ax.add_collection(EllipseCollection(
+            2 * k * abt[:, 0], 2 * k * abt[:, 1], abt[:, 2], units="xy", offsets=xy,
+            offset_transform=ax.transData, facecolors="none", edgecolors="tab:blue", lw=0.7,
+            rasterized=dense(len(xy))))
     kinds = np.asarray(kinds, dtype=str)
     for kind, (marker, colour) in _KIND_STYLE.items():
         m = kinds == kind
@@ -97,7 +101,8 @@ def _ellipse_panel(ax, xy, C2, k, kinds, labels):
     ax.grid(True, lw=0.3)
 
 
-@section("ellipses", "Error ellipses", 52, applies=lambda d: len(d.point_sigma[0]) > 0)
+@section("ellipses", "Error ellipses", 52, applies=lambda d: len(d.point_sigma[0]) > 0,
+         native=True)
 def build_ellipses(doc, data):
     lu = data.length_unit
     ids, s = data.point_sigma
@@ -183,7 +188,7 @@ def _has_control(d):
     return bool(d.summary.get("check_points")) or bool(_control_rows(d))
 
 
-@section("control", "Control and check points", 55, applies=_has_control)
+@section("control", "Control and check points", 55, applies=_has_control, native=True)
 def build_control(doc, data):
     doc.start_section("Control and check points", intro=(
         "Differences d = adjusted - reference coordinates. Check points are not used in the "

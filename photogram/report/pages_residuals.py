@@ -5,8 +5,6 @@ standardized residuals, data snooping, and residual vector plots per image
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.patches import PathPatch, Rectangle
-
 from photogram.report.layout import decorate
 from photogram.report.numbers import finite, num
 from photogram.report.registry import section
@@ -36,7 +34,7 @@ def _w(r):
     return np.full(len(r), np.nan)
 
 
-@section("residuals", "Residuals", 40, applies=lambda d: d.has_residuals)
+@section("residuals", "Residuals", 40, applies=lambda d: d.has_residuals, native=True)
 def build(doc, data):
     iu = data.image_unit
     r = data.residuals
@@ -150,6 +148,11 @@ CELL_POINTS, CELL_COLUMNS = 1000, 24
 
 
 def _segments(ax, a, b) -> None:
+    if getattr(ax, "native", False):         # one vector path, however many
+        ax.segments(a, b, color="tab:blue", lw=0.9, autolim=False)
+        return
+    from matplotlib.patches import PathPatch
+
     # add_artist, not add_patch: the limits are set by the caller, and
     # add_patch would walk the path segment by segment in Python
     ax.add_artist(PathPatch(segments_path(a, b), fill=False, lw=0.9, edgecolor="tab:blue",
@@ -174,7 +177,11 @@ def _vector_plot(ax, data, station, g, k, iu):
     u = g["used"].to_numpy(bool)
     xy = a[:, :2]
     hull = convex_hull(xy[u])
-    if fmt:
+    if fmt and getattr(ax, "native", False):
+        ax.add_rect(0, 0, fmt[0], fmt[1], color="0.3", lw=0.8)
+    elif fmt:
+        from matplotlib.patches import Rectangle
+
         ax.add_patch(Rectangle((0, 0), fmt[0], fmt[1], fill=False, lw=0.8, color="0.3"))
     if len(hull) >= 3:
         ax.fill(hull[:, 0], hull[:, 1], color="tab:green", alpha=0.12, lw=0)
@@ -203,7 +210,8 @@ def _vector_plot(ax, data, station, g, k, iu):
              f"x [{iu}]", f"y [{iu}]", xpad=0.25, ypad=0.4, size=7.5)
 
 
-@section("residual_vectors", "Residual vectors per image", 45, applies=lambda d: d.has_residuals)
+@section("residual_vectors", "Residual vectors per image", 45,
+         applies=lambda d: d.has_residuals, native=True)
 def build_vectors(doc, data):
     iu = data.image_unit
     k = _scale(data)

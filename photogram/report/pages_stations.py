@@ -16,7 +16,7 @@ def _sigma(st, name, column):
 
 
 @section("stations", "Stations (exterior orientation)", 30,
-         applies=lambda d: len(d.results.stations) > 0)
+         applies=lambda d: len(d.results.stations) > 0, native=True)
 def build(doc, data):
     st = data.stations
     lu, au = data.length_unit, data.angle_unit

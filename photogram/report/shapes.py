@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 __all__ = ["convex_hull", "polygon_area", "ellipse", "nice", "coverage_fraction",
-           "segments_path", "cell_means", "ray_counts", "ray_layer"]
+           "segments_path", "cell_means", "ray_counts", "ray_layer", "native_ray_layer",
+           "inside_convex"]
 
 
 def convex_hull(xy) -> np.ndarray:
@@ -74,16 +75,33 @@ def polygon_area(poly) -> float:
 def coverage_fraction(hulls, fmt, n=200) -> float:
     """Fraction of the format ``(w, h)`` covered by the union of polygons,
     on an ``n`` x ``n`` raster."""
-    from matplotlib.path import Path
-
     w, h = fmt
     gx, gy = np.meshgrid((np.arange(n) + 0.5) * w / n, (np.arange(n) + 0.5) * h / n)
     grid = np.stack([gx.ravel(), gy.ravel()], -1)
     inside = np.zeros(len(grid), bool)
     for poly in hulls:
         if len(poly) >= 3:
-            inside |= Path(poly).contains_points(grid)
+            inside |= inside_convex(poly, grid)
     return float(inside.mean())
+
+
+def inside_convex(poly, xy) -> np.ndarray:
+    """Mask of the points ``xy`` (m, 2) strictly inside the convex polygon
+    ``poly`` (k, 2, either orientation), vectorized over points and edges."""
+    poly, xy = np.asarray(poly, float), np.asarray(xy, float)
+    a, b = poly, np.roll(poly, -1, axis=0)
+    sign = 1.0 if polygon_signed_area(poly) >= 0 else -1.0
+    inside = np.ones(len(xy), bool)
+    for i in range(len(a)):                 # a few dozen edges, each over all points
+        cross = ((b[i, 0] - a[i, 0]) * (xy[:, 1] - a[i, 1])
+                 - (b[i, 1] - a[i, 1]) * (xy[:, 0] - a[i, 0]))
+        inside &= sign * cross > 0
+    return inside
+
+
+def polygon_signed_area(poly) -> float:
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
 def ellipse(cov2) -> tuple[float, float, float]:
@@ -293,3 +311,19 @@ def ray_layer(ax, a, b, color, alpha: float, dpi: float = 100.0, **kwargs):
     rgba[..., 3] = 1.0 - (1.0 - alpha) ** counts
     return ax.imshow(rgba, extent=(x0, x1, y0, y1), origin="lower", interpolation="nearest",
                      aspect="auto", **kwargs)
+
+
+def native_ray_layer(ax, a, b, color, alpha: float, dpi: float = 100.0, zorder=1.0):
+    """:func:`ray_layer` on a native axes (:mod:`photogram.report.pdf.axes`):
+    the same counts and opacity, one RGBA image."""
+    from photogram.report.pdf.colors import rgb
+
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    shape = (max(int(round(ax.height_in * dpi)), 1), max(int(round(ax.width_in * dpi)), 1))
+    counts = ray_counts(a, b, (x0, x1, y0, y1), shape)
+    rgba = np.empty(shape + (4,))
+    rgba[..., :3] = rgb(color)
+    rgba[..., 3] = 1.0 - (1.0 - alpha) ** counts
+    return ax.imshow(rgba, extent=(x0, x1, y0, y1), origin="lower", aspect="auto",
+                     zorder=zorder)
