@@ -9,7 +9,7 @@ import numpy as np
 
 __all__ = ["convex_hull", "polygon_area", "ellipse", "nice", "coverage_fraction",
            "segments_path", "cell_means", "ray_counts", "ray_layer", "native_ray_layer",
-           "inside_convex"]
+           "convex_grid_mask"]
 
 
 def convex_hull(xy) -> np.ndarray:
@@ -76,32 +76,32 @@ def coverage_fraction(hulls, fmt, n=200) -> float:
     """Fraction of the format ``(w, h)`` covered by the union of polygons,
     on an ``n`` x ``n`` raster."""
     w, h = fmt
-    gx, gy = np.meshgrid((np.arange(n) + 0.5) * w / n, (np.arange(n) + 0.5) * h / n)
-    grid = np.stack([gx.ravel(), gy.ravel()], -1)
-    inside = np.zeros(len(grid), bool)
+    xs, ys = (np.arange(n) + 0.5) * w / n, (np.arange(n) + 0.5) * h / n
+    inside = np.zeros((n, n), bool)
     for poly in hulls:
         if len(poly) >= 3:
-            inside |= inside_convex(poly, grid)
+            inside |= convex_grid_mask(poly, xs, ys)
     return float(inside.mean())
 
 
-def inside_convex(poly, xy) -> np.ndarray:
-    """Mask of the points ``xy`` (m, 2) strictly inside the convex polygon
-    ``poly`` (k, 2, either orientation), vectorized over points and edges."""
-    poly, xy = np.asarray(poly, float), np.asarray(xy, float)
+def convex_grid_mask(poly, xs, ys) -> np.ndarray:
+    """Mask (len(ys), len(xs)) of the grid points ``(xs[j], ys[i])`` inside
+    the convex polygon ``poly`` (k, 2): per grid row the span between the two
+    edges it crosses (the crossing rule: an edge counts for the rows with
+    ``min(y_a, y_b) <= y < max(y_a, y_b)``), vectorized over rows and edges."""
+    poly = np.asarray(poly, float)
     a, b = poly, np.roll(poly, -1, axis=0)
-    sign = 1.0 if polygon_signed_area(poly) >= 0 else -1.0
-    inside = np.ones(len(xy), bool)
-    for i in range(len(a)):                 # a few dozen edges, each over all points
-        cross = ((b[i, 0] - a[i, 0]) * (xy[:, 1] - a[i, 1])
-                 - (b[i, 1] - a[i, 1]) * (xy[:, 0] - a[i, 0]))
-        inside &= sign * cross > 0
-    return inside
-
-
-def polygon_signed_area(poly) -> float:
-    x, y = poly[:, 0], poly[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    y = np.asarray(ys, float)[:, None]
+    lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
+    crosses = (y >= lo) & (y < hi)                                # (rows, edges)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (y - a[:, 1]) / (b[:, 1] - a[:, 1])
+    x = np.where(crosses, a[:, 0] + t * (b[:, 0] - a[:, 0]), np.nan)
+    some = crosses.any(axis=1)
+    left = np.where(some, np.nanmin(np.where(some[:, None], x, 0.0), axis=1), np.inf)
+    right = np.where(some, np.nanmax(np.where(some[:, None], x, 0.0), axis=1), -np.inf)
+    xs = np.asarray(xs, float)[None, :]
+    return (xs > left[:, None]) & (xs < right[:, None])
 
 
 def ellipse(cov2) -> tuple[float, float, float]:
