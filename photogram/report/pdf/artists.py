@@ -149,7 +149,7 @@ class ArtistsMixin:
 
         def draw(tr, c):
             c.stroke_style(color, lw, alpha=alpha)
-            c.segments(tr(a), tr(b))
+            c.segments(tr(a), tr(b), each=alpha is not None and alpha < 1)
         self._add(zorder, draw)
 
     def ellipses(self, xy, a, b, angle_deg, color="black", lw=0.7, zorder=1.0):
@@ -176,6 +176,8 @@ class ArtistsMixin:
         RGB(A) array (0..1 floats or uint8) over ``extent`` = (x0, x1, y0, y1);
         row 0 at y0 for ``origin="lower"``, else at the top of the extent."""
         A = np.ma.asarray(A)
+        if A.ndim == 2:
+            A = A.astype(float)
         rows, cols = A.shape[:2]
         if extent is None:
             extent = (-0.5, cols - 0.5, rows - 0.5, -0.5)

@@ -157,14 +157,20 @@ class Canvas:
         # a point after a gap (or the first) starts a new subpath
         start = ok & ~np.concatenate([[False], ok[:-1]])
         template = "".join(np.where(start, "%.2f %.2f m ", "%.2f %.2f l ")[ok].tolist())
-        body = template % tuple(xy[ok].ravel().tolist())
+        body = (template % tuple(xy[ok].ravel().tolist())).rstrip()
         self._ops.append(body + (" h" if close else "") + " "
                          + ("B" if fill and stroke else "f" if fill else "S") + "\n")
 
-    def segments(self, a, b) -> None:
-        """The segments ``a[i] -> b[i]`` (n, 2) as one stroked path."""
+    def segments(self, a, b, each: bool = False) -> None:
+        """The segments ``a[i] -> b[i]`` (n, 2) as one stroked path, or with
+        ``each`` stroked one by one (so that translucent lines darken where
+        they cross, as a matplotlib LineCollection; still one formatting)."""
         a, b = np.asarray(a, float).reshape(-1, 2), np.asarray(b, float).reshape(-1, 2)
         ok = np.all(np.isfinite(a) & np.isfinite(b), axis=1)
+        if each:
+            self._ops.append(fmt_points("%.2f %.2f m %.2f %.2f l S\n",
+                                        np.hstack([a[ok], b[ok]])))
+            return
         self._ops.append(fmt_points("%.2f %.2f m %.2f %.2f l\n",
                                     np.hstack([a[ok], b[ok]])) + "S\n")
 

@@ -13,9 +13,9 @@ _STEPS = (1.0, 2.0, 2.5, 5.0, 10.0)
 
 
 def nice_ticks(lo: float, hi: float, nbins: int, integer: bool = False) -> np.ndarray:
-    """Ticks inside ``[lo, hi]`` at the smallest nice step giving at most
-    ``nbins`` intervals across the range (at least 2 ticks where the range
-    allows); ``integer`` keeps steps >= 1 and whole."""
+    """Ticks inside ``[lo, hi]`` at the smallest nice step at least
+    ``(hi - lo) / nbins`` (matplotlib's MaxNLocator), a finer one if that
+    leaves fewer than 2 ticks; ``integer`` keeps steps >= 1 and whole."""
     lo, hi = (float(lo), float(hi)) if lo <= hi else (float(hi), float(lo))
     if not (math.isfinite(lo) and math.isfinite(hi)):
         return np.array([])
@@ -26,12 +26,14 @@ def nice_ticks(lo: float, hi: float, nbins: int, integer: bool = False) -> np.nd
     steps = [s * scale * f for f in (1.0, 10.0) for s in _STEPS]
     if integer:
         steps = [s for s in steps if s >= 1 and abs(s - round(s)) < 1e-9] or [1.0]
-    step = steps[-1]
-    for s in steps:
-        if math.ceil(hi / s - 1e-9) - math.floor(lo / s + 1e-9) <= nbins:
-            step = s
-            break
+    raw = (hi - lo) / nbins
+    step = next((s for s in steps if s >= raw * (1 - 1e-9)), steps[-1])
     first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
+    if last - first < 1 and not integer:        # fewer than 2 ticks: a finer step
+        finer = [s for s in steps if s < step]
+        if finer:
+            step = finer[-1]
+            first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
     ticks = np.arange(first, last + 1) * step
     ticks[np.abs(ticks) < 1e-12 * step] = 0.0
     return ticks
