@@ -127,11 +127,23 @@ def test_vectorized_paths_equal_a_loop():
         *a[0], *a[1], *a[2], *a[3], *a[4])) + " S\n"
     assert c.content().decode() == expected
     c = Canvas(PdfFile(), 100, 100)
-    c.markers(a[:4], "o", 6.0)
+    c.markers(a[:4], "o", 6.0, filled=False)
     circles = "".join(
         ("%.2f %.2f m " + "%.2f %.2f %.2f %.2f %.2f %.2f c " * 4 + "h\n")
         % tuple((p + 3.0 * CIRCLE).ravel()) for p in a[:4])
-    assert c.content().decode() == circles + "B\n"
+    assert c.content().decode() == circles + "S\n"
+    # filled discs: zero-length round-capped lines as wide as disc and edge
+    c = Canvas(PdfFile(), 100, 100)
+    c.fill_style("tab:red")
+    c.stroke_style("tab:red", 0.5)
+    start = len(c.content())
+    c.markers(a[:4], "o", 6.0)
+    discs = "".join("%.2f %.2f m %.2f %.2f l\n" % (*p, *p) for p in a[:4])
+    assert c.content().decode()[start:] == "q 6.5 w 1 J 0.839 0.153 0.157 RG\n" + discs + "S Q\n"
+    # more than DENSE rows: 0.1 pt
+    many = rng.uniform(0, 500, (3000, 2))
+    assert fmt_points("%.2f %.2f l\n", many) == "".join("%.1f %.1f l\n" % tuple(p)
+                                                         for p in many)
 
 
 def test_convex_grid_mask_is_matplotlibs_contains_points():

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.report.pdf.canvas import CIRCLE, fmt_points, text_width
+from photogram.report.pdf.canvas import CIRCLE, DENSE, fmt_points, text_width
 from photogram.report.pdf.colors import colormap, rgb
 
 __all__ = ["ArtistsMixin", "draw_legend", "draw_colorbar", "parse_fmt", "arrow_polygons"]
@@ -154,8 +154,22 @@ class ArtistsMixin:
 
     def ellipses(self, xy, a, b, angle_deg, color="black", lw=0.7, zorder=1.0):
         """Ellipses with semi-axes ``a``, ``b`` (data units) and the angle of
-        ``a`` (degrees from x) at ``xy`` (n, 2), as one path of Beziers."""
+        ``a`` (degrees from x) at ``xy`` (n, 2), as one path of Beziers; more
+        than :data:`DENSE` as one image of their outlines (as matplotlib's
+        rasterized layers), :func:`raster_outlines`."""
         xy = np.asarray(xy, float).reshape(-1, 2)
+        if len(xy) > DENSE:
+            t = np.linspace(0, 2 * np.pi, 25)
+            ang = np.radians(np.asarray(angle_deg, float))[:, None]
+            ca, sa = np.cos(ang), np.sin(ang)
+            ex = np.asarray(a, float)[:, None] * np.cos(t)
+            ey = np.asarray(b, float)[:, None] * np.sin(t)
+            ox, oy = xy[:, :1] + ca * ex - sa * ey, xy[:, 1:] + sa * ex + ca * ey
+
+            def draw_dense(tr, c):
+                raster_outlines(c, tr, np.stack([tr.x(ox), tr.y(oy)], axis=2), color)
+            self._add(zorder, draw_dense)
+            return
         t = np.radians(np.asarray(angle_deg, float))
         ca, sa = np.cos(t), np.sin(t)
         a, b = np.asarray(a, float), np.asarray(b, float)
@@ -255,6 +269,23 @@ class ArtistsMixin:
         """A colour bar at the right of the axes (taking ``fraction + pad``
         of its width, as matplotlib's) for :meth:`imshow`'s return value."""
         self.colorbars.append(dict(mappable, label=label, fraction=fraction, pad=pad))
+
+
+def raster_outlines(c, tr, poly, color, dpi: float = 150.0) -> None:
+    """Closed outlines ``poly`` (n, k, 2, page points) drawn as one image
+    over the axes box: a pixel is ``color`` where an outline crosses it
+    (:func:`photogram.report.shapes.ray_counts` over the outline's
+    segments), transparent elsewhere."""
+    from photogram.report.shapes import ray_counts
+
+    x0, y0, w, h = tr.box
+    shape = (max(int(round(h / 72 * dpi)), 1), max(int(round(w / 72 * dpi)), 1))
+    a = poly[:, :-1].reshape(-1, 2)
+    b = poly[:, 1:].reshape(-1, 2)
+    counts = ray_counts(a, b, (x0, x0 + w, y0, y0 + h), shape)[::-1]   # top row first
+    img = np.empty(shape + (3,), np.uint8)
+    img[...] = np.round(np.array(rgb(color)) * 255).astype(np.uint8)
+    c.image(img, x0, y0, w, h, np.where(counts > 0, 255, 0).astype(np.uint8))
 
 
 # ------------------------------------------------------------------ legend
