@@ -349,5 +349,5 @@ def draw_colorbar(ax, tr, cb):
         c.text(left + bw + 7, y - 0.35 * ax.tick_size, lab, ax.tick_size)
     if cb["label"]:
         widest = max([text_width(lab, ax.tick_size) for lab in labels] or [0])
-        c.text(left + bw + 10 + widest + 0.76 * 8, y0 + h / 2, cb["label"], 8, ha="center",
+        c.text(left + bw + 12 + widest + 0.76 * 8, y0 + h / 2, cb["label"], 8, ha="center",
                angle=90)
