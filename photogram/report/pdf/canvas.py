@@ -142,8 +142,8 @@ class Canvas:
         of ``x`` (along the baseline when rotated by ``angle`` degrees)."""
         if not text:
             return
-        w = text_width(text, size, font)
-        shift = {"left": 0.0, "center": 0.5 * w, "right": w}[ha]
+        shift = 0.0 if ha == "left" else text_width(text, size, font) * (
+            0.5 if ha == "center" else 1.0)
         r, g, b = rgb(color)
         if angle:
             a = np.radians(angle)
