@@ -99,7 +99,7 @@ def test_ticks_are_matplotlibs(seed):
         if len(ref) >= 2:
             np.testing.assert_allclose(nice_ticks(lo, hi, n), ref, rtol=0,
                                        atol=1e-9 * span)
-    assert tick_labels([-0.5, 0.0, 0.5, 1.0]) == ["-0.5", "0", "0.5", "1.0"]
+    assert tick_labels([-0.5, -1e-17, 0.5, 1.0]) == ["-0.5", "0.0", "0.5", "1.0"]
     assert tick_labels([0, 500, 1000]) == ["0", "500", "1000"]
     assert list(nice_ticks(15.5, 21.5, 9, integer=True)) == [16, 17, 18, 19, 20, 21]
 

@@ -50,12 +50,12 @@ def _decimals(ticks) -> int:
 
 def tick_labels(ticks) -> list:
     """Plain decimal labels with the fewest decimals that show every tick
-    exactly ("-0" written "0")."""
+    exactly, as matplotlib's (zero without a minus sign)."""
     d = _decimals(ticks)
     out = []
     for t in np.asarray(ticks, float):
         s = f"{t:.{d}f}"
-        out.append("0" if s.strip("-0.") == "" else s)
+        out.append(s.lstrip("-") if s.strip("-0.") == "" else s)
     return out
 
 
