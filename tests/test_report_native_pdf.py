@@ -220,3 +220,25 @@ def test_report_without_matplotlib_and_fallback_outside_cp1252(lab, tmp_path):
     finally:
         writer.load = orig
     assert b"Matplotlib" in path.read_bytes()
+
+
+def test_dense_ellipses_are_one_image_of_their_outlines():
+    from types import SimpleNamespace
+
+    from photogram.report.pdf.artists import raster_ellipses
+
+    c = Canvas(PdfFile(), 200, 200)
+    tr = SimpleNamespace(box=(0.0, 0.0, 144.0, 144.0))            # 2 x 2 in: 300 x 300 px
+    centre = np.array([[72.0, 72.0]])
+    raster_ellipses(c, tr, centre, np.array([[36.0, 0.0]]), np.array([[0.0, 18.0]]), "black")
+    obj = next(iter(c.images.values()))
+    raw = c.pdf._objects[obj - 2]                                  # its soft mask, just before
+    import zlib
+    mask = np.frombuffer(zlib.decompress(raw.split(b"stream\n", 1)[1].rsplit(b"\nendstream",
+                                                                              1)[0]),
+                         np.uint8).reshape(300, 300)
+    iy, ix = np.nonzero(mask)
+    # pixel centres on the ellipse (a = 75 px, b = 37.5 px about the middle)
+    x, y = (ix + 0.5 - 150) / 75.0, (299 - iy + 0.5 - 150) / 37.5
+    r = np.hypot(x, y)
+    assert len(ix) > 300 and np.all(np.abs(r - 1) < 0.06)

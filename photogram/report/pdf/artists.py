@@ -15,7 +15,8 @@ import numpy as np
 from photogram.report.pdf.canvas import CIRCLE, DENSE, fmt_points, text_width
 from photogram.report.pdf.colors import colormap, rgb
 
-__all__ = ["ArtistsMixin", "draw_legend", "draw_colorbar", "parse_fmt", "arrow_polygons"]
+__all__ = ["ArtistsMixin", "draw_legend", "draw_colorbar", "parse_fmt", "arrow_polygons",
+           "raster_ellipses"]
 
 _MARKER_CHARS = "o.^sx+"
 
@@ -156,18 +157,16 @@ class ArtistsMixin:
         """Ellipses with semi-axes ``a``, ``b`` (data units) and the angle of
         ``a`` (degrees from x) at ``xy`` (n, 2), as one path of Beziers; more
         than :data:`DENSE` as one image of their outlines (as matplotlib's
-        rasterized layers), :func:`raster_outlines`."""
+        rasterized layers), :func:`raster_ellipses`."""
         xy = np.asarray(xy, float).reshape(-1, 2)
         if len(xy) > DENSE:
-            t = np.linspace(0, 2 * np.pi, 25)
-            ang = np.radians(np.asarray(angle_deg, float))[:, None]
-            ca, sa = np.cos(ang), np.sin(ang)
-            ex = np.asarray(a, float)[:, None] * np.cos(t)
-            ey = np.asarray(b, float)[:, None] * np.sin(t)
-            ox, oy = xy[:, :1] + ca * ex - sa * ey, xy[:, 1:] + sa * ex + ca * ey
+            th = np.radians(np.asarray(angle_deg, float))
+            ua = np.asarray(a, float)[:, None] * np.stack([np.cos(th), np.sin(th)], 1)
+            vb = np.asarray(b, float)[:, None] * np.stack([-np.sin(th), np.cos(th)], 1)
 
             def draw_dense(tr, c):
-                raster_outlines(c, tr, np.stack([tr.x(ox), tr.y(oy)], axis=2), color)
+                p = tr(xy)
+                raster_ellipses(c, tr, p, tr(xy + ua) - p, tr(xy + vb) - p, color)
             self._add(zorder, draw_dense)
             return
         t = np.radians(np.asarray(angle_deg, float))
@@ -271,21 +270,35 @@ class ArtistsMixin:
         self.colorbars.append(dict(mappable, label=label, fraction=fraction, pad=pad))
 
 
-def raster_outlines(c, tr, poly, color, dpi: float = 150.0) -> None:
-    """Closed outlines ``poly`` (n, k, 2, page points) drawn as one image
-    over the axes box: a pixel is ``color`` where an outline crosses it
-    (:func:`photogram.report.shapes.ray_counts` over the outline's
-    segments), transparent elsewhere."""
-    from photogram.report.shapes import ray_counts
-
+def raster_ellipses(c, tr, centre, u, v, color, dpi: float = 150.0,
+                    budget: int = 600_000) -> None:
+    """Ellipse outlines ``centre + u cos t + v sin t`` (page points; (n, 2)
+    each) drawn as one image over the axes box: each outline sampled every
+    pixel (farther apart when all outlines together would need more than
+    ``budget`` samples; at least 8 a ellipse), a pixel ``color`` where a
+    sample falls, transparent elsewhere (the look of matplotlib's rasterized
+    ellipse collection)."""
     x0, y0, w, h = tr.box
-    shape = (max(int(round(h / 72 * dpi)), 1), max(int(round(w / 72 * dpi)), 1))
-    a = poly[:, :-1].reshape(-1, 2)
-    b = poly[:, 1:].reshape(-1, 2)
-    counts = ray_counts(a, b, (x0, x0 + w, y0, y0 + h), shape)[::-1]   # top row first
-    img = np.empty(shape + (3,), np.uint8)
+    k = dpi / 72.0
+    rows, cols = max(int(round(h * k)), 1), max(int(round(w * k)), 1)
+    radius = np.maximum(np.hypot(*u.T), np.hypot(*v.T)) * k             # pixels
+    ok = np.all(np.isfinite(centre) & np.isfinite(u) & np.isfinite(v), axis=1)
+    perimeter = 2 * np.pi * np.where(ok, radius, 0.0)
+    spacing = max(1.0, float(perimeter.sum()) / budget)     # pixels between samples
+    n = np.clip(np.ceil(perimeter / spacing), 8, 4000).astype(np.int64)
+    n = np.where(ok, n, 0)
+    idx = np.repeat(np.arange(len(n)), n)
+    step = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+    t = 2 * np.pi * step / np.repeat(np.maximum(n, 1), n)
+    px = (centre[idx] + u[idx] * np.cos(t)[:, None] + v[idx] * np.sin(t)[:, None]
+          - [x0, y0]) * k
+    ix, iy = np.floor(px[:, 0]).astype(np.int64), np.floor(px[:, 1]).astype(np.int64)
+    inside = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
+    alpha = np.zeros((rows, cols), np.uint8)
+    alpha[rows - 1 - iy[inside], ix[inside]] = 255                      # top row first
+    img = np.empty((rows, cols, 3), np.uint8)
     img[...] = np.round(np.array(rgb(color)) * 255).astype(np.uint8)
-    c.image(img, x0, y0, w, h, np.where(counts > 0, 255, 0).astype(np.uint8))
+    c.image(img, x0, y0, w, h, alpha)
 
 
 # ------------------------------------------------------------------ legend
