@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from photogram.report.pdf.artists import draw_legend
+from photogram.report.pdf.canvas import text_width
 from photogram.report.pdf.ticks import nice_ticks, tick_labels
 
 __all__ = ["Axes3D", "view_basis"]
@@ -146,8 +147,13 @@ class Axes3D:
             out = out / (np.hypot(*out) or 1.0)
             if i == 2:
                 out = np.array([-1.0, 0.0])
-            for p, lab in zip(pts, tick_labels(ticks[i])):
+            labels = tick_labels(ticks[i])
+            for p, lab in zip(pts, labels):
                 q = p + 10 * out
                 c.text(q[0], q[1] - 2, lab, self.tick_size, ha="center")
-            q = mid + 28 * out
+            # beyond the tick labels: half the widest one across, plus a gap
+            widest = max([text_width(lab, self.tick_size) for lab in labels] or [0.0])
+            reach = 10 + 0.5 * widest * abs(out[0]) + 0.5 * self.tick_size * abs(out[1])
+            own = 0.5 * text_width(self.labels[i], 8) * abs(out[0]) + 4 * abs(out[1])
+            q = mid + (reach + 6 + own) * out
             c.text(q[0], q[1] - 3, self.labels[i], 8, ha="center")
