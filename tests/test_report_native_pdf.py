@@ -242,3 +242,26 @@ def test_dense_ellipses_are_one_image_of_their_outlines():
     x, y = (ix + 0.5 - 150) / 75.0, (299 - iy + 0.5 - 150) / 37.5
     r = np.hypot(x, y)
     assert len(ix) > 300 and np.all(np.abs(r - 1) < 0.06)
+
+
+# the SIMULATED Monte Carlo results folder of tests/test_report_montecarlo_pages.py
+from test_report_montecarlo_pages import folder  # noqa: E402,F401  (a fixture)
+
+
+def test_monte_carlo_report_is_native_with_the_matplotlib_layout(folder):
+    from contextlib import ExitStack
+
+    from photogram.report.data import load
+    from photogram.report.writer import _style, build_report, report_units
+
+    raw = (folder / "report.pdf").read_bytes()
+    assert b"Matplotlib" not in raw
+    data = load(folder)
+    data.extra["units"] = report_units(data)
+    with ExitStack() as stack:
+        _style(stack)
+        figures, _ = build_report(data)
+    pages = pypdf.PdfReader(io.BytesIO(raw)).pages
+    assert len(pages) == len(figures)
+    text = "\n".join(p.extract_text() for p in pages)
+    assert "sigma_mc / sigma_prop of every quantity" in text and "95 % band" in text

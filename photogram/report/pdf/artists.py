@@ -88,6 +88,30 @@ class ArtistsMixin:
     def scatter(self, x, y, marker="o", color=None, s=36.0, label=None, zorder=1.0, **_):
         self.plot(x, y, marker, color=color, ms=float(np.sqrt(s)), label=label, zorder=zorder)
 
+    def axhline(self, y, color="black", lw=1.0, ls="-", **_):
+        """A horizontal line over the full width (its y counts in the limits)."""
+        self.bounds.append((np.nan, np.nan, float(y), float(y)))
+
+        def draw(tr, c):
+            x0, y0, w, h = tr.box
+            c.stroke_style(color, lw, _dash(ls, lw))
+            py = float(tr.y(y))
+            c.line(x0, py, x0 + w, py)
+        self._add(2.0, draw)
+
+    def axhspan(self, lo, hi, color="0.85", alpha=None, label=None, zorder=1.0, **_):
+        """A band ``lo`` .. ``hi`` in y over the full width."""
+        self.bounds.append((np.nan, np.nan, float(lo), float(hi)))
+
+        def draw(tr, c):
+            x0, y0, w, h = tr.box
+            a, b = float(tr.y(lo)), float(tr.y(hi))
+            c.fill_style(color, alpha)
+            c.rect(x0, min(a, b), w, abs(b - a), fill=True, stroke=False)
+        self._add(zorder, draw)
+        if label:
+            self.handles.append((label, dict(color=color, patch=True, alpha=alpha)))
+
     def axvline(self, x, color="black", lw=1.0, ls="-", **_):
         """A vertical line over the full height (its x counts in the limits,
         as matplotlib's)."""
@@ -101,7 +125,7 @@ class ArtistsMixin:
 
     # ----------------------------------------------------------- patches
     def hist(self, values, bins=10, density=False, color=None, alpha=None, rwidth=None,
-             label=None, **_):
+             label=None, edgecolor=None, lw=0.5, **_):
         values = np.asarray(values, float)
         values = values[np.isfinite(values)]
         if np.ndim(bins) == 0:
@@ -118,7 +142,10 @@ class ArtistsMixin:
             ya, yb = tr.y(np.zeros_like(counts, dtype=float)), tr.y(counts)
             c.fill_style(color, alpha)
             keep = counts > 0
-            c.rects(np.stack([x0, ya, x1 - x0, yb - ya], 1)[keep])
+            if edgecolor is not None:
+                c.stroke_style(edgecolor, lw, alpha=alpha)
+            c.rects(np.stack([x0, ya, x1 - x0, yb - ya], 1)[keep],
+                    stroke=edgecolor is not None)
         self._add(1.0, draw)
         if label:
             self.handles.append((label, dict(color=color, patch=True, alpha=alpha)))
@@ -359,8 +386,8 @@ def draw_colorbar(ax, tr, cb):
                np.stack([np.full_like(py, left + bw + 3.5), py], 1))
     labels = tick_labels(t)
     for y, lab in zip(py, labels):
-        c.text(left + bw + 7, y - 0.35 * ax.tick_size, lab, ax.tick_size)
+        c.text(left + bw + 7, y - 0.35 * ax.tick_sizes["y"], lab, ax.tick_sizes["y"])
     if cb["label"]:
-        widest = max([text_width(lab, ax.tick_size) for lab in labels] or [0])
+        widest = max([text_width(lab, ax.tick_sizes["y"]) for lab in labels] or [0])
         c.text(left + bw + 12 + widest + 0.76 * 8, y0 + h / 2, cb["label"], 8, ha="center",
                angle=90)

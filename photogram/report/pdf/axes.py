@@ -79,7 +79,7 @@ class Axes(artists.ArtistsMixin):
         self.grid_on, self.grid_lw = False, 0.3
         self.xticks = self.yticks = None    # (positions, labels, rotation)
         self.integer = {"x": False, "y": False}
-        self.tick_size = TICK_SIZE
+        self.tick_sizes = {"x": TICK_SIZE, "y": TICK_SIZE}
         self.title = self.xlabel = self.ylabel = None
         self.legend_spec = None
         self.handles: list = []             # legend entries (label, style)
@@ -121,9 +121,10 @@ class Axes(artists.ArtistsMixin):
         """Whole-number ticks only on ``axis`` (counts, iterations)."""
         self.integer[axis] = True
 
-    def tick_params(self, labelsize=None, **_):
+    def tick_params(self, axis="both", labelsize=None, **_):
         if labelsize:
-            self.tick_size = float(labelsize)
+            for a in ("x", "y") if axis == "both" else (axis,):
+                self.tick_sizes[a] = float(labelsize)
 
     def ticklabel_format(self, **_):
         """Plain labels without offset are the default here."""
@@ -161,10 +162,13 @@ class Axes(artists.ArtistsMixin):
         if not self.bounds:
             return (0.0, 1.0), (0.0, 1.0)
         b = np.array(self.bounds)
-        x0, x1, y0, y1 = (np.nanmin(b[:, 0]), np.nanmax(b[:, 1]), np.nanmin(b[:, 2]),
-                          np.nanmax(b[:, 3]))
+        with np.errstate(all="ignore"):
+            x0, x1, y0, y1 = (np.nanmin(b[:, 0]), np.nanmax(b[:, 1]), np.nanmin(b[:, 2]),
+                              np.nanmax(b[:, 3]))
         if not np.isfinite(y0):                 # only vertical lines
             y0, y1 = 0.0, 1.0
+        if not np.isfinite(x0):                 # only horizontal lines or bands
+            x0, x1 = 0.0, 1.0
 
         def pad(lo, hi):
             d = (hi - lo) or (abs(lo) or 1.0)
@@ -221,7 +225,7 @@ class Axes(artists.ArtistsMixin):
         if axis == "y" and self.logy:
             k = log_ticks(a, b)
             return 10.0 ** k, [("10", int(e)) for e in k], 0
-        nbins = max(1, min(9, int(length / (self.tick_size * (3 if axis == "x" else 2)))))
+        nbins = max(1, min(9, int(length / (self.tick_sizes[axis] * (3 if axis == "x" else 2)))))
         t = nice_ticks(a, b, nbins, self.integer[axis])
         return t, tick_labels(t), 0
 
@@ -293,7 +297,7 @@ class Axes(artists.ArtistsMixin):
                    np.stack([px, np.full_like(px, y0 - TICK_LEN)], 1))
         c.segments(np.stack([np.full_like(py, x0), py], 1),
                    np.stack([np.full_like(py, x0 - TICK_LEN), py], 1))
-        s = self.tick_size
+        s = self.tick_sizes["x"]
         low = y0 - TICK_LEN - TICK_PAD
         deepest = low - 0.76 * s
         for x, lab in zip(px, xlab):
@@ -302,6 +306,7 @@ class Axes(artists.ArtistsMixin):
                 deepest = min(deepest, low - text_width(lab, s))
             else:
                 c.text(x, low - 0.76 * s, lab, s, ha="center")
+        s = self.tick_sizes["y"]
         for y, lab in zip(py, ylab):
             if isinstance(lab, tuple):        # 10^k
                 exp = str(lab[1])
