@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 from photogram.report.layout import decorate, equal_limits
 from photogram.report.registry import section
 from photogram.report.shapes import dense, native_ray_layer, ray_layer
@@ -14,16 +13,16 @@ _STYLE = {"control": ("^", "tab:red", 14), "check": ("s", "tab:orange", 12),
 
 def _points(data):
     p = data.points
-    xyz = p[["X", "Y", "Z"]].to_numpy(float)
+    xyz = p.numbers(["X", "Y", "Z"]).reshape(-1, 3)
     ok = np.all(np.isfinite(xyz), axis=1)
     if data.has_residuals:
-        ok &= p.index.isin(data.residuals["point"].unique())
-    kinds = p["kind"].astype(str).to_numpy() if "kind" in p.columns else np.full(len(p), "tie")
+        ok &= np.isin(p.ids.astype(str), data.residuals["point"].astype(str))
+    kinds = p["kind"].astype(str) if "kind" in p else np.full(len(p), "tie")
     return xyz[ok], kinds[ok]
 
 
 def _stations(data):
-    names = [n for n in data.stations.index if n in data.rotation
+    names = [n for n in dict.fromkeys(data.stations.ids.tolist()) if n in data.rotation
              and np.all(np.isfinite(data.centres[n]))]
     C = np.array([data.centres[n] for n in names]).reshape(-1, 3)
     D = np.array([-data.rotation[n][2] for n in names]).reshape(-1, 3)   # viewing directions
@@ -114,7 +113,7 @@ def build(doc, data):
     if not len(allp):
         return
     size = float(np.ptp(allp, axis=0).max()) or 1.0
-    rays = data.has_residuals and len(C) > 0 and bool(data.residuals["used"].any())
+    rays = data.has_residuals and len(C) > 0 and bool(np.any(data.residuals["used"]))
     doc.start_section("Network", intro=(
         "Projection centres (black triangles, with the viewing direction) and the measured "
         "points (red triangles: control, orange squares: check, grey dots: tie or object "
@@ -129,12 +128,14 @@ def build(doc, data):
     height = float(np.clip(5.6 * span[1] / span[0], 2.5, 5.2)) + 0.8
     ax, = doc.axes(max(3.0, min(height, doc.remaining - 0.1)), pad_left=0.9, pad_right=0.4)
     if rays:
-        r = data.residuals[data.residuals["used"]]
+        r = data.residuals.take(data.residuals["used"])
         pts = data.points
-        ok = (r["station"].isin(names) & r["point"].isin(pts.index)).to_numpy()
-        idx = pd.Series({n: i for i, n in enumerate(names)})
-        a = C[idx.loc[r["station"].to_numpy()[ok]].to_numpy(int), :2]
-        b = pts.loc[r["point"].to_numpy()[ok], ["X", "Y"]].to_numpy(float)
+        index = {n: i for i, n in enumerate(names)}
+        si = np.fromiter((index.get(s, -1) for s in r["station"]), dtype=int, count=len(r))
+        pi = pts.positions(r["point"])
+        ok = (si >= 0) & (pi >= 0)
+        a = C[si[ok], :2]
+        b = pts.numbers(["X", "Y"])[pi[ok]]
         _rays(ax, a, b, allp, size)
     for kind, (marker, colour, ms) in _STYLE.items():
         m = kinds == kind

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from photogram.report.numbers import pair
 from photogram.report.registry import section
 
@@ -10,9 +12,9 @@ _INTRO = ("Exterior orientation: projection centre X0 Y0 Z0 and rotation omega p
           "'points' is the number of image points used in the adjustment.")
 
 
-def _sigma(st, name, column):
+def _sigma(st, i, column):
     col = "est_s" + column
-    return st.loc[name, col] if col in st.columns else None
+    return st[col][i] if col in st else None
 
 
 @section("stations", "Stations (exterior orientation)", 30,
@@ -27,16 +29,17 @@ def build(doc, data):
     n_obs = {}
     if data.has_residuals:
         r = data.residuals
-        n_obs = r[r["used"]].groupby("station").size().to_dict()
+        names, counts = np.unique(r["station"][r["used"]].astype(str), return_counts=True)
+        n_obs = dict(zip(names.tolist(), counts.tolist()))
     pos, rot = [], []
-    for name in st.index:
-        row = [name, str(st.loc[name, "camera"])]
+    for i, name in enumerate(st.ids):
+        row = [name, str(st["camera"][i])]
         for c in ("X0", "Y0", "Z0"):
-            row += pair(st.loc[name, c], _sigma(st, name, c))
+            row += pair(st[c][i], _sigma(st, i, c))
         pos.append(row + [str(n_obs.get(name, "-"))])
         row = [name]
         for c in ("omega", "phi", "kappa"):
-            row += pair(st.loc[name, c], _sigma(st, name, c))
+            row += pair(st[c][i], _sigma(st, i, c))
         rot.append(row)
     doc.table(["station", "camera", f"X0 [{lu}]", "sigma", f"Y0 [{lu}]", "sigma",
                f"Z0 [{lu}]", "sigma", "points"], pos, align="llrrrrrrr",

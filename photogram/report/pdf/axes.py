@@ -270,7 +270,12 @@ class Axes(artists.ArtistsMixin):
     def _tick_sets(self, tr):
         x0, y0, w, h = tr.box
         xl, yl = self.get_xlim(), self.get_ylim()
-        return self._ticks("x", *xl, w), self._ticks("y", *yl, h)
+        key = (tuple(tr.box), tuple(xl), tuple(yl))
+        cached = getattr(self, "_tick_cache", None)
+        if cached is None or cached[0] != key:     # grid and frame share them
+            cached = (key, (self._ticks("x", *xl, w), self._ticks("y", *yl, h)))
+            self._tick_cache = cached
+        return cached[1]
 
     def _grid(self, tr):
         if not self.grid_on:

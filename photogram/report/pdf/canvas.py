@@ -9,6 +9,8 @@ page. Numeric path data is formatted by one ``%`` over a whole array
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from photogram.report.pdf.colors import rgb
@@ -54,6 +56,14 @@ def fmt_points(template: str, values) -> str:
 
 def _c(x: float) -> str:
     return f"{x:.3f}".rstrip("0").rstrip(".") or "0"
+
+
+@lru_cache(maxsize=256)
+def _fill_op(color) -> str:
+    """``r g b rg`` of a colour (cached: a page sets hundreds of texts in a
+    few colours)."""
+    r, g, b = rgb(color)
+    return f"{_c(r)} {_c(g)} {_c(b)} rg"
 
 
 #: marker outlines in units of the marker size (points), as
@@ -144,7 +154,7 @@ class Canvas:
             return
         shift = 0.0 if ha == "left" else text_width(text, size, font) * (
             0.5 if ha == "center" else 1.0)
-        r, g, b = rgb(color)
+        fill = _fill_op(color) if isinstance(color, str) else _fill_op(tuple(rgb(color)))
         if angle:
             a = np.radians(angle)
             c, s = np.cos(a), np.sin(a)
@@ -152,7 +162,7 @@ class Canvas:
             pos = f"{c:.4f} {s:.4f} {-s:.4f} {c:.4f} {x0:.2f} {y0:.2f} Tm"
         else:
             pos = f"1 0 0 1 {x - shift:.2f} {y:.2f} Tm"
-        self._ops.append(self._alpha(None) + f" BT /{_RESOURCE[font]} {_c(size)} Tf {_c(r)} {_c(g)} {_c(b)} rg "
+        self._ops.append(self._alpha(None) + f" BT /{_RESOURCE[font]} {_c(size)} Tf {fill} "
                          f"{pos} " + pdf_string(text).decode("latin-1") + " Tj ET\n")
 
     # -------------------------------------------------------------- paths
