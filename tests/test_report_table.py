@@ -90,3 +90,51 @@ def test_report_does_not_import_pandas(tmp_path):
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == "False"
     assert (tmp_path / "r" / "report.pdf").stat().st_size > 10_000
+
+
+def test_pandas_path_for_large_tables_reads_the_same(tmp_path):
+    from photogram.report.table import read_table_pandas
+
+    path = _write(tmp_path, "# c\nstation,point,x,vx,note\nS1,007,1.5,,a\nS2,,2.5,-1e-3,\n")
+    a, b = read_table(path, ("station", "point"), "point"), \
+        read_table_pandas(path, ("station", "point"), "point")
+    assert a.columns == b.columns and a.key == b.key == "point"
+    for c in a.columns:
+        if a[c].dtype == object:
+            assert a[c].tolist() == b[c].tolist()
+        else:
+            np.testing.assert_array_equal(a[c], b[c])
+    bad = _write(tmp_path, "a,b\n1,2\n3,x7\n", "bad.csv")
+    with pytest.raises(InputError, match="'x7' in column 'b'"):
+        read_table_pandas(bad)
+
+
+def test_sorted_groups_sort_the_names_as_text():
+    from photogram.report.table import sorted_groups
+
+    keys = np.array(["P10", "P2", "P10", "A"], dtype=object)
+    code, names = sorted_groups(keys)
+    assert names.tolist() == ["A", "P10", "P2"]
+    assert [names[c] for c in code] == keys.tolist()
+
+
+def test_per_image_statistics_equal_a_loop():
+    from photogram.report.pages_residuals import _per_image, _stats, _w
+
+    rng = np.random.default_rng(3)
+    n = 500
+    r = Table({"station": rng.choice(np.array(["S1", "S2", "S3", "S4"], dtype=object), n),
+               "vx": rng.normal(size=n), "vy": rng.normal(size=n),
+               "wx": np.where(rng.random(n) < 0.1, np.nan, rng.normal(size=n)),
+               "wy": rng.normal(size=n),
+               "used": rng.random(n) < 0.8})
+    r = r.with_column("used", np.where(r["station"] == "S4", False, r["used"]))
+    code, names = r.groups("station")
+    got = _per_image(r, code, len(names))
+    for i, name in enumerate(names):
+        g = r.take((r["station"] == name) & r["used"])
+        k, sx, sy, sv, mx = _stats(g)
+        w = _w(g)
+        want = [k, sx, sy, sv, mx, np.nanmax(w) if np.isfinite(w).any() else np.nan]
+        np.testing.assert_allclose(got[i], want, rtol=1e-12, equal_nan=True)
+    assert got[names.index("S4"), 0] == 0 and np.isnan(got[names.index("S4"), 1])

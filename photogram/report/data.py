@@ -28,7 +28,8 @@ from photogram.project.camera_schema import load_cameras_file
 from photogram.project.results import Results
 from photogram.project.results_read import read_covariance, read_results_table
 from photogram.project.results_folder import final_folder
-from photogram.report.table import Table, groups, read_table
+from photogram.report.table import (PANDAS_BYTES, Table, groups, read_table,
+                                    read_table_pandas, sorted_groups)
 
 __all__ = ["ReportData", "load", "REQUIRED", "read_image"]
 
@@ -108,11 +109,13 @@ class ReportData:
         image coverage: residual-vector and geometry pages)."""
         from photogram.report.shapes import convex_hull
 
-        r = self.residuals.take(self.residuals["used"])
-        code, names = groups(r["station"])
+        r = self.residuals
+        code, names = r.groups("station")
+        used = r["used"]
+        code = code[used]
         order = np.argsort(code, kind="stable")
         bounds = np.searchsorted(code[order], np.arange(len(names) + 1))
-        xy = r.numbers(["x", "y"])[order]
+        xy = r.numbers(["x", "y"])[used][order]
         return {name: convex_hull(xy[bounds[i]:bounds[i + 1]])
                 for i, name in enumerate(names)}
 
@@ -176,16 +179,20 @@ class ReportData:
         rays, degrees)."""
         from photogram.report.shapes import largest_ray_angles
 
-        r = self.residuals.take(self.residuals["used"])
-        pts = self.points
-        at = pts.positions(r["point"]) if len(pts) else np.full(len(r), -1)
-        r, at = r.take(at >= 0), at[at >= 0]
-        ids, code = np.unique(r["point"].astype(str), return_inverse=True)
-        code = code.reshape(-1)
+        r, pts = self.residuals, self.points
+        used = r["used"]
+        scode, snames = r.groups("station")
+        at = pts.positions(r["point"][used]) if len(pts) else np.full(int(used.sum()), -1)
+        keep = at >= 0
+        sc, at = scode[used][keep], at[keep]
+        code, ids = sorted_groups(r["point"][used][keep])
         rays = np.bincount(code, minlength=len(ids))
         centres = self.centres
-        seen = np.fromiter((s in centres for s in r["station"]), dtype=bool, count=len(r))
-        C = np.array([centres[s] for s in r["station"][seen]], dtype=float).reshape(-1, 3)
+        known = np.array([n in centres for n in snames], dtype=bool)
+        C_station = np.array([centres.get(n, np.full(3, np.nan)) for n in snames],
+                             dtype=float).reshape(-1, 3)
+        seen = known[sc]
+        C = C_station[sc[seen]]
         X = pts.numbers(["X", "Y", "Z"])[at[seen]].reshape(-1, 3)
         angle = largest_ray_angles(C - X, code[seen], len(ids))
         return Table({"point": ids.astype(object), "rays": rays, "angle": angle}, "point")
@@ -306,11 +313,13 @@ def _read_results(folder: Path, summary: dict) -> Results:
     (numpy columns, no pandas), keyed by station and point id."""
     unit, cameras = load_cameras_file(folder / "cameras.toml")
     log = folder / "log.txt"
+    names = ("stations.csv", "points.csv", "residuals.csv")
+    big = sum((folder / n).stat().st_size for n in names) > PANDAS_BYTES
+    read = read_table_pandas if big else read_table
     return Results(folder=folder, summary=summary, image_unit=unit, cameras=cameras,
-                   stations=read_table(folder / "stations.csv", ("station", "camera"),
-                                       key="station"),
-                   points=read_table(folder / "points.csv", ("id", "kind"), key="id"),
-                   residuals=read_table(folder / "residuals.csv", ("station", "point", "line")),
+                   stations=read(folder / "stations.csv", ("station", "camera"), key="station"),
+                   points=read(folder / "points.csv", ("id", "kind"), key="id"),
+                   residuals=read(folder / "residuals.csv", ("station", "point", "line")),
                    log=log.read_text(encoding="utf-8") if log.is_file() else "")
 
 

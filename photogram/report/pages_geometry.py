@@ -10,7 +10,6 @@ from photogram.report.layout import decorate
 from photogram.report.numbers import num, pct
 from photogram.report.registry import section
 from photogram.report.shapes import coverage_fraction, polygon_area
-from photogram.report.table import groups
 from photogram.stats.geometry import WEAK_ANGLE_DEG
 
 _INTRO = ("Rays: the images a point was measured (and used) in. Intersection angle: the "
@@ -35,13 +34,16 @@ def weak_angle_points(data, threshold: float = WEAK_ANGLE_DEG) -> list:
 def coverage(data):
     """Per station (n points, hull fraction, rectangle fraction, hull) and
     per camera the union fraction."""
-    r = data.residuals.take(data.residuals["used"])
-    code, names = groups(r["station"])
+    r = data.residuals
+    code, names = r.groups("station")
+    code = code[r["used"]]
     order = np.argsort(code, kind="stable")
     bounds = np.searchsorted(code[order], np.arange(len(names) + 1))
-    xy_all = r.numbers(["x", "y"])[order]
+    xy_all = r.numbers(["x", "y"])[r["used"]][order]
     per_station, hulls = [], {}
     for i, st in enumerate(names):
+        if bounds[i + 1] == bounds[i]:      # no used observation
+            continue
         cam = data.station_camera(st)
         fmt = data.image_format(cam)
         xy = xy_all[bounds[i]:bounds[i + 1]]

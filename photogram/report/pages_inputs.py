@@ -81,7 +81,7 @@ def _intro(data) -> str:
     return text
 
 
-@section("inputs", "Input orientation (fixed)", 20, applies=_applies)
+@section("inputs", "Input orientation (fixed)", 20, applies=_applies, native=True)
 def build(doc, data):
     iu, lu, au = data.image_unit, data.length_unit, data.angle_unit
     doc.start_section("Input orientation (fixed)", intro=_intro(data))

@@ -16,7 +16,8 @@ def _points(data):
     xyz = p.numbers(["X", "Y", "Z"]).reshape(-1, 3)
     ok = np.all(np.isfinite(xyz), axis=1)
     if data.has_residuals:
-        ok &= np.isin(p.ids.astype(str), data.residuals["point"].astype(str))
+        seen = set(data.residuals["point"].tolist())
+        ok &= np.fromiter((i in seen for i in p.ids), dtype=bool, count=len(p))
     kinds = p["kind"].astype(str) if "kind" in p else np.full(len(p), "tie")
     return xyz[ok], kinds[ok]
 
@@ -128,11 +129,12 @@ def build(doc, data):
     height = float(np.clip(5.6 * span[1] / span[0], 2.5, 5.2)) + 0.8
     ax, = doc.axes(max(3.0, min(height, doc.remaining - 0.1)), pad_left=0.9, pad_right=0.4)
     if rays:
-        r = data.residuals.take(data.residuals["used"])
-        pts = data.points
+        r, pts = data.residuals, data.points
+        used = r["used"]
+        code, snames = r.groups("station")
         index = {n: i for i, n in enumerate(names)}
-        si = np.fromiter((index.get(s, -1) for s in r["station"]), dtype=int, count=len(r))
-        pi = pts.positions(r["point"])
+        si = np.array([index.get(n, -1) for n in snames], dtype=int)[code[used]]
+        pi = pts.positions(r["point"][used])
         ok = (si >= 0) & (pi >= 0)
         a = C[si[ok], :2]
         b = pts.numbers(["X", "Y"])[pi[ok]]

@@ -9,7 +9,7 @@ from photogram.report.layout import decorate
 from photogram.report.numbers import finite, num
 from photogram.report.registry import section
 from photogram.report.shapes import cell_means, dense, nice, segments_path
-from photogram.report.table import groups
+from photogram.report.table import sorted_groups
 
 _INTRO = ("Residuals are the measured minus the adjusted image coordinates. The RMS is "
           "over the used observations; 'RMS' alone is the RMS of the residual vector length "
@@ -37,13 +37,31 @@ def _w(r):
 
 def _per_point(used):
     """``(ids, rays, rms)`` per point of the used observations, ids sorted."""
-    ids, code = np.unique(used["point"].astype(str), return_inverse=True)
-    code = code.reshape(-1)
+    code, ids = sorted_groups(used["point"])
     v2 = used["vx"] ** 2 + used["vy"] ** 2
     size = np.bincount(code, minlength=len(ids))
     with np.errstate(invalid="ignore", divide="ignore"):
         rms = np.sqrt(np.bincount(code, weights=v2, minlength=len(ids)) / size)
     return ids, size, rms
+
+
+def _per_image(r, code, n) -> np.ndarray:
+    """Per image (``code`` of every row, ``n`` images) over its used rows:
+    count, RMS vx, RMS vy, RMS and largest vector length, largest |w|
+    (NaN where there is none); as :func:`_stats` and :func:`_w` per image."""
+    u = r["used"]
+    c = code[u]
+    vx, vy = r["vx"][u].astype(float), r["vy"][u].astype(float)
+    v2 = vx ** 2 + vy ** 2
+    k = np.bincount(c, minlength=n).astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rms = [np.sqrt(np.bincount(c, weights=q, minlength=n) / k) for q in (vx ** 2, vy ** 2, v2)]
+    vmax = np.full(n, -np.inf)
+    np.maximum.at(vmax, c, np.sqrt(v2))
+    vmax[k == 0] = np.nan
+    wmax = np.full(n, np.nan)
+    np.fmax.at(wmax, c, _w(r)[u])
+    return np.column_stack([k, *rms, vmax, wmax])
 
 
 def _largest_first(values) -> np.ndarray:
@@ -91,14 +109,11 @@ def build(doc, data):
         doc.text("Data snooping was not run (set [adjustment] snooping_alpha, e.g. 0.001).",
                  size=8)
     rows = []
-    code, names = groups(r["station"])
-    for i, st in enumerate(names):
-        gu = r.take((code == i) & r["used"])
-        k, sx, sy, sv, mx = _stats(gu)
-        wg = _w(gu)
-        rows.append([st, str(data.station_camera(st) or "-"), str(k), num(sx, 3), num(sy, 3),
-                     num(sv, 3), num(mx, 3),
-                     num(np.nanmax(wg), 3) if np.any(np.isfinite(wg)) else "-"])
+    code, names = r.groups("station")
+    for st, (k, sx, sy, sv, mx, wmax) in zip(names, _per_image(r, code, len(names))):
+        rows.append([st, str(data.station_camera(st) or "-"), str(int(k)), num(sx, 3),
+                     num(sy, 3), num(sv, 3), num(mx, 3),
+                     num(wmax, 3) if np.isfinite(wmax) else "-"])
     doc.table(["station", "camera", "points", f"RMS x [{iu}]", f"RMS y [{iu}]",
                f"RMS [{iu}]", f"max [{iu}]", "max |w|"], rows, align="llrrrrrr",
               title="Per image")
@@ -154,7 +169,7 @@ def _scale(data):
     r = data.residuals
     v = np.hypot(r["vx"], r["vy"]).astype(float)
     widths = [f[0] for f in (data.image_format(data.station_camera(s))
-                             for s in groups(r["station"])[1]) if f]
+                             for s in r.groups("station")[1]) if f]
     if not len(v) or not widths:
         return 1.0
     rms = float(np.sqrt(np.mean(v ** 2))) or 1.0
@@ -235,7 +250,7 @@ def build_vectors(doc, data):
     iu = data.image_unit
     k = _scale(data)
     r = data.residuals
-    code, names = groups(r["station"])
+    code, names = r.groups("station")
     used_per_image = np.bincount(code[r["used"]], minlength=len(names))
     doc.start_section("Residual vectors per image", intro=(
         f"Residuals enlarged {k:g} times (the bar below each image is the length given), "

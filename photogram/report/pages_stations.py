@@ -29,8 +29,9 @@ def build(doc, data):
     n_obs = {}
     if data.has_residuals:
         r = data.residuals
-        names, counts = np.unique(r["station"][r["used"]].astype(str), return_counts=True)
-        n_obs = dict(zip(names.tolist(), counts.tolist()))
+        code, names = r.groups("station")
+        counts = np.bincount(code[r["used"]], minlength=len(names))
+        n_obs = {n: int(k) for n, k in zip(names, counts) if k}
     pos, rot = [], []
     for i, name in enumerate(st.ids):
         row = [name, str(st["camera"][i])]

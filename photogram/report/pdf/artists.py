@@ -60,7 +60,7 @@ class ArtistsMixin:
 
     # ------------------------------------------------------ lines, markers
     def plot(self, x, y, fmt="", *, color=None, ms=6.0, lw=1.5, ls=None, label=None,
-             mew=None, marker=None, zorder=2.0, alpha=None, **_):
+             mew=None, marker=None, zorder=2.0, alpha=None, mfc=None, mec=None, **_):
         x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
         if x.size == 1 and y.size == 1 and not fmt:
             fmt = "-"
@@ -77,9 +77,13 @@ class ArtistsMixin:
                 c.polyline(pts)
             if marker:
                 size = ms * (0.5 if marker == "." else 1.0)
-                c.fill_style(color, alpha)
-                c.stroke_style(color, mew or (1.0 if marker in "x+" else 0.5), alpha=alpha)
+                face = color if mfc is None else mfc
+                c.fill_style(face, alpha)
+                c.stroke_style(face, mew or (1.0 if marker in "x+" else 0.5), alpha=alpha)
                 c.markers(pts, marker, size)
+                if mec is not None and mec != face:     # an outline in another colour
+                    c.stroke_style(mec, mew or 1.0, alpha=alpha)
+                    c.markers(pts, marker, size, filled=False)
         self._add(zorder, draw)
         if label:
             self.handles.append((label, dict(color=color, ls=ls, lw=lw, marker=marker,
@@ -150,6 +154,56 @@ class ArtistsMixin:
         if label:
             self.handles.append((label, dict(color=color, patch=True, alpha=alpha)))
         return counts, edges
+
+    def bar(self, x, height, width=0.8, color=None, zorder=1.0, **_):
+        """Bars centred on ``x`` from 0 to ``height``; ``color`` one colour
+        or one per bar (one path per colour)."""
+        x, height = np.asarray(x, float).ravel(), np.asarray(height, float).ravel()
+        colors = list(color) if isinstance(color, (list, tuple)) and len(color) == len(x) \
+            and not isinstance(color[0], (int, float)) else [color or self.next_color()] * len(x)
+        ok = np.isfinite(x) & np.isfinite(height)
+        if ok.any():
+            self._bound(np.concatenate([x[ok] - width / 2, x[ok] + width / 2]),
+                        np.concatenate([np.zeros(ok.sum()), height[ok]]), sticky=True)
+
+        def draw(tr, c):
+            for colour in dict.fromkeys(colors):
+                m = ok & np.array([k == colour for k in colors])
+                x0, x1 = tr.x(x[m] - width / 2), tr.x(x[m] + width / 2)
+                ya, yb = tr.y(np.zeros(int(m.sum()))), tr.y(height[m])
+                c.fill_style(colour)
+                c.rects(np.stack([x0, ya, x1 - x0, yb - ya], 1))
+        self._add(zorder, draw)
+
+    def arrow(self, x0, y0, x1, y1, color="black", lw=1.0, head=4.0, zorder=2.5):
+        """A line from (x0, y0) to (x1, y1) with an open head at the end
+        (matplotlib's ``arrowstyle="->"``: ``head`` points long)."""
+        self._bound([x0, x1], [y0, y1])
+
+        def draw(tr, c):
+            a, b = tr([[x0, y0], [x1, y1]])
+            d = b - a
+            n = float(np.hypot(*d))
+            if not n > 0:
+                return
+            u = d / n
+            v = np.array([-u[1], u[0]])
+            tips = np.array([b - head * u + 0.5 * head * v, b - head * u - 0.5 * head * v])
+            c.stroke_style(color, lw)
+            c.segments(np.array([a, tips[0], tips[1]]), np.array([b, b, b]))
+        self._add(zorder, draw)
+
+    def fill_between(self, x, y1, y2, color="black", alpha=None, zorder=1.0, **_):
+        """The band between ``y1`` and ``y2`` over ``x``, one polygon per run
+        of finite values (matplotlib leaves gaps at NaN too)."""
+        x, y1, y2 = (np.asarray(v, float).ravel() for v in (x, y1, y2))
+        ok = np.isfinite(x) & np.isfinite(y1) & np.isfinite(y2)
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(int), [0]])))
+        for i, j in zip(edges[::2], edges[1::2]):
+            if j - i >= 2:
+                self.fill(np.concatenate([x[i:j], x[i:j][::-1]]),
+                          np.concatenate([y1[i:j], y2[i:j][::-1]]), color=color,
+                          alpha=alpha, zorder=zorder)
 
     def fill(self, x, y, color="black", alpha=None, zorder=1.0, **_):
         xy = np.stack([np.asarray(x, float), np.asarray(y, float)], 1)
@@ -284,11 +338,16 @@ class ArtistsMixin:
                    ha=ha)
         self._add(zorder, draw, clip)
 
-    def annotate(self, s, xy, xytext=(3, 3), size=6.0, **_):
-        """``s`` offset by ``xytext`` points from the data point ``xy``."""
+    def annotate(self, s, xy, xytext=(3, 3), size=6.0, ha="left", va="baseline",
+                 fontsize=None, **_):
+        """``s`` offset by ``xytext`` points from the data point ``xy``
+        (``ha``, ``va``: where ``s`` stands against that offset point)."""
+        size = fontsize or size
+        shift = {"baseline": 0.0, "center": -0.35, "top": -0.76, "bottom": 0.24}[va]
+
         def draw(tr, c):
             p = tr([xy])[0]
-            c.text(p[0] + xytext[0], p[1] + xytext[1], str(s), size)
+            c.text(p[0] + xytext[0], p[1] + xytext[1] + shift * size, str(s), size, ha=ha)
         self._add(3.0, draw, False)
 
     def colorbar(self, mappable, label="", fraction=0.05, pad=0.02):
