@@ -108,11 +108,15 @@ class Axes(artists.ArtistsMixin):
     def set_visible(self, visible):
         self.visible = bool(visible)
 
-    def grid(self, on=True, lw=0.3, **_):
-        self.grid_on, self.grid_lw = bool(on), lw
+    def grid(self, on=True, lw=0.3, axis="both", **_):
+        self.grid_on, self.grid_lw, self.grid_axis = bool(on), lw, axis
 
-    def set_xticks(self, ticks, labels=None, rotation=0):
+    def set_xticks(self, ticks, labels=None, rotation=0, fontsize=None, **_):
+        """Ticks (and labels, rotated by ``rotation`` degrees, their ends at
+        the ticks when rotated; ``fontsize`` their size)."""
         self.xticks = (np.asarray(ticks, float), labels, rotation)
+        if fontsize:
+            self.tick_sizes["x"] = float(fontsize)
 
     def set_yticks(self, ticks, labels=None, rotation=0):
         self.yticks = (np.asarray(ticks, float), labels, rotation)
@@ -285,6 +289,8 @@ class Axes(artists.ArtistsMixin):
         x0, y0, w, h = tr.box
         c.stroke_style("#b0b0b0", self.grid_lw)
         px, py = tr.x(xt), tr.y(yt)
+        axis = getattr(self, "grid_axis", "both")
+        px, py = (px if axis in ("both", "x") else px[:0]), (py if axis in ("both", "y") else py[:0])
         a = np.concatenate([np.stack([px, np.full_like(px, y0)], 1),
                             np.stack([np.full_like(py, x0), py], 1)])
         b = np.concatenate([np.stack([px, np.full_like(px, y0 + h)], 1),
@@ -305,10 +311,15 @@ class Axes(artists.ArtistsMixin):
         s = self.tick_sizes["x"]
         low = y0 - TICK_LEN - TICK_PAD
         deepest = low - 0.76 * s
+        sin, cos = np.sin(np.radians(xrot or 0)), np.cos(np.radians(xrot or 0))
         for x, lab in zip(px, xlab):
-            if xrot:
+            if xrot == 90:                    # centred on the tick
                 c.text(x + 0.35 * s, low, lab, s, ha="right", angle=90)
                 deepest = min(deepest, low - text_width(lab, s))
+            elif xrot:                        # the box's upper right corner at the tick
+                c.text(x - 0.22 * s * sin, low - 0.76 * s * cos, lab, s, ha="right",
+                       angle=xrot)
+                deepest = min(deepest, low - text_width(lab, s) * sin - s * cos)
             else:
                 c.text(x, low - 0.76 * s, lab, s, ha="center")
         s = self.tick_sizes["y"]
