@@ -133,13 +133,13 @@ class ReportData:
         if not len(st):
             return {}
         angles = st.numbers(["omega", "phi", "kappa"])
-        transpose = self.info.get("rotation_direction") == "camera_to_world"
+        ok = np.all(np.isfinite(angles), axis=1)
+        R = opk_to_matrix(to_radians(angles[ok], self.angle_unit)).reshape(-1, 3, 3)
+        if self.info.get("rotation_direction") == "camera_to_world":
+            R = np.swapaxes(R, 1, 2)
         out = {}
-        for name, ang in zip(st.ids, angles):
-            if name in out or not np.all(np.isfinite(ang)):
-                continue
-            R = opk_to_matrix(to_radians(ang, self.angle_unit))
-            out[name] = R.T if transpose else R
+        for name, m in zip(st.ids[ok], R):          # the first row of a station wins
+            out.setdefault(name, m)
         return out
 
     @cached_property

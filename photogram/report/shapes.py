@@ -30,19 +30,20 @@ def convex_hull(xy) -> np.ndarray:
 
 def _monotone_chain(pts) -> np.ndarray:
     """Andrew's monotone chain of sorted unique points (n >= 3)."""
-    def turn(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
     def half(points):
-        out = []
+        out = []                              # (x, y) tuples: no numpy per step
         for p in points:
-            while len(out) >= 2 and turn(out[-2], out[-1], p) <= 0:
+            while len(out) >= 2:
+                (ox, oy), (ax, ay) = out[-2], out[-1]
+                if (ax - ox) * (p[1] - oy) - (ay - oy) * (p[0] - ox) > 0:
+                    break
                 out.pop()
             out.append(p)
         return out
 
-    lower, upper = half(pts), half(pts[::-1])
-    return np.array(lower[:-1] + upper[:-1])
+    xy = [tuple(p) for p in np.asarray(pts, float).tolist()]
+    lower, upper = half(xy), half(xy[::-1])
+    return np.array(lower[:-1] + upper[:-1], dtype=float).reshape(-1, 2)
 
 
 def _inside_extremes(pts) -> np.ndarray:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from itertools import repeat
 from pathlib import Path
 
@@ -147,12 +148,13 @@ def _rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
     except UnicodeDecodeError as exc:
         raise InputError(f"the file is not UTF-8 text ({exc.reason})", file=path,
                          hint=_DAMAGED) from None
-    lines, numbers = [], []
-    for number, line in enumerate(text.splitlines(), 1):
-        stripped = line.strip()
-        if stripped and not stripped.startswith("#"):
-            lines.append(line)
-            numbers.append(number)
+    lines = text.splitlines()
+    if "#" in text or re.search(r"^[ \t\r\f\v]*$", text.rstrip("\r\n"), re.M):
+        numbers = [n for n, line in enumerate(lines, 1)
+                   if line.strip() and not line.lstrip().startswith("#")]
+        lines = [lines[n - 1] for n in numbers]
+    else:                                   # no comment, no blank line: every line counts
+        numbers = list(range(1, len(lines) + 1))
     if not lines:
         raise InputError("the table is empty (no header row)", file=path, hint=_DAMAGED)
     try:
@@ -167,12 +169,15 @@ def _rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
                          hint=_DAMAGED)
     header = [h.strip() for h in records[0]]
     width = len(header)
-    for rec, number in zip(records[1:], numbers[1:]):
-        if len(rec) > width:
-            raise InputError(f"cannot read the table: {len(rec)} cells, the header has "
-                             f"{width}", file=path, line=number, hint=_DAMAGED)
-    body = [rec if len(rec) == width else rec + [""] * (width - len(rec))
-            for rec in records[1:]]
+    body = records[1:]
+    lengths = set(map(len, body))
+    if lengths and max(lengths) > width:
+        for rec, number in zip(body, numbers[1:]):
+            if len(rec) > width:
+                raise InputError(f"cannot read the table: {len(rec)} cells, the header has "
+                                 f"{width}", file=path, line=number, hint=_DAMAGED)
+    if lengths - {width}:
+        body = [rec + [""] * (width - len(rec)) for rec in body]
     return header, body, numbers[1:]
 
 

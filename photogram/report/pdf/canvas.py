@@ -23,6 +23,8 @@ _RESOURCE = {"Helvetica": "F1", "Helvetica-Bold": "F2", "Courier": "F3", "Courie
 _TABLES = {name: np.array(WIDTHS[base], float)
            for name, base in (("Helvetica", "Helvetica"), ("Helvetica-Bold", "Helvetica-Bold"),
                               ("Courier", "Courier"), ("Courier-Bold", "Courier"))}
+#: the same widths as Python lists (a short label is summed faster without numpy)
+_WIDTH_LISTS = {name: table.tolist() for name, table in _TABLES.items()}
 
 
 def font_name(mono: bool = False, bold: bool = False) -> str:
@@ -33,8 +35,9 @@ def font_name(mono: bool = False, bold: bool = False) -> str:
 def text_width(text: str, size: float, font: str = "Helvetica") -> float:
     """Advance width (points) of ``text`` set in ``font`` at ``size`` pt
     (Adobe AFM widths, cp1252 codes; other characters count as a digit)."""
-    codes = np.frombuffer(text.encode("cp1252", errors="replace"), np.uint8)
-    return float(_TABLES[font][codes].sum()) * size / 1000.0
+    widths = _WIDTH_LISTS[font]
+    return float(sum(map(widths.__getitem__, text.encode("cp1252", errors="replace")))) \
+        * size / 1000.0
 
 
 #: layers with more elements than this are written with 0.1 pt instead of
@@ -56,6 +59,11 @@ def fmt_points(template: str, values) -> str:
 
 def _c(x: float) -> str:
     return f"{x:.3f}".rstrip("0").rstrip(".") or "0"
+
+
+@lru_cache(maxsize=64)
+def _font_op(font: str, size: float) -> str:
+    return f" BT /{_RESOURCE[font]} {_c(size)} Tf"
 
 
 @lru_cache(maxsize=256)
@@ -162,8 +170,8 @@ class Canvas:
             pos = f"{c:.4f} {s:.4f} {-s:.4f} {c:.4f} {x0:.2f} {y0:.2f} Tm"
         else:
             pos = f"1 0 0 1 {x - shift:.2f} {y:.2f} Tm"
-        self._ops.append(self._alpha(None) + f" BT /{_RESOURCE[font]} {_c(size)} Tf {fill} "
-                         f"{pos} " + pdf_string(text).decode("latin-1") + " Tj ET\n")
+        self._ops.append(self._alpha(None) + _font_op(font, size) + f" {fill} {pos} "
+                         + pdf_string(text).decode("latin-1") + " Tj ET\n")
 
     # -------------------------------------------------------------- paths
     def line(self, x0, y0, x1, y1) -> None:
