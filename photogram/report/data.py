@@ -28,8 +28,8 @@ from photogram.project.camera_schema import load_cameras_file
 from photogram.project.results import Results
 from photogram.project.results_read import read_covariance, read_results_table
 from photogram.project.results_folder import final_folder
-from photogram.report.table import (PANDAS_BYTES, Table, groups, read_table,
-                                    read_table_pandas, sorted_groups)
+from photogram.report.table import (PANDAS_BYTES, Table, read_table, read_table_pandas,
+                                    sorted_groups)
 
 __all__ = ["ReportData", "load", "REQUIRED", "read_image"]
 
