@@ -22,14 +22,19 @@ The large network runs once, after CAMCAL (warm; cold when CAMCAL is
 skipped). Goal: report <= 15 % of the command and <= 2 s for
 CAMCAL, <= 6 s for the large network.
 
-The CAMCAL runs do not include the import of matplotlib (this script
-imports photogram.report, and with it matplotlib, before it starts the clock);
-``--floor`` measures it in a fresh process, together with what 15 pages of
-header and footer with 35 empty axes cost (CAMCAL's report has 15 pages and 35
-axes): the part of the report no page design can remove while it is drawn with
-matplotlib.
+The reports of calibrate and orient are drawn by the native PDF writer
+(photogram/report/pdf, no matplotlib; ``renderer=native`` in the RESULT line,
+``--matplotlib`` forces the matplotlib layout of the same pages for a
+comparison). The cold CAMCAL run pays the imports the report needs and the
+command does not (the writer and page modules; the results tables of a small
+folder are read without pandas: ``camcal_pandas=no`` in the RESULT line).
+``--floor`` measures in a fresh process what no page design can remove:
+matplotlib's import with 15 pages of header and footer and 35 empty axes
+(CAMCAL's report has 15 pages and 35 axes), and for the native writer the
+import of the report's modules and the same 15 pages.
 
-Run: .venv/bin/python benchmarks/report_speed.py [--no-large] [--profile N] [--floor]
+Run: .venv/bin/python benchmarks/report_speed.py [--no-large] [--seed S] [--profile N]
+[--floor] [--matplotlib]
 Ends with one line ``RESULT key=value ...``.
 """
 
@@ -143,6 +148,45 @@ print(f"{{t1 - t0:.3f}} {{out[0]:.3f}} {{out[1]:.3f}}")
 """
 
 
+_NATIVE_FLOOR = r"""
+import time
+import photogram.commands.bundle  # what the command has imported before its report
+t1 = time.process_time()
+from photogram.report.native import NativeDocument
+from photogram.report.registry import sections
+sections()
+t2 = time.process_time()
+doc = NativeDocument(header="photogram calibrate report: floor")
+for i in range({pages}):
+    doc.start_section(f"section {{i}}", intro="one line of text")
+doc.finish("footer")
+doc.tobytes()
+t3 = time.process_time()
+print(f"{{t2 - t1:.3f}} {{t3 - t2:.3f}}")
+"""
+
+
+def native_floor(pages):
+    """CPU seconds, in a fresh process that has imported what `photogram
+    calibrate` imports before its report, of ``(import of the native writer
+    and the page modules, pages with heading/header/footer only)``."""
+    import subprocess
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    out = subprocess.run([sys.executable, "-c", _NATIVE_FLOOR.format(pages=pages)],
+                         capture_output=True, text=True, env=env, check=True, cwd=ROOT)
+    return tuple(float(x) for x in out.stdout.split())
+
+
+def force_matplotlib():
+    """Register every section as non-native: the report is drawn with
+    matplotlib (the layout before the native writer)."""
+    from dataclasses import replace
+    from photogram.report.registry import SECTIONS, sections
+    sections()
+    for name, sec in list(SECTIONS.items()):
+        SECTIONS[name] = replace(sec, native=False)
+
+
 def floor(pages, axes):
     """CPU seconds, in a fresh process, of what any matplotlib report of
     ``pages`` pages with ``axes`` (empty) axes costs: ``(import of matplotlib
@@ -170,9 +214,14 @@ def main():
     ap.add_argument("--profile", type=int, default=0, metavar="N",
                     help="print the N costliest calls of the CAMCAL report (cumulative)")
     ap.add_argument("--floor", action="store_true",
-                    help="also measure matplotlib's floor for CAMCAL's 15 pages and 35 axes")
+                    help="also measure the floors (matplotlib's and the native writer's) "
+                         "for CAMCAL's 15 pages and 35 axes")
+    ap.add_argument("--matplotlib", action="store_true",
+                    help="draw the reports with matplotlib, not the native writer")
     args = ap.parse_args()
-    fields = {}
+    if args.matplotlib:
+        force_matplotlib()
+    fields = {"renderer": "matplotlib" if args.matplotlib else "native"}
     if DATA.is_dir():
         # first run: cold, as a fresh `photogram calibrate` process pays it (imports of
         # matplotlib and the page modules, fonts, numba's cached kernels); then warm
@@ -197,6 +246,14 @@ def main():
                   f"{100 * (imp + with_axes) / (rest + imp + with_axes):.0f} % of the command")
             fields.update(floor_import=f"{imp:.2f}", floor_pages=f"{bare:.2f}",
                           floor_axes=f"{with_axes:.2f}", camcal_rest=f"{rest:.2f}")
+            mod_imp, pages = native_floor(15)
+            print(f"native floor (fresh process): import of the writer and page modules "
+                  f"{mod_imp:.2f} s, 15 pages of header/heading/footer {pages:.3f} s")
+            fields.update(native_floor_modules=f"{mod_imp:.2f}",
+                          native_floor_pages=f"{pages:.3f}")
+        # the report reads small results folders without pandas (its import alone
+        # was 0.23 s CPU, more than the rest of CAMCAL's report)
+        fields["camcal_pandas"] = "yes" if "pandas" in sys.modules else "no"
     else:
         print(f"CAMCAL skipped: no data at {DATA} (DBAT's camcal folder beside the repository)")
         fields["camcal"] = "skipped"

@@ -125,18 +125,24 @@ def test_table_rows_are_evenly_spaced_whatever_their_glyphs():
 
 
 def test_point_kinds_without_a_loop_equal_the_loop():
-    points = pd.DataFrame({"kind": ["control", "tie", "check", "tie", np.nan]},
-                          index=["1", "2", "3", "4", "5"])
-    rays = pd.DataFrame({"rays": [2, 3, 4, 5, 6, 7], "angle": [10.0, 20, 30, 40, 50, 60]},
-                        index=["1", "2", "3", "4", "5", "99"])
+    from photogram.report.table import Table
+
+    ids = ["1", "2", "3", "4", "5"]
+    kinds = ["control", "tie", "check", "tie", np.nan]
+    points = Table({"id": np.array(ids, dtype=object), "kind": np.array(kinds, dtype=object)},
+                   "id")
+    ray_ids = ["1", "2", "3", "4", "5", "99"]
+    angle = {"1": 10.0, "2": 20.0, "3": 30.0, "4": 40.0, "5": 50.0, "99": 60.0}
+    rays = Table({"point": np.array(ray_ids, dtype=object), "rays": np.arange(2, 8),
+                  "angle": np.array([angle[p] for p in ray_ids])}, "point")
     got = _by_kind(SimpleNamespace(points=points), rays)
-    kinds = points["kind"]
+    kind_of = dict(zip(ids, kinds))
     for kind in ("control", "check", "tie"):
-        ids = [p for p in rays.index if str(kinds.get(p, "tie")) == kind]
-        assert list(got[kind][0].index) == ids
-        assert list(got[kind][1]) == list(rays.loc[ids, "angle"])
+        want = [p for p in ray_ids if str(kind_of.get(p, "tie")) == kind]
+        assert list(got[kind][1]) == [angle[p] for p in want]    # the angles name the points
+        assert list(got[kind][0]) == [ray_ids.index(p) + 2 for p in want]
     assert list(got) == ["control", "check", "tie"]
-    assert list(got["tie"][0].index) == ["2", "4", "99"]      # "5" has kind nan
+    assert list(got["tie"][1]) == [20.0, 40.0, 60.0]     # "5" has kind nan
 
 
 def test_a_passed_project_gives_the_same_report_and_is_used_only_for_its_file(tmp_path):

@@ -2,7 +2,8 @@
 
 :func:`load` reads the files the commands write (docs/project-files.md,
 "Results folder"): summary.json, cameras.toml, stations.csv, points.csv,
-residuals.csv, log.txt via :func:`photogram.project.results.read_results`;
+residuals.csv (as numpy :class:`~photogram.report.table.Table`, without
+pandas), log.txt;
 covariance.npz; the intersect outputs exposures.csv, points3d.csv,
 lines3d.csv and stick.png; and, for the reference coordinates of control
 points and the list of input files, the project file named in summary.json
@@ -23,9 +24,12 @@ import numpy as np
 from photogram.errors import InputError, PhotogramError
 from photogram.geometry import opk_to_matrix, to_radians
 from photogram.project.limits import check_image, read_json
-from photogram.project.results import Results, read_results
+from photogram.project.camera_schema import load_cameras_file
+from photogram.project.results import Results
 from photogram.project.results_read import read_covariance, read_results_table
 from photogram.project.results_folder import final_folder
+from photogram.report.table import (PANDAS_BYTES, Table, read_table, read_table_pandas,
+                                    sorted_groups)
 
 __all__ = ["ReportData", "load", "REQUIRED", "read_image"]
 
@@ -37,7 +41,9 @@ ADJUSTMENT_COMMANDS = ("calibrate", "orient", "intersect")
 
 @dataclass
 class ReportData:
-    """A results folder read back for the report (tables in file units)."""
+    """A results folder read back for the report (tables in file units, as
+    :class:`~photogram.report.table.Table`; the intersect step's tables as
+    pandas DataFrames)."""
 
     folder: Path
     results: Results
@@ -83,49 +89,70 @@ class ReportData:
 
     # --------------------------------------------------------- observations
     @cached_property
-    def residuals(self):
+    def residuals(self) -> Table:
         """residuals.csv with a boolean ``used`` column (all True if absent)."""
-        r = self.results.residuals.copy()
-        if "used" in r.columns:
-            r["used"] = r["used"].fillna(1).astype(int).astype(bool)
+        r = self.results.residuals
+        if "used" in r:
+            u = np.nan_to_num(r["used"].astype(float), nan=1.0).astype(int).astype(bool)
         else:
-            r["used"] = True
-        return r
+            u = np.ones(len(r), dtype=bool)
+        return r.with_column("used", u)
 
     @property
     def has_residuals(self) -> bool:
         r = self.results.residuals
-        return len(r) > 0 and {"vx", "vy", "x", "y"} <= set(r.columns)
+        return len(r) > 0 and all(c in r for c in ("vx", "vy", "x", "y"))
+
+    @cached_property
+    def hulls(self) -> dict:
+        """Station -> convex hull (k, 2) of its used image points (the
+        image coverage: residual-vector and geometry pages)."""
+        from photogram.report.shapes import convex_hull
+
+        r = self.residuals
+        code, names = r.groups("station")
+        used = r["used"]
+        code = code[used]
+        order = np.argsort(code, kind="stable")
+        bounds = np.searchsorted(code[order], np.arange(len(names) + 1))
+        xy = r.numbers(["x", "y"])[used][order]
+        return {name: convex_hull(xy[bounds[i]:bounds[i + 1]])
+                for i, name in enumerate(names)}
 
     # -------------------------------------------------------------- stations
-    @cached_property
-    def stations(self):
-        return self.results.stations.set_index("station", drop=False)
+    @property
+    def stations(self) -> Table:
+        """stations.csv, keyed by ``station``."""
+        return self.results.stations
 
     @cached_property
     def rotation(self) -> dict:
         """Station -> world-to-camera matrix (from the file's angles and
         rotation direction)."""
         st = self.stations
+        if not len(st):
+            return {}
+        angles = st.numbers(["omega", "phi", "kappa"])
+        ok = np.all(np.isfinite(angles), axis=1)
+        R = opk_to_matrix(to_radians(angles[ok], self.angle_unit)).reshape(-1, 3, 3)
+        if self.info.get("rotation_direction") == "camera_to_world":
+            R = np.swapaxes(R, 1, 2)
         out = {}
-        for name in st.index:
-            ang = st.loc[name, ["omega", "phi", "kappa"]].to_numpy(float)
-            if not np.all(np.isfinite(ang)):
-                continue
-            R = opk_to_matrix(to_radians(ang, self.angle_unit))
-            if self.info.get("rotation_direction") == "camera_to_world":
-                R = R.T
-            out[name] = R
+        for name, m in zip(st.ids[ok], R):          # the first row of a station wins
+            out.setdefault(name, m)
         return out
 
     @cached_property
     def centres(self) -> dict:
         st = self.stations
-        return {n: st.loc[n, ["X0", "Y0", "Z0"]].to_numpy(float) for n in st.index}
+        if not len(st):
+            return {}
+        xyz = st.numbers(["X0", "Y0", "Z0"])
+        return {n: xyz[i] for n, i in st._lookup().items()}
 
     def station_camera(self, station: str) -> str | None:
-        st = self.stations
-        return str(st.loc[station, "camera"]) if station in st.index else None
+        camera = self.stations.value(station, "camera")
+        return None if camera is None else str(camera)
 
     def image_format(self, camera: str | None):
         """(width, height) of a camera's image in the image unit, or None."""
@@ -140,30 +167,46 @@ class ReportData:
         return w, h
 
     # ---------------------------------------------------------------- points
-    @cached_property
-    def points(self):
-        return self.results.points.set_index("id", drop=False)
+    @property
+    def points(self) -> Table:
+        """points.csv, keyed by ``id``."""
+        return self.results.points
 
     @cached_property
-    def rays(self):
-        """Per observed point: ``rays`` (used observations) and ``angle``
-        (largest angle between two of its rays, degrees)."""
-        import pandas as pd
-
+    def ray_stats(self) -> Table:
+        """Per observed point (ids sorted), keyed by ``point``: ``rays``
+        (used observations) and ``angle`` (largest angle between two of its
+        rays, degrees)."""
         from photogram.report.shapes import largest_ray_angles
 
-        r = self.residuals[self.residuals["used"]]
-        pts = self.points
-        r = r[r["point"].isin(pts.index)]
-        rays = r.groupby("point", sort=True).size()
-        seen = r[r["station"].isin(list(self.centres))]
-        centres = np.array([self.centres[s] for s in seen["station"]]).reshape(-1, 3)
-        X = pts.loc[seen["point"], ["X", "Y", "Z"]].to_numpy(float).reshape(-1, 3)
-        code = rays.index.get_indexer(seen["point"])
-        angle = largest_ray_angles(centres - X, code, len(rays))
-        out = pd.DataFrame({"rays": rays.to_numpy(int), "angle": angle},
-                           index=rays.index, columns=["rays", "angle"])
-        out.index.name = "point"
+        r, pts = self.residuals, self.points
+        used = r["used"]
+        scode, snames = r.groups("station")
+        at = pts.positions(r["point"][used]) if len(pts) else np.full(int(used.sum()), -1)
+        keep = at >= 0
+        sc, at = scode[used][keep], at[keep]
+        code, ids = sorted_groups(r["point"][used][keep])
+        rays = np.bincount(code, minlength=len(ids))
+        centres = self.centres
+        known = np.array([n in centres for n in snames], dtype=bool)
+        C_station = np.array([centres.get(n, np.full(3, np.nan)) for n in snames],
+                             dtype=float).reshape(-1, 3)
+        seen = known[sc]
+        C = C_station[sc[seen]]
+        X = pts.numbers(["X", "Y", "Z"])[at[seen]].reshape(-1, 3)
+        angle = largest_ray_angles(C - X, code[seen], len(ids))
+        return Table({"point": ids.astype(object), "rays": rays, "angle": angle}, "point")
+
+    @property
+    def rays(self):
+        """:attr:`ray_stats` as a pandas DataFrame indexed by point (for
+        callers outside the report's pages)."""
+        import pandas as pd
+
+        t = self.ray_stats
+        out = pd.DataFrame({"rays": t["rays"].astype(int), "angle": t["angle"]},
+                           index=pd.Index(t["point"].tolist(), name="point"),
+                           columns=["rays", "angle"])
         return out
 
     @cached_property
@@ -171,11 +214,11 @@ class ReportData:
         """(ids, (n, 3) sigmas) of the points with a-posteriori sigmas > 0."""
         p = self.points
         cols = ["est_sX", "est_sY", "est_sZ"]
-        if not set(cols) <= set(p.columns):
+        if not all(c in p for c in cols) or not len(p):
             return [], np.zeros((0, 3))
-        s = p[cols].to_numpy(float)
+        s = p.numbers(cols)
         ok = np.all(np.isfinite(s), axis=1) & (s.max(axis=1) > 0)
-        return list(p.index[ok]), s[ok]
+        return [str(x) for x in p.ids[ok]], s[ok]
 
 
 def read_image(path: Path) -> np.ndarray:
@@ -252,15 +295,32 @@ def _read_summary(folder: Path) -> dict:
 def _summary_only(folder: Path, summary: dict) -> Results:
     """The results of a command without adjustment tables (Monte Carlo,
     motion capture): the summary and empty tables."""
-    import pandas as pd
-
     image_unit = str(_project_of(summary).get("image_unit") or "px")
+
+    def empty(names, key):
+        return Table({n: np.zeros(0, dtype=object) for n in names}, key)
+
     return Results(folder=folder, summary=summary, image_unit=image_unit, cameras={},
-                   stations=pd.DataFrame(columns=["station", "camera", "X0", "Y0", "Z0",
-                                                  "omega", "phi", "kappa"]),
-                   points=pd.DataFrame(columns=["id", "kind", "X", "Y", "Z"]),
-                   residuals=pd.DataFrame(columns=["station", "point", "x", "y", "vx", "vy"]),
+                   stations=empty(["station", "camera", "X0", "Y0", "Z0", "omega", "phi",
+                                   "kappa"], "station"),
+                   points=empty(["id", "kind", "X", "Y", "Z"], "id"),
+                   residuals=empty(["station", "point", "x", "y", "vx", "vy"], None),
                    log="")
+
+
+def _read_results(folder: Path, summary: dict) -> Results:
+    """A results folder read for the report: the tables as :class:`Table`
+    (numpy columns, no pandas), keyed by station and point id."""
+    unit, cameras = load_cameras_file(folder / "cameras.toml")
+    log = folder / "log.txt"
+    names = ("stations.csv", "points.csv", "residuals.csv")
+    big = sum((folder / n).stat().st_size for n in names) > PANDAS_BYTES
+    read = read_table_pandas if big else read_table
+    return Results(folder=folder, summary=summary, image_unit=unit, cameras=cameras,
+                   stations=read(folder / "stations.csv", ("station", "camera"), key="station"),
+                   points=read(folder / "points.csv", ("id", "kind"), key="id"),
+                   residuals=read(folder / "residuals.csv", ("station", "point", "line")),
+                   log=log.read_text(encoding="utf-8") if log.is_file() else "")
 
 
 def load(folder: str | Path, project=None) -> ReportData:
@@ -291,14 +351,14 @@ def load(folder: str | Path, project=None) -> ReportData:
     if "summary.json" in missing:
         raise InputError(f"not a results folder: {', '.join(missing)} missing", file=folder,
                          hint=hint)
+    summary = _read_summary(folder)
     if missing:
-        summary = _read_summary(folder)
         if summary.get("command") in ADJUSTMENT_COMMANDS or "redundancy" in summary:
             raise InputError(f"incomplete results folder: {', '.join(missing)} missing",
                              file=folder, hint="run the command again")
         results = _summary_only(folder, summary)
     else:
-        results = read_results(folder)
+        results = _read_results(folder, summary)
     if _is_project_of(project, folder, results.summary):
         note = ""
     else:

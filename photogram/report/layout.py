@@ -11,16 +11,17 @@ narrow text and tables continue at its left.
 
 All sizes are in inches. Figures are plain :class:`matplotlib.figure.Figure`
 objects (no pyplot, no global state); :mod:`photogram.report.writer` saves
-them.
+them. Everything drawn goes through a few primitives (``_begin_page``,
+``_put``, ``_rule``, ``_add_axes``, ``image``, ``finish``) that
+:class:`photogram.report.native.NativeDocument` overrides to draw the same
+layout with the native PDF writer (:mod:`photogram.report.pdf`), without
+matplotlib; matplotlib is imported only when a matplotlib page is made.
 """
 
 from __future__ import annotations
 
 import textwrap
 from dataclasses import dataclass, field
-
-from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
 
 __all__ = ["Document", "PORTRAIT", "LANDSCAPE", "MONO", "char_width", "decorate",
            "equal_limits"]
@@ -62,6 +63,9 @@ def decorate(ax, title: str | None = None, xlabel: str | None = None,
     which is most of the time a report takes; fixed places are as good here
     because the layout leaves that much room (``pad_left``/``pad_bottom``
     of :meth:`Document.axes`)."""
+    if getattr(ax, "native", False):
+        ax.decorate(title, xlabel, ylabel, xpad=xpad, ypad=ypad, size=size)
+        return
     fig = ax.figure
     ax.apply_aspect()
     pos = ax.get_position()
@@ -81,9 +85,12 @@ def decorate(ax, title: str | None = None, xlabel: str | None = None,
 def equal_limits(ax, lo, hi) -> None:
     """Limits around the box ``lo``..``hi`` (x, y) with equal scales on both
     axes, widened to the shape of the axes (no matplotlib aspect warning)."""
-    fig = ax.figure
-    pos = ax.get_position()
-    ratio = (pos.height * fig.get_figheight()) / (pos.width * fig.get_figwidth())
+    if getattr(ax, "native", False):
+        ratio = ax.height_in / ax.width_in
+    else:
+        fig = ax.figure
+        pos = ax.get_position()
+        ratio = (pos.height * fig.get_figheight()) / (pos.width * fig.get_figwidth())
     (x0, y0), (x1, y1) = lo, hi
     w, h = max(x1 - x0, 1e-12), max(y1 - y0, 1e-12)
     if h / w < ratio:
@@ -97,9 +104,10 @@ def equal_limits(ax, lo, hi) -> None:
 
 @dataclass
 class Page:
-    figure: Figure
+    figure: object            # matplotlib Figure, or the native page's canvas
     section: str
     size: tuple
+    axes: list = field(default_factory=list)   # native axes, drawn at finish
 
 
 @dataclass
@@ -158,16 +166,12 @@ class Document:
 
     def _new_page(self, landscape: bool, continued: bool) -> None:
         size = LANDSCAPE if landscape else PORTRAIT
-        fig = Figure(figsize=size)
-        self.pages.append(Page(fig, self.section, size))
+        self.pages.append(self._begin_page(size))
         self._y = MARGIN_TOP
         self._float_bottom = 0.0
-        fig.text(MARGIN_X / size[0], 1 - 0.4 / size[1], self.header, size=7.5,
-                 color="0.35", va="baseline")
-        fig.text(1 - MARGIN_X / size[0], 1 - 0.4 / size[1], self.section, size=7.5,
-                 color="0.35", ha="right", va="baseline")
-        fig.add_artist(Line2D([MARGIN_X / size[0], 1 - MARGIN_X / size[0]],
-                              [1 - 0.47 / size[1]] * 2, lw=0.5, color="0.6"))
+        self._put(MARGIN_X, 0.4, self.header, 7.5, color="0.35")
+        self._put(size[0] - MARGIN_X, 0.4, self.section, 7.5, color="0.35", ha="right")
+        self._rule(MARGIN_X, size[0] - MARGIN_X, 0.47, lw=0.5, color="0.6")
         if continued:
             self.heading(f"{self.section} (continued)", size=10, color="0.3")
 
@@ -175,6 +179,37 @@ class Document:
         """Start a new page unless ``height`` inches still fit."""
         if height > self.remaining and self._y > MARGIN_TOP + 0.5:
             self.new_page()
+
+    # ------------------------------------------------- drawing primitives
+    def _begin_page(self, size) -> Page:
+        """A new empty page of ``size`` (inches)."""
+        from matplotlib.figure import Figure
+
+        return Page(Figure(figsize=size), self.section, size)
+
+    def _put(self, x: float, y: float, text: str, size: float, *, bold: bool = False,
+             mono: bool = False, color="black", ha: str = "left", page=None) -> None:
+        """``text`` with its baseline ``y`` inches from the top of ``page``
+        (default: the current page)."""
+        page = page or self.page
+        page.figure.text(x / page.size[0], 1.0 - y / page.size[1], text, size=size,
+                         va="baseline", ha=ha, color=color, family=MONO if mono else None,
+                         weight="bold" if bold else "normal")
+
+    def _rule(self, x0: float, x1: float, y: float, lw: float, color) -> None:
+        """A horizontal line ``y`` inches from the top."""
+        from matplotlib.lines import Line2D
+
+        self.page.figure.add_artist(Line2D([self._fx(x0), self._fx(x1)], [self._fy(y)] * 2,
+                                           lw=lw, color=color))
+
+    def _add_axes(self, left: float, top: float, width: float, height: float,
+                  projection=None):
+        """Axes with the box ``left``, ``top`` (inches from the page's left and
+        top) ``width`` x ``height``."""
+        return self.page.figure.add_axes([self._fx(left), self._fy(top + height),
+                                          width / self.page.size[0],
+                                          height / self.page.size[1]], projection=projection)
 
     # --------------------------------------------------------------- helpers
     def _fy(self, y_in: float) -> float:
@@ -190,8 +225,7 @@ class Document:
     def heading(self, text: str, size: float = 10.5, color: str = "black") -> None:
         self.ensure(line_height(size) * 2.5)
         self._y += 0.35 * line_height(size)
-        self.page.figure.text(self._fx(MARGIN_X), self._fy(self._y + ascent(size)), text,
-                              size=size, weight="bold", va="baseline", color=color)
+        self._put(MARGIN_X, self._y + ascent(size), text, size, bold=True, color=color)
         self._y += line_height(size) * 1.15
 
     def text(self, text: str, size: float = 8.5, mono: bool = False,
@@ -204,10 +238,8 @@ class Document:
                                    subsequent_indent=hanging) or [""]
         for line in lines:
             self.ensure(line_height(size))
-            self.page.figure.text(self._fx(MARGIN_X + indent),
-                                  self._fy(self._y + ascent(size)), line,
-                                  size=size, va="baseline", color=color,
-                                  family=MONO if mono else None)
+            self._put(MARGIN_X + indent, self._y + ascent(size), line, size, mono=mono,
+                      color=color)
             self._y += line_height(size)
         self._y += 0.3 * line_height(size)
 
@@ -255,9 +287,7 @@ class Document:
 
         def put_header():
             self._put_mono(head, size, weight="bold")
-            y = self._fy(self._y - 0.15 * lh)
-            self.page.figure.add_artist(Line2D(
-                [self._fx(MARGIN_X), self._fx(MARGIN_X + rule_w)], [y, y], lw=0.5, color="0.4"))
+            self._rule(MARGIN_X, MARGIN_X + rule_w, self._y - 0.15 * lh, lw=0.5, color="0.4")
             self._y += 0.15 * lh
 
         self.ensure(3 * lh)
@@ -274,9 +304,8 @@ class Document:
             self.text(note, size=7.5, color="0.3")
 
     def _put_mono(self, line: str, size: float, weight="normal", color="black") -> None:
-        self.page.figure.text(self._fx(MARGIN_X), self._fy(self._y + ascent(size)), line,
-                              size=size, family=MONO, va="baseline", weight=weight,
-                              color=color)
+        self._put(MARGIN_X, self._y + ascent(size), line, size, mono=True,
+                  bold=weight == "bold", color=color)
         self._y += line_height(size)
 
     def pairs(self, items, *, size: float = 8.0, title: str | None = None) -> None:
@@ -298,8 +327,7 @@ class Document:
     def subheading(self, text: str, size: float = 9.0) -> None:
         self.ensure(line_height(size) * 4)
         self._y += 0.2 * line_height(size)
-        self.page.figure.text(self._fx(MARGIN_X), self._fy(self._y + ascent(size)), text,
-                              size=size, weight="bold", va="baseline")
+        self._put(MARGIN_X, self._y + ascent(size), text, size, bold=True)
         self._y += line_height(size) * 1.2
 
     # ------------------------------------------------------------------ axes
@@ -310,16 +338,13 @@ class Document:
         ``ncols`` axes side by side; returns the list of axes."""
         self.clear_float()
         self.ensure(height)
-        fig = self.page.figure
         top, bottom = self._y + pad_top, self._y + height - pad_bottom
         widths = widths or [1.0] * ncols
         cell = (self.width - gap * (ncols - 1)) / sum(widths)
         axes, x = [], MARGIN_X
         for w in widths:
             left, right = x + pad_left, x + w * cell - pad_right
-            rect = [self._fx(left), self._fy(bottom), self._fx(right - left),
-                    (bottom - top) / self.page.size[1]]
-            axes.append(fig.add_axes(rect, projection=projection))
+            axes.append(self._add_axes(left, top, right - left, bottom - top, projection))
             x += w * cell + gap
         self._y += height
         return axes
@@ -331,13 +356,13 @@ class Document:
         (they must be narrow enough); :meth:`clear_float` moves the cursor
         below it. Returns the axes."""
         self.ensure(height)
-        w, h = self.page.size
+        w = self.page.size[0]
         left = w - MARGIN_X - width + pad_left
-        rect = [left / w, self._fy(self._y + height - pad_bottom),
-                (width - pad_left) / w, (height - pad_top - pad_bottom) / h]
+        ax = self._add_axes(left, self._y + pad_top, width - pad_left,
+                            height - pad_top - pad_bottom)
         self._float_bottom = self._y + height
         self._float_width = width + 0.15
-        return self.page.figure.add_axes(rect)
+        return ax
 
     def clear_float(self) -> None:
         self._y = max(self._y, self._float_bottom)
@@ -351,19 +376,24 @@ class Document:
         disp_w = min(self.width, height * w / h)
         disp_h = disp_w * h / w
         x0 = MARGIN_X + (self.width - disp_w) / 2
-        ax = self.page.figure.add_axes([self._fx(x0), self._fy(self._y + disp_h),
-                                        disp_w / self.page.size[0], disp_h / self.page.size[1]])
-        ax.imshow(array, interpolation="antialiased")
-        ax.set_axis_off()
+        self._put_image(array, x0, self._y, disp_w, disp_h)
         self._y += disp_h + 0.1
 
+    def _put_image(self, array, left, top, width, height) -> None:
+        ax = self._add_axes(left, top, width, height)
+        ax.imshow(array, interpolation="antialiased")
+        ax.set_axis_off()
+
     # ---------------------------------------------------------------- finish
-    def finish(self, footer: str) -> list:
-        """Number the pages and return the figures."""
+    def _footers(self, footer: str) -> None:
         n = len(self.pages)
         for i, page in enumerate(self.pages, 1):
             w, h = page.size
-            page.figure.text(MARGIN_X / w, 0.35 / h, footer, size=7, color="0.35")
-            page.figure.text(1 - MARGIN_X / w, 0.35 / h, f"page {i} of {n}", size=7,
-                             color="0.35", ha="right")
+            self._put(MARGIN_X, h - 0.35, footer, 7, color="0.35", page=page)
+            self._put(w - MARGIN_X, h - 0.35, f"page {i} of {n}", 7, color="0.35", ha="right",
+                      page=page)
+
+    def finish(self, footer: str) -> list:
+        """Number the pages and return the figures."""
+        self._footers(footer)
         return [p.figure for p in self.pages]

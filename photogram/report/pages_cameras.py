@@ -106,9 +106,12 @@ def _plot_distortion(doc, data, cam, fmt, field):
     unit = data.image_unit
     ax_map, ax_rad = doc.axes(3.3, ncols=2, widths=[1.45, 1.0], pad_left=0.6, pad_right=0.45,
                               gap=0.15)
-    cs = ax_map.contourf(X, Y, mag, levels=12, cmap="viridis")
-    cb = doc.page.figure.colorbar(cs, ax=ax_map, fraction=0.05, pad=0.02)
-    cb.set_label(f"|distortion| [{unit}]")
+    if getattr(ax_map, "native", False):
+        _native_map(ax_map, cam, fmt, mag, unit)
+    else:
+        cs = ax_map.contourf(X, Y, mag, levels=12, cmap="viridis")
+        cb = doc.page.figure.colorbar(cs, ax=ax_map, fraction=0.05, pad=0.02)
+        cb.set_label(f"|distortion| [{unit}]")
     step = (slice(None, None, 4), slice(None, None, 4))
     biggest = float(mag.max()) or 1.0
     scale = biggest / (0.08 * fmt[0])          # data units of arrow per unit of length
@@ -135,6 +138,26 @@ def _plot_distortion(doc, data, cam, fmt, field):
         ax_rad.set_visible(False)
 
 
+def _native_map(ax, cam, fmt, mag, unit):
+    """The distortion magnitude as filled bands (as matplotlib's contourf
+    with 12 levels): the field on a finer grid, cut into the levels of nice
+    steps, one image; and its colour bar."""
+    from photogram.report.pdf.ticks import nice_ticks
+
+    levels = nice_ticks(0.0, float(mag.max()), 12)
+    if len(levels) < 2 or levels[-1] < mag.max():
+        step = levels[1] - levels[0] if len(levels) > 1 else float(mag.max()) or 1.0
+        levels = np.append(levels, levels[-1] + step)
+    fine = distortion_field(cam, fmt, nx=161, ny=121)
+    m = np.hypot(fine[2], fine[3])
+    band = np.clip(np.searchsorted(levels, m, side="right") - 1, 0, len(levels) - 2)
+    mid = (levels[band] + levels[band + 1]) / 2
+    sx, sy = fmt[0] / 160 / 2, fmt[1] / 120 / 2
+    bar = ax.imshow(mid, extent=(-sx, fmt[0] + sx, fmt[1] + sy, -sy), cmap="viridis",
+                    vmin=levels[0], vmax=levels[-1])
+    ax.colorbar(bar, label=f"|distortion| [{unit}]", fraction=0.05, pad=0.02)
+
+
 def _heatmap(doc, data, name):
     cov = data.covariance
     if cov is None or "labels" not in cov:
@@ -150,6 +173,7 @@ def _heatmap(doc, data, name):
     C = M[np.ix_(keep, keep)] / np.outer(s[keep], s[keep])
     names = [labels[i].split(".", 1)[1] for i, k in zip(idx, keep) if k]
     ax = doc.float_right(3.2, 3.0, pad_left=0.45, pad_bottom=0.45)
+    native = getattr(ax, "native", False)
     im = ax.imshow(C, vmin=-1, vmax=1, cmap="RdBu_r")
     ax.set_xticks(range(len(names)), names, rotation=90)
     ax.set_yticks(range(len(names)), names)
@@ -157,8 +181,11 @@ def _heatmap(doc, data, name):
         for j in range(len(names)):
             ax.text(j, i, f"{C[i, j]:.2f}", ha="center", va="center", size=5.5,
                     color="white" if abs(C[i, j]) > 0.6 else "black")
-    cb = doc.page.figure.colorbar(im, ax=ax, fraction=0.05, pad=0.03)
-    cb.set_label("correlation [-]")
+    if native:
+        ax.colorbar(im, label="correlation [-]", fraction=0.05, pad=0.03)
+    else:
+        cb = doc.page.figure.colorbar(im, ax=ax, fraction=0.05, pad=0.03)
+        cb.set_label("correlation [-]")
     decorate(ax, "correlations (interior)")
 
 
@@ -237,7 +264,7 @@ def _distortion(doc, data, cam, fmt):
 
 
 @section("cameras", "Cameras (interior orientation)", 20,
-         applies=lambda d: bool(d.results.cameras))
+         applies=lambda d: bool(d.results.cameras), native=True)
 def build(doc, data):
     dof = data.summary.get("redundancy")
     for name, cam in sorted(data.results.cameras.items()):

@@ -9,7 +9,7 @@ import numpy as np
 from photogram.report.layout import decorate
 from photogram.report.numbers import num, pct
 from photogram.report.registry import section
-from photogram.report.shapes import convex_hull, coverage_fraction, polygon_area
+from photogram.report.shapes import coverage_fraction, polygon_area
 from photogram.stats.geometry import WEAK_ANGLE_DEG
 
 _INTRO = ("Rays: the images a point was measured (and used) in. Intersection angle: the "
@@ -24,24 +24,33 @@ def weak_angle_points(data, threshold: float = WEAK_ANGLE_DEG) -> list:
     """Ids of the points (2+ used rays) whose largest intersection angle is
     below ``threshold`` degrees, smallest angle first (the same flag as
     :func:`photogram.stats.geometry.weak_points`)."""
-    a = data.rays["angle"].astype(float)
-    a = a[np.isfinite(a) & (a < threshold)]
-    return list(a.sort_values(kind="stable").index)
+    rays = data.ray_stats
+    a = rays["angle"].astype(float)
+    m = np.isfinite(a) & (a < threshold)
+    ids, a = rays.ids[m], a[m]
+    return [str(ids[i]) for i in np.argsort(a, kind="stable")]
 
 
 def coverage(data):
     """Per station (n points, hull fraction, rectangle fraction, hull) and
     per camera the union fraction."""
-    r = data.residuals[data.residuals["used"]]
+    r = data.residuals
+    code, names = r.groups("station")
+    code = code[r["used"]]
+    order = np.argsort(code, kind="stable")
+    bounds = np.searchsorted(code[order], np.arange(len(names) + 1))
+    xy_all = r.numbers(["x", "y"])[r["used"]][order]
     per_station, hulls = [], {}
-    for st, g in r.groupby("station", sort=False):
+    for i, st in enumerate(names):
+        if bounds[i + 1] == bounds[i]:      # no used observation
+            continue
         cam = data.station_camera(st)
         fmt = data.image_format(cam)
-        xy = g[["x", "y"]].to_numpy(float)
-        hull = convex_hull(xy)
+        xy = xy_all[bounds[i]:bounds[i + 1]]
+        hull = data.hulls[st]
         area = fmt[0] * fmt[1] if fmt else np.nan
         rect = np.prod(np.ptp(xy, axis=0)) if len(xy) > 1 else 0.0
-        per_station.append((st, cam, len(g), polygon_area(hull) / area, rect / area))
+        per_station.append((st, cam, len(xy), polygon_area(hull) / area, rect / area))
         hulls.setdefault(cam, []).append(hull)
     union = {cam: coverage_fraction(h, data.image_format(cam))
              for cam, h in hulls.items() if data.image_format(cam)}
@@ -52,22 +61,20 @@ def _by_kind(data, rays) -> dict:
     """``{kind: (rays, angles)}`` of the control, check and tie points that
     have rays (points without a kind count as tie; all points are in every
     kind when the points table has no kind column), in that order."""
-    if "kind" not in data.points.columns:
-        return {kind: (rays["rays"], rays["angle"]) for kind in ("control", "check", "tie")
-                if len(rays)}
-    kinds = data.points["kind"]
-    kinds = kinds[~kinds.index.duplicated()]
-    kinds = np.where(rays.index.isin(kinds.index),
-                     kinds.reindex(rays.index).astype(str).to_numpy(), "tie")
-    return {kind: (rays.loc[m, "rays"], rays.loc[m, "angle"])
+    n, a = rays["rays"].astype(int), rays["angle"].astype(float)
+    if "kind" not in data.points:
+        return {kind: (n, a) for kind in ("control", "check", "tie") if len(rays)}
+    at = data.points.positions(rays.ids) if len(data.points) else np.full(len(rays), -1)
+    kinds = np.where(at >= 0, data.points["kind"][at].astype(str), "tie")
+    return {kind: (n[m], a[m])
             for kind in ("control", "check", "tie") if (m := kinds == kind).any()}
 
 
 @section("geometry", "Rays, intersection angles, coverage", 60,
-         applies=lambda d: d.has_residuals)
+         applies=lambda d: d.has_residuals, native=True)
 def build(doc, data):
     doc.start_section("Rays, intersection angles and image coverage", intro=_INTRO)
-    rays = data.rays
+    rays = data.ray_stats
     rows = []
     for kind, (n, a) in _by_kind(data, rays).items():
         rows.append([kind, str(len(n)), f"{n.min()}-{n.max()}", f"{n.mean():.1f}",
@@ -75,10 +82,13 @@ def build(doc, data):
     doc.table(["points", "number", "rays", "mean rays", "min angle [deg]", "mean angle [deg]",
                "max angle [deg]"], rows, align="lrrrrrr", title="Rays and intersection angles")
     weak = weak_angle_points(data)
-    small = rays.sort_values("angle").head(max(8, min(len(weak), 30)))
+    angle = rays["angle"].astype(float)
+    small = np.lexsort((np.nan_to_num(angle, nan=np.inf), np.isnan(angle)))
+    small = small[:max(8, min(len(weak), 30))]
+    weak_set = set(weak)
     doc.table(["point", "angle [deg]", "rays", "weak"],
-              [(p, num(x["angle"], 3), str(int(x["rays"])), "WEAK" if p in weak else "")
-               for p, x in small.iterrows()],
+              [(rays.ids[i], num(angle[i], 3), str(int(rays["rays"][i])),
+                "WEAK" if rays.ids[i] in weak_set else "") for i in small],
               align="lrrl", title="Smallest intersection angles")
     if weak:
         more = f" and {len(weak) - 30} more" if len(weak) > 30 else ""
@@ -96,12 +106,15 @@ def build(doc, data):
         doc.text("Union of the convex hulls per camera: " + ", ".join(
             f"{cam} {pct(f, 0)}" for cam, f in sorted(union.items())) + ".", size=8.5)
     ax_r, ax_a = doc.axes(2.5, ncols=2, pad_left=0.6, gap=0.3)
-    n = rays["rays"].to_numpy(int)
+    n = rays["rays"].astype(int)
     if len(n):
         ax_r.hist(n, bins=np.arange(n.min(), n.max() + 2) - 0.5, color="tab:blue", rwidth=0.8)
-    ax_r.xaxis.get_major_locator().set_params(integer=True)
+    if getattr(ax_r, "native", False):
+        ax_r.integer_ticks("x")
+    else:
+        ax_r.xaxis.get_major_locator().set_params(integer=True)
     decorate(ax_r, "rays per point", "rays [-]", "points [-]", ypad=0.42)
-    a = rays["angle"].to_numpy(float)
+    a = rays["angle"].astype(float)
     a = a[np.isfinite(a)]
     if len(a):
         ax_a.hist(a, bins=min(30, max(5, len(a) // 3)), color="tab:green")

@@ -7,6 +7,8 @@ would show the same numbers again without sigmas (see
 
 from __future__ import annotations
 
+from collections import Counter
+
 from pathlib import Path
 
 import numpy as np
@@ -57,10 +59,10 @@ def _station_rows(data):
     n_obs = {}
     if data.has_residuals:
         r = data.residuals
-        n_obs = r[r["used"]].groupby("station").size().to_dict()
-    return [[name, str(st.loc[name, "camera"])]
-            + [num(st.loc[name, c], 7) for c in ("X0", "Y0", "Z0", "omega", "phi", "kappa")]
-            + [str(n_obs.get(name, 0))] for name in st.index]
+        n_obs = Counter(r["station"][r["used"]].astype(str).tolist())
+    return [[name, str(st["camera"][i])]
+            + [num(st[c][i], 7) for c in ("X0", "Y0", "Z0", "omega", "phi", "kappa")]
+            + [str(n_obs.get(name, 0))] for i, name in enumerate(st.ids)]
 
 
 def _intro(data) -> str:
@@ -79,7 +81,7 @@ def _intro(data) -> str:
     return text
 
 
-@section("inputs", "Input orientation (fixed)", 20, applies=_applies)
+@section("inputs", "Input orientation (fixed)", 20, applies=_applies, native=True)
 def build(doc, data):
     iu, lu, au = data.image_unit, data.length_unit, data.angle_unit
     doc.start_section("Input orientation (fixed)", intro=_intro(data))

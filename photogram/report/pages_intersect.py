@@ -10,7 +10,7 @@ from photogram.jump import definitions as defs
 from photogram.jump.coach import HEIGHT, to_coach, unit_of
 from photogram.report.layout import decorate
 from photogram.report.numbers import decimals_for, finite, num, sig
-from photogram.report.pages_stick import EVERY, draw_figure, tall
+from photogram.report.pages_stick import EVERY, draw_figure, landing_profile, tall
 from photogram.report.registry import section
 
 
@@ -43,7 +43,7 @@ def _params(data):
     return [p for p in (*defs.PARAMETERS, HEIGHT) if p in data.exposures.columns]
 
 
-@section("stick", "Stick model (Fig. 8)", 80, applies=_has_jump)
+@section("stick", "Stick model (Fig. 8)", 80, applies=_has_jump, native=True)
 def build_stick(doc, data):
     speed = "km/h" if _units(data) == "coach" else f"{data.length_unit}/s"
     doc.start_section("Stick model (Fig. 8)", landscape=not tall(data), intro=(
@@ -53,13 +53,15 @@ def build_stick(doc, data):
         f"along the flight, both at the same scale, with the speed of O [{speed}] above the "
         "head. Drawn from points3d.csv, lines3d.csv and exposures.csv (the skis: "
         "their lines through the bindings, with the project's ski length and binding "
-        "position); stick.png is the same figure as a picture."))
+        "position); stick.png is the same figure as a picture."
+        + (" Brown: the landing slope ([intersect] landing_profile) in the side view."
+           if landing_profile(data) is not None else "")))
     if not draw_figure(doc, data, _units(data)):
         doc.text("No exposure has all four jumper points and both skis: nothing to draw.",
                  size=8.5)
 
 
-@section("timeseries", "Stick model over time", 81, applies=_has_jump)
+@section("timeseries", "Stick model over time", 81, applies=_has_jump, native=True)
 def build_series(doc, data):
     e = _table(data)
     names = _params(data)
@@ -88,7 +90,7 @@ def build_series(doc, data):
             ax.set_visible(False)
 
 
-@section("stick_table", "Stick model per exposure", 82, applies=_has_jump)
+@section("stick_table", "Stick model per exposure", 82, applies=_has_jump, native=True)
 def build_table(doc, data):
     e = _table(data)
     names = _params(data)
@@ -138,7 +140,7 @@ def point_geometry(data, p3):
 
 
 @section("intersect_quality", "Jumper points and ski lines", 83,
-         applies=lambda d: d.points3d is not None or d.lines3d is not None)
+         applies=lambda d: d.points3d is not None or d.lines3d is not None, native=True)
 def build_quality(doc, data):
     lu = data.length_unit
     s = data.summary

@@ -13,6 +13,8 @@ used). The measurement's own report.pdf (in its folder) has the drawings.
 
 from __future__ import annotations
 
+from collections import Counter
+
 import json
 from pathlib import Path
 
@@ -75,7 +77,7 @@ def _int(v) -> int:
 
 
 @section("measurement", "Measurement (photogram measure)", 35,
-         applies=lambda d: measurement_of(d) is not None)
+         applies=lambda d: measurement_of(d) is not None, native=True)
 def build(doc, data):
     m = measurement_of(data)
     s = m["summary"]
@@ -91,7 +93,8 @@ def build(doc, data):
         "sigma). A target seen in few images is weakly determined. The drawings of every "
         "image are in the measurement's own report.pdf."))
     r = data.residuals
-    res = r.assign(station=r["station"].astype(str), point=r["point"].astype(str))
+    res = r.with_column("station", r["station"].astype(str)).with_column(
+        "point", r["point"].astype(str))
     obs = m["observations"]
     adj_keys = set(zip(res["station"], res["point"]))
     same = adj_keys == set(obs)
@@ -113,9 +116,9 @@ def build(doc, data):
     rows = []
     for name, c in sorted(s["per_image"].items()):
         c = c if isinstance(c, dict) else {}
-        g = res[res["station"] == name]
-        used = g[g["used"]]
-        v = used[["vx", "vy"]].to_numpy(float)
+        g = res.take(res["station"] == name)
+        used = g.take(g["used"])
+        v = used.numbers(["vx", "vy"])
         rms = float(np.sqrt(np.mean(np.sum(v ** 2, axis=1)) / 2)) if len(v) else float("nan")
         sig = [obs[k] for k in obs if k[0] == name and np.isfinite(obs[k])]
         rows.append([name] + [str(_int(c.get(k))) for k in keys]
@@ -129,8 +132,8 @@ def build(doc, data):
                for k in _REJECTIONS}
     doc.pairs([(k, str(v)) for k, v in reasons.items()], title="Blobs rejected, by reason")
     per_target = s.get("per_target") or {}
-    used_per = res[res["used"]].groupby("point").size().to_dict()
-    rejected_per = res[~res["used"]].groupby("point").size().to_dict()
+    used_per = Counter(res["point"][res["used"]].tolist())
+    rejected_per = Counter(res["point"][~res["used"]].tolist())
     rows = [[pid, str(_int(n)), str(int(used_per.get(pid, 0))), str(int(rejected_per.get(pid, 0)))]
             for pid, n in sorted(per_target.items(), key=lambda kv: (_int(kv[1]), kv[0]))]
     half = (len(rows) + 1) // 2

@@ -125,7 +125,7 @@ def bone_stability(joints3d, limbs) -> list[dict]:
 
 # ---------------------------------------------------------------- pages
 @section("mocap", "Motion capture", 95,
-         applies=lambda d: d.command == "mocap" or d.has("joints3d.csv"))
+         applies=lambda d: d.command == "mocap" or d.has("joints3d.csv"), native=True)
 def build(doc, data):
     s = data.summary
     L = _unit(data)
@@ -231,8 +231,12 @@ def _cameras(doc, data, s, rp, flagged):
         lim = max(1.0, float(np.nanmax(np.abs(vec))) * 1.3) if np.any(np.isfinite(vec)) else 1
         for (dx, dy), n in zip(vec, names):
             if np.isfinite(dx) and np.isfinite(dy):
-                ax2.annotate("", (dx, dy), (0, 0), arrowprops=dict(
-                    arrowstyle="->", color="tab:red" if n in flagged else "tab:blue"))
+                colour = "tab:red" if n in flagged else "tab:blue"
+                if getattr(ax2, "native", False):
+                    ax2.arrow(0.0, 0.0, dx, dy, color=colour)
+                else:
+                    ax2.annotate("", (dx, dy), (0, 0), arrowprops=dict(arrowstyle="->",
+                                                                       color=colour))
                 ax2.annotate(n, (dx, dy), textcoords="offset points", fontsize=7,
                              xytext=(4 if dx >= 0 else -4, -4 if dy >= 0 else 4),
                              ha="left" if dx >= 0 else "right",

@@ -112,7 +112,7 @@ def _n_ok(summary) -> int:
 
 # ---------------------------------------------------------------- pages
 @section("montecarlo", "Monte Carlo", 90,
-         applies=lambda d: d.command == "montecarlo" or d.has("table1.csv"))
+         applies=lambda d: d.command == "montecarlo" or d.has("table1.csv"), native=True)
 def build(doc, data):
     s = data.summary
     frame = _frame(data, "summary.csv")

@@ -3,13 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
-from matplotlib.collections import LineCollection
-from matplotlib.ticker import MaxNLocator
-
 from photogram.report.layout import decorate, equal_limits
 from photogram.report.registry import section
-from photogram.report.shapes import dense, ray_layer
+from photogram.report.shapes import dense, native_ray_layer, ray_layer
 
 _STYLE = {"control": ("^", "tab:red", 14), "check": ("s", "tab:orange", 12),
           "tie": ("o", "0.3", 3)}
@@ -17,16 +13,17 @@ _STYLE = {"control": ("^", "tab:red", 14), "check": ("s", "tab:orange", 12),
 
 def _points(data):
     p = data.points
-    xyz = p[["X", "Y", "Z"]].to_numpy(float)
+    xyz = p.numbers(["X", "Y", "Z"]).reshape(-1, 3)
     ok = np.all(np.isfinite(xyz), axis=1)
     if data.has_residuals:
-        ok &= p.index.isin(data.residuals["point"].unique())
-    kinds = p["kind"].astype(str).to_numpy() if "kind" in p.columns else np.full(len(p), "tie")
+        seen = set(data.residuals["point"].tolist())
+        ok &= np.fromiter((i in seen for i in p.ids), dtype=bool, count=len(p))
+    kinds = p["kind"].astype(str) if "kind" in p else np.full(len(p), "tie")
     return xyz[ok], kinds[ok]
 
 
 def _stations(data):
-    names = [n for n in data.stations.index if n in data.rotation
+    names = [n for n in dict.fromkeys(data.stations.ids.tolist()) if n in data.rotation
              and np.all(np.isfinite(data.centres[n]))]
     C = np.array([data.centres[n] for n in names]).reshape(-1, 3)
     D = np.array([-data.rotation[n][2] for n in names]).reshape(-1, 3)   # viewing directions
@@ -47,25 +44,24 @@ def _plan_limits(ax, allp, size):
     equal_limits(ax, allp[:, :2].min(axis=0) - pad, allp[:, :2].max(axis=0) + pad)
 
 
-@section("network", "Network", 70, applies=lambda d: len(d.results.stations) > 0)
-def build(doc, data):
-    lu = data.length_unit
-    xyz, kinds = _points(data)
-    names, C, D = _stations(data)
-    allp = np.vstack([xyz, C]) if len(C) else xyz
-    if not len(allp):
+def _view3d(ax3, xyz, kinds, names, C, D, allp, size, lu):
+    """The 3D view: points by kind, cameras with their viewing directions."""
+    if getattr(ax3, "native", False):
+        for kind, (marker, colour, ms) in _STYLE.items():
+            m = kinds == kind
+            if m.any():
+                ax3.scatter(xyz[m], marker=marker, color=colour, s=ms, label=kind)
+        if len(C):
+            ax3.scatter(C, marker="^", color="black", s=25, label="camera")
+            ax3.segments(C, C + 0.12 * size * D, color="black", lw=0.8)
+            for c, n in zip(C, names):
+                ax3.text(c, n, size=6.5)
+        ax3.set_box(allp)
+        ax3.set_labels(f"X [{lu}]", f"Y [{lu}]", f"Z [{lu}]")
+        ax3.legend(loc="upper left", fontsize=7)
         return
-    size = float(np.ptp(allp, axis=0).max()) or 1.0
-    rays = data.has_residuals and len(C) > 0 and bool(data.residuals["used"].any())
-    doc.start_section("Network", intro=(
-        "Projection centres (black triangles, with the viewing direction) and the measured "
-        "points (red triangles: control, orange squares: check, grey dots: tie or object "
-        "points) in 3D and in plan; " + (
-            "in the plan view every ray from a camera to a point it measured (used "
-            "observations of residuals.csv) is drawn as a thin blue line (beyond 2500 rays as "
-            "one image of the stacked lines, darker where more rays cross)." if rays else
-            "no rays are drawn: residuals.csv lists no used observation of these stations.")))
-    ax3, = doc.axes(4.4, projection="3d", pad_left=0.3, pad_bottom=0.2, pad_top=0.1)
+    from matplotlib.ticker import MaxNLocator
+
     for kind, (marker, colour, ms) in _STYLE.items():
         m = kinds == kind
         if m.any():
@@ -87,22 +83,62 @@ def build(doc, data):
         axis.get_major_formatter().set_useOffset(False)
         axis.get_major_formatter().set_scientific(False)
     ax3.legend(loc="upper left", fontsize=7)
+
+
+def _rays(ax, a, b, allp, size):
+    """Every ray in plan: one image of the stacked lines when dense, else one
+    layer of lines."""
+    native = getattr(ax, "native", False)
+    if dense(len(a)):       # one image of the stacked rays (ray_layer), limits first
+        _plan_limits(ax, allp, size)
+        if native:
+            native_ray_layer(ax, a, b, "tab:blue", 0.15, zorder=1)
+        else:
+            ray_layer(ax, a, b, "tab:blue", 0.15, zorder=1)
+    elif native:
+        ax.segments(a, b, color="tab:blue", lw=0.3, alpha=0.15, zorder=1, autolim=False)
+    else:                   # limits: _plan_limits below (autolim would measure every ray)
+        from matplotlib.collections import LineCollection
+
+        ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors="tab:blue",
+                                         lw=0.3, alpha=0.15), autolim=False)
+
+
+@section("network", "Network", 70, applies=lambda d: len(d.results.stations) > 0,
+         native=True)
+def build(doc, data):
+    lu = data.length_unit
+    xyz, kinds = _points(data)
+    names, C, D = _stations(data)
+    allp = np.vstack([xyz, C]) if len(C) else xyz
+    if not len(allp):
+        return
+    size = float(np.ptp(allp, axis=0).max()) or 1.0
+    rays = data.has_residuals and len(C) > 0 and bool(np.any(data.residuals["used"]))
+    doc.start_section("Network", intro=(
+        "Projection centres (black triangles, with the viewing direction) and the measured "
+        "points (red triangles: control, orange squares: check, grey dots: tie or object "
+        "points) in 3D and in plan; " + (
+            "in the plan view every ray from a camera to a point it measured (used "
+            "observations of residuals.csv) is drawn as a thin blue line (beyond 2500 rays as "
+            "one image of the stacked lines, darker where more rays cross)." if rays else
+            "no rays are drawn: residuals.csv lists no used observation of these stations.")))
+    ax3, = doc.axes(4.4, projection="3d", pad_left=0.3, pad_bottom=0.2, pad_top=0.1)
+    _view3d(ax3, xyz, kinds, names, C, D, allp, size, lu)
     span = np.ptp(allp[:, :2], axis=0) + 1e-9
     height = float(np.clip(5.6 * span[1] / span[0], 2.5, 5.2)) + 0.8
     ax, = doc.axes(max(3.0, min(height, doc.remaining - 0.1)), pad_left=0.9, pad_right=0.4)
     if rays:
-        r = data.residuals[data.residuals["used"]]
-        pts = data.points
-        ok = (r["station"].isin(names) & r["point"].isin(pts.index)).to_numpy()
-        idx = pd.Series({n: i for i, n in enumerate(names)})
-        a = C[idx.loc[r["station"].to_numpy()[ok]].to_numpy(int), :2]
-        b = pts.loc[r["point"].to_numpy()[ok], ["X", "Y"]].to_numpy(float)
-        if dense(len(a)):       # one image of the stacked rays (ray_layer), limits first
-            _plan_limits(ax, allp, size)
-            ray_layer(ax, a, b, "tab:blue", 0.15, zorder=1)
-        else:                   # limits: _plan_limits below (autolim would measure every ray)
-            ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors="tab:blue",
-                                             lw=0.3, alpha=0.15), autolim=False)
+        r, pts = data.residuals, data.points
+        used = r["used"]
+        code, snames = r.groups("station")
+        index = {n: i for i, n in enumerate(names)}
+        si = np.array([index.get(n, -1) for n in snames], dtype=int)[code[used]]
+        pi = pts.positions(r["point"][used])
+        ok = (si >= 0) & (pi >= 0)
+        a = C[si[ok], :2]
+        b = pts.numbers(["X", "Y"])[pi[ok]]
+        _rays(ax, a, b, allp, size)
     for kind, (marker, colour, ms) in _STYLE.items():
         m = kinds == kind
         if m.any():

@@ -5,8 +5,6 @@ and image coverage."""
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.collections import EllipseCollection
-
 from photogram.report.layout import decorate, equal_limits
 from photogram.report.numbers import finite, num, sig
 from photogram.report.registry import section
@@ -18,12 +16,18 @@ _KIND_STYLE = {"control": ("^", "tab:red"), "check": ("s", "tab:orange"),
 
 def _kinds(data, ids):
     p = data.points
-    if "kind" not in p.columns:
+    if "kind" not in p:
         return ["tie"] * len(ids)
-    return p.loc[list(ids), "kind"].astype(str).tolist()
+    return p["kind"][p.positions(list(ids))].astype(str).tolist()
 
 
-@section("points", "Point precision", 50, applies=lambda d: len(d.point_sigma[0]) > 0)
+def _xyz(data, ids, cols=("X", "Y", "Z")):
+    p = data.points
+    return p.numbers(list(cols))[p.positions(list(ids))].reshape(-1, len(cols))
+
+
+@section("points", "Point precision", 50, applies=lambda d: len(d.point_sigma[0]) > 0,
+         native=True)
 def build(doc, data):
     lu = data.length_unit
     ids, s = data.point_sigma
@@ -37,19 +41,21 @@ def build(doc, data):
             for ax, c in zip(("X", "Y", "Z", "total"), (*s.T, total))]
     doc.table(["sigma", f"min [{lu}]", f"mean [{lu}]", f"max [{lu}]", f"RMS [{lu}]"], rows,
               title=f"{len(ids)} points with estimated coordinates")
-    xyz = data.points.loc[ids, ["X", "Y", "Z"]].to_numpy(float)
+    xyz = _xyz(data, ids)
     size = float(np.linalg.norm(np.ptp(xyz, axis=0))) if len(xyz) > 1 else np.nan
     if finite(size) and total.mean() > 0:
         doc.text(f"Network size (bounding-box diagonal of these points) {num(size, 4)} {lu}; "
                  f"relative precision 1 : {size / total.mean():,.0f}.", size=8.5)
-    rays = data.rays if data.has_residuals else None
+    rays = data.ray_stats if data.has_residuals else None
     order = np.argsort(-total)[:15]
+    at = rays.positions([ids[k] for k in order]) if rays is not None else -np.ones(len(order))
+    kinds = _kinds(data, [ids[k] for k in order])
     rows = []
-    for k in order:
+    for j, k in enumerate(order):
         pid = ids[k]
-        nr = int(rays.loc[pid, "rays"]) if rays is not None and pid in rays.index else None
-        ang = rays.loc[pid, "angle"] if nr is not None else np.nan
-        rows.append([pid, _kinds(data, [pid])[0], str(nr if nr is not None else "-"),
+        nr = int(rays["rays"][at[j]]) if at[j] >= 0 else None
+        ang = rays["angle"][at[j]] if nr is not None else np.nan
+        rows.append([pid, kinds[j], str(nr if nr is not None else "-"),
                      num(ang, 3), sig(s[k, 0]), sig(s[k, 1]), sig(s[k, 2]), sig(total[k])])
     doc.table(["point", "kind", "rays", "angle [deg]", f"sX [{lu}]", f"sY [{lu}]",
                f"sZ [{lu}]", f"total [{lu}]"], rows, align="llrrrrrr",
@@ -68,16 +74,21 @@ def _covariances(data, ids):
         index = {str(k): i for i, k in enumerate(cov["point_ids"])}
         if all(i in index for i in ids):
             return np.asarray(cov["point_covariance"], float)[[index[i] for i in ids]], True
-    s = data.points.loc[ids, ["est_sX", "est_sY", "est_sZ"]].to_numpy(float)
+    s = _xyz(data, ids, ("est_sX", "est_sY", "est_sZ"))
     return np.einsum("ni,ij->nij", s ** 2, np.eye(3)), False
 
 
 def _ellipse_panel(ax, xy, C2, k, kinds, labels):
     abt = ellipses(C2)
-    ax.add_collection(EllipseCollection(2 * k * abt[:, 0], 2 * k * abt[:, 1], abt[:, 2],
-                                        units="xy", offsets=xy, offset_transform=ax.transData,
-                                        facecolors="none", edgecolors="tab:blue", lw=0.7,
-                                        rasterized=dense(len(xy))))
+    if getattr(ax, "native", False):         # one vector path, however many
+        ax.ellipses(xy, k * abt[:, 0], k * abt[:, 1], abt[:, 2], color="tab:blue", lw=0.7)
+    else:
+        from matplotlib.collections import EllipseCollection
+
+        ax.add_collection(EllipseCollection(
+            2 * k * abt[:, 0], 2 * k * abt[:, 1], abt[:, 2], units="xy", offsets=xy,
+            offset_transform=ax.transData, facecolors="none", edgecolors="tab:blue", lw=0.7,
+            rasterized=dense(len(xy))))
     kinds = np.asarray(kinds, dtype=str)
     for kind, (marker, colour) in _KIND_STYLE.items():
         m = kinds == kind
@@ -97,12 +108,13 @@ def _ellipse_panel(ax, xy, C2, k, kinds, labels):
     ax.grid(True, lw=0.3)
 
 
-@section("ellipses", "Error ellipses", 52, applies=lambda d: len(d.point_sigma[0]) > 0)
+@section("ellipses", "Error ellipses", 52, applies=lambda d: len(d.point_sigma[0]) > 0,
+         native=True)
 def build_ellipses(doc, data):
     lu = data.length_unit
     ids, s = data.point_sigma
     C, full = _covariances(data, ids)
-    xyz = data.points.loc[ids, ["X", "Y", "Z"]].to_numpy(float)
+    xyz = _xyz(data, ids)
     kinds = _kinds(data, ids)
     h = 0 if np.ptp(xyz[:, 0]) >= np.ptp(xyz[:, 1]) else 1
     hname = "XY"[h]
@@ -142,12 +154,14 @@ def _control_rows(data):
     if p is None:
         return []
     est = data.points
+    at = est.positions(list(p.points.ids)) if len(est) else np.full(len(p.points.ids), -1)
+    xyz = est.numbers(["X", "Y", "Z"]) if len(est) else np.zeros((0, 3))
     rows = []
     for i, pid in enumerate(p.points.ids):
-        if str(p.points.kind[i]) != "control" or pid not in est.index:
+        if str(p.points.kind[i]) != "control" or at[i] < 0:
             continue
         ref = p.points.xyz[i]
-        d = est.loc[pid, ["X", "Y", "Z"]].to_numpy(float) - ref
+        d = xyz[at[i]] - ref
         if np.all(np.isfinite(d)):
             rows.append((pid, d, p.points.sigma[i]))
     return rows
@@ -183,7 +197,7 @@ def _has_control(d):
     return bool(d.summary.get("check_points")) or bool(_control_rows(d))
 
 
-@section("control", "Control and check points", 55, applies=_has_control)
+@section("control", "Control and check points", 55, applies=_has_control, native=True)
 def build_control(doc, data):
     doc.start_section("Control and check points", intro=(
         "Differences d = adjusted - reference coordinates. Check points are not used in the "

@@ -5,12 +5,11 @@ standardized residuals, data snooping, and residual vector plots per image
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.patches import PathPatch, Rectangle
-
 from photogram.report.layout import decorate
 from photogram.report.numbers import finite, num
 from photogram.report.registry import section
-from photogram.report.shapes import cell_means, convex_hull, dense, nice, segments_path
+from photogram.report.shapes import cell_means, dense, nice, segments_path
+from photogram.report.table import sorted_groups
 
 _INTRO = ("Residuals are the measured minus the adjusted image coordinates. The RMS is "
           "over the used observations; 'RMS' alone is the RMS of the residual vector length "
@@ -31,29 +30,64 @@ def _stats(r):
 
 
 def _w(r):
-    if {"wx", "wy"} <= set(r.columns):
-        return np.maximum(np.abs(r["wx"].to_numpy(float)), np.abs(r["wy"].to_numpy(float)))
+    if "wx" in r and "wy" in r:
+        return np.maximum(np.abs(r["wx"].astype(float)), np.abs(r["wy"].astype(float)))
     return np.full(len(r), np.nan)
 
 
-@section("residuals", "Residuals", 40, applies=lambda d: d.has_residuals)
+def _per_point(used):
+    """``(ids, rays, rms)`` per point of the used observations, ids sorted."""
+    code, ids = sorted_groups(used["point"])
+    v2 = used["vx"] ** 2 + used["vy"] ** 2
+    size = np.bincount(code, minlength=len(ids))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rms = np.sqrt(np.bincount(code, weights=v2, minlength=len(ids)) / size)
+    return ids, size, rms
+
+
+def _per_image(r, code, n) -> np.ndarray:
+    """Per image (``code`` of every row, ``n`` images) over its used rows:
+    count, RMS vx, RMS vy, RMS and largest vector length, largest |w|
+    (NaN where there is none); as :func:`_stats` and :func:`_w` per image."""
+    u = r["used"]
+    c = code[u]
+    vx, vy = r["vx"][u].astype(float), r["vy"][u].astype(float)
+    v2 = vx ** 2 + vy ** 2
+    k = np.bincount(c, minlength=n).astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rms = [np.sqrt(np.bincount(c, weights=q, minlength=n) / k) for q in (vx ** 2, vy ** 2, v2)]
+    vmax = np.full(n, -np.inf)
+    np.maximum.at(vmax, c, np.sqrt(v2))
+    vmax[k == 0] = np.nan
+    wmax = np.full(n, np.nan)
+    np.fmax.at(wmax, c, _w(r)[u])
+    return np.column_stack([k, *rms, vmax, wmax])
+
+
+def _largest_first(values) -> np.ndarray:
+    """Order of ``values`` from the largest down, NaN last, ties in row order."""
+    v = np.asarray(values, float)
+    return np.lexsort((np.arange(len(v)), -np.nan_to_num(v, nan=-np.inf), np.isnan(v)))
+
+
+@section("residuals", "Residuals", 40, applies=lambda d: d.has_residuals, native=True)
 def build(doc, data):
     iu = data.image_unit
     r = data.residuals
-    used = r[r["used"]]
+    used = r.take(r["used"])
     doc.start_section("Residuals", intro=_INTRO)
     snoop = data.summary.get("snooping")
     if np.any(np.isfinite(_w(used))):
         _histogram(doc, data, used, snoop)
     n, rx, ry, rv, vmax = _stats(used)
-    big = used.iloc[int(np.argmax(np.hypot(used["vx"], used["vy"])))] if n else None
+    big = int(np.argmax(np.hypot(used["vx"], used["vy"]))) if n else None
     rows = [("image observations", f"{len(r)} points ({n} used, {len(r) - n} rejected)"),
             ("RMS x, y", f"{num(rx, 3)}, {num(ry, 3)} {iu}"),
             ("RMS (vector length)", f"{num(rv, 3)} {iu}")]
     if big is not None:
-        rows.append(("largest residual", f"{num(vmax, 3)} {iu} (point {big['point']} in "
-                                         f"{big['station']})"))
-    if {"rx", "ry"} <= set(used.columns) and n:
+        rows.append(("largest residual", f"{num(vmax, 3)} {iu} (point {used['point'][big]} "
+                                         f"in {used['station'][big]})"))
+    if "rx" in used and "ry" in used and n:
         red = np.concatenate([used["rx"], used["ry"]]).astype(float)
         rows.append(("redundancy numbers", f"min {red.min():.2f}, mean {red.mean():.2f}; "
                                            f"{int((red < 0.1).sum())} below 0.1"))
@@ -75,37 +109,35 @@ def build(doc, data):
         doc.text("Data snooping was not run (set [adjustment] snooping_alpha, e.g. 0.001).",
                  size=8)
     rows = []
-    for st, g in r.groupby("station", sort=False):
-        gu = g[g["used"]]
-        k, sx, sy, sv, mx = _stats(gu)
-        wg = _w(gu)
-        rows.append([st, str(data.station_camera(st) or "-"), str(k), num(sx, 3), num(sy, 3),
-                     num(sv, 3), num(mx, 3),
-                     num(np.nanmax(wg), 3) if np.any(np.isfinite(wg)) else "-"])
+    code, names = r.groups("station")
+    for st, (k, sx, sy, sv, mx, wmax) in zip(names, _per_image(r, code, len(names))):
+        rows.append([st, str(data.station_camera(st) or "-"), str(int(k)), num(sx, 3),
+                     num(sy, 3), num(sv, 3), num(mx, 3),
+                     num(wmax, 3) if np.isfinite(wmax) else "-"])
     doc.table(["station", "camera", "points", f"RMS x [{iu}]", f"RMS y [{iu}]",
                f"RMS [{iu}]", f"max [{iu}]", "max |w|"], rows, align="llrrrrrr",
               title="Per image")
-    per_point = (used.assign(v2=used["vx"] ** 2 + used["vy"] ** 2)
-                 .groupby("point")["v2"].agg(["mean", "size"]))
-    per_point["rms"] = np.sqrt(per_point["mean"])
-    worst = per_point.sort_values("rms", ascending=False).head(8)
-    if len(per_point):
-        best = per_point["rms"].idxmin()
+    ids, size, rms = _per_point(used)
+    worst = _largest_first(rms)[:8]
+    if len(ids):
+        best = int(np.nanargmin(rms)) if np.isfinite(rms).any() else 0
         doc.text(f"Per point (RMS over all images of a point): min "
-                 f"{num(per_point['rms'].min(), 3)} {iu} ({best}), max "
-                 f"{num(worst['rms'].iloc[0], 3)} {iu} ({worst.index[0]}), "
-                 f"{len(per_point)} points.", size=8)
+                 f"{num(np.nanmin(rms) if np.isfinite(rms).any() else np.nan, 3)} {iu} "
+                 f"({ids[best]}), max {num(rms[worst[0]], 3)} {iu} ({ids[worst[0]]}), "
+                 f"{len(ids)} points.", size=8)
     doc.table(["point", "rays", f"RMS [{iu}]"],
-              [(p, str(int(x["size"])), num(x["rms"], 3)) for p, x in worst.iterrows()],
+              [(ids[i], str(int(size[i])), num(rms[i], 3)) for i in worst],
               title="Points with the largest RMS")
-    if np.any(np.isfinite(_w(r))):
-        top = r.assign(_w=_w(r)).sort_values("_w", ascending=False).head(12)
+    w = _w(r)
+    if np.any(np.isfinite(w)):
+        rx, ry = r.get("rx"), r.get("ry")
         doc.table(["station", "point", f"vx [{iu}]", f"vy [{iu}]", "wx", "wy", "rx", "ry",
                    "used"],
-                  [(t["station"], t["point"], num(t["vx"], 3), num(t["vy"], 3),
-                    f"{t['wx']:+.2f}", f"{t['wy']:+.2f}", num(t.get("rx"), 2),
-                    num(t.get("ry"), 2), "yes" if t["used"] else "no")
-                   for _, t in top.iterrows()],
+                  [(r["station"][i], r["point"][i], num(r["vx"][i], 3), num(r["vy"][i], 3),
+                    f"{r['wx'][i]:+.2f}", f"{r['wy'][i]:+.2f}",
+                    num(None if rx is None else rx[i], 2),
+                    num(None if ry is None else ry[i], 2), "yes" if r["used"][i] else "no")
+                   for i in _largest_first(w)[:12]],
                   align="llrrrrrrl", title="Largest standardized residuals")
 
 
@@ -135,9 +167,9 @@ def _scale(data):
     """Enlargement of the residual vectors: their RMS becomes 8 % of the
     widest format, rounded down to 1, 2 or 5 x 10^k."""
     r = data.residuals
-    v = np.hypot(r["vx"], r["vy"]).to_numpy(float)
+    v = np.hypot(r["vx"], r["vy"]).astype(float)
     widths = [f[0] for f in (data.image_format(data.station_camera(s))
-                             for s in r["station"].unique()) if f]
+                             for s in r.groups("station")[1]) if f]
     if not len(v) or not widths:
         return 1.0
     rms = float(np.sqrt(np.mean(v ** 2))) or 1.0
@@ -150,6 +182,11 @@ CELL_POINTS, CELL_COLUMNS = 1000, 24
 
 
 def _segments(ax, a, b) -> None:
+    if getattr(ax, "native", False):         # one vector path, however many
+        ax.segments(a, b, color="tab:blue", lw=0.9, autolim=False)
+        return
+    from matplotlib.patches import PathPatch
+
     # add_artist, not add_patch: the limits are set by the caller, and
     # add_patch would walk the path segment by segment in Python
     ax.add_artist(PathPatch(segments_path(a, b), fill=False, lw=0.9, edgecolor="tab:blue",
@@ -170,11 +207,15 @@ def _cell_vectors(ax, xy, v, size, k) -> None:
 
 def _vector_plot(ax, data, station, g, k, iu):
     fmt = data.image_format(data.station_camera(station))
-    a = g[["x", "y", "vx", "vy"]].to_numpy(float)
-    u = g["used"].to_numpy(bool)
+    a = g.numbers(["x", "y", "vx", "vy"])
+    u = g["used"].astype(bool)
     xy = a[:, :2]
-    hull = convex_hull(xy[u])
-    if fmt:
+    hull = data.hulls.get(station, np.zeros((0, 2)))
+    if fmt and getattr(ax, "native", False):
+        ax.add_rect(0, 0, fmt[0], fmt[1], color="0.3", lw=0.8)
+    elif fmt:
+        from matplotlib.patches import Rectangle
+
         ax.add_patch(Rectangle((0, 0), fmt[0], fmt[1], fill=False, lw=0.8, color="0.3"))
     if len(hull) >= 3:
         ax.fill(hull[:, 0], hull[:, 1], color="tab:green", alpha=0.12, lw=0)
@@ -203,10 +244,14 @@ def _vector_plot(ax, data, station, g, k, iu):
              f"x [{iu}]", f"y [{iu}]", xpad=0.25, ypad=0.4, size=7.5)
 
 
-@section("residual_vectors", "Residual vectors per image", 45, applies=lambda d: d.has_residuals)
+@section("residual_vectors", "Residual vectors per image", 45,
+         applies=lambda d: d.has_residuals, native=True)
 def build_vectors(doc, data):
     iu = data.image_unit
     k = _scale(data)
+    r = data.residuals
+    code, names = r.groups("station")
+    used_per_image = np.bincount(code[r["used"]], minlength=len(names))
     doc.start_section("Residual vectors per image", intro=(
         f"Residuals enlarged {k:g} times (the bar below each image is the length given), "
         "drawn as lines from the measured points (dots) over the image format. Green: "
@@ -216,11 +261,12 @@ def build_vectors(doc, data):
             f" Images with more than {CELL_POINTS} points: the residuals are averaged per "
             f"cell of a grid of {CELL_COLUMNS} square cells across the format and drawn from "
             "the cell centres; grey: points per cell (darker = more)."
-            if (data.residuals.groupby("station")["used"].sum() > CELL_POINTS).any()
-            else "")))
-    groups = list(data.residuals.groupby("station", sort=False))
-    for i in range(0, len(groups), 2):
-        pair_ = groups[i:i + 2]
+            if (used_per_image > CELL_POINTS).any() else "")))
+    order = np.argsort(code, kind="stable")
+    bounds = np.searchsorted(code[order], np.arange(len(names) + 1))
+    images = [(names[i], r.take(order[bounds[i]:bounds[i + 1]])) for i in range(len(names))]
+    for i in range(0, len(images), 2):
+        pair_ = images[i:i + 2]
         aspect = max((f[1] / f[0]) for f in (data.image_format(data.station_camera(s))
                                              or (4, 3) for s, _ in pair_))
         height = min(4.2, 2.6 * aspect * 1.12 + 0.7)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from photogram.report.numbers import pair
 from photogram.report.registry import section
 
@@ -10,13 +12,13 @@ _INTRO = ("Exterior orientation: projection centre X0 Y0 Z0 and rotation omega p
           "'points' is the number of image points used in the adjustment.")
 
 
-def _sigma(st, name, column):
+def _sigma(st, i, column):
     col = "est_s" + column
-    return st.loc[name, col] if col in st.columns else None
+    return st[col][i] if col in st else None
 
 
 @section("stations", "Stations (exterior orientation)", 30,
-         applies=lambda d: len(d.results.stations) > 0)
+         applies=lambda d: len(d.results.stations) > 0, native=True)
 def build(doc, data):
     st = data.stations
     lu, au = data.length_unit, data.angle_unit
@@ -27,16 +29,18 @@ def build(doc, data):
     n_obs = {}
     if data.has_residuals:
         r = data.residuals
-        n_obs = r[r["used"]].groupby("station").size().to_dict()
+        code, names = r.groups("station")
+        counts = np.bincount(code[r["used"]], minlength=len(names))
+        n_obs = {n: int(k) for n, k in zip(names, counts) if k}
     pos, rot = [], []
-    for name in st.index:
-        row = [name, str(st.loc[name, "camera"])]
+    for i, name in enumerate(st.ids):
+        row = [name, str(st["camera"][i])]
         for c in ("X0", "Y0", "Z0"):
-            row += pair(st.loc[name, c], _sigma(st, name, c))
+            row += pair(st[c][i], _sigma(st, i, c))
         pos.append(row + [str(n_obs.get(name, "-"))])
         row = [name]
         for c in ("omega", "phi", "kappa"):
-            row += pair(st.loc[name, c], _sigma(st, name, c))
+            row += pair(st[c][i], _sigma(st, i, c))
         rot.append(row)
     doc.table(["station", "camera", f"X0 [{lu}]", "sigma", f"Y0 [{lu}]", "sigma",
                f"Z0 [{lu}]", "sigma", "points"], pos, align="llrrrrrrr",

@@ -85,7 +85,7 @@ def _counts(s):
     return [(k.replace("_", " "), str(c[k])) for k in keys if k in c]
 
 
-@section("summary", "Summary", 10)
+@section("summary", "Summary", 10, native=True)
 def build(doc, data):
     s = data.summary
     doc.start_section("Summary", heading=False)
@@ -146,9 +146,14 @@ def build(doc, data):
             ax.set_yscale("log")
         else:
             ax.ticklabel_format(axis="y", useOffset=False, style="plain")
-        ax.xaxis.get_major_locator().set_params(integer=True)
+        if getattr(ax, "native", False):
+            ax.integer_ticks("x")
+            pad = ax.ylabel_pad()
+        else:
+            ax.xaxis.get_major_locator().set_params(integer=True)
+            pad = tick_label_pad(ax)
         decorate(ax, "cost per iteration (Gauss-Newton / Levenberg-Marquardt)", "iteration",
-                 "cost [-]", ypad=tick_label_pad(ax))
+                 "cost [-]", ypad=pad)
         ax.grid(True, which="both", lw=0.3)
     doc.subheading("Warnings")
     doc.bullets(s.get("warnings"), size=8)
@@ -169,7 +174,7 @@ def tick_label_pad(ax, size: float = 7.0) -> float:
 
 
 @section("variance", "Variance components", 15,
-         applies=lambda d: bool(d.summary.get("variance_components")))
+         applies=lambda d: bool(d.summary.get("variance_components")), native=True)
 def build_variance(doc, data):
     vc = data.summary["variance_components"]
     doc.start_section("Variance components", intro=(

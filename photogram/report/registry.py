@@ -11,6 +11,11 @@ A later command adds its pages by writing a module with one or more
 ``@section(...)`` builders that apply when its output files exist, and
 adding the module to :data:`MODULES` (see photogram/report/hooks.py for the
 Monte Carlo and motion-capture entries, and docs/report.md).
+
+A section registered with ``native=True`` can also be laid out by
+:class:`photogram.report.native.NativeDocument` (the PDF writer without
+matplotlib); a report whose applicable sections are all native is written
+that way (:func:`all_native`), any other with matplotlib.
 """
 
 from __future__ import annotations
@@ -19,7 +24,8 @@ import importlib
 from dataclasses import dataclass
 from typing import Callable
 
-__all__ = ["Section", "SECTIONS", "MODULES", "INPUT_ONLY", "section", "sections"]
+__all__ = ["Section", "SECTIONS", "MODULES", "INPUT_ONLY", "section", "sections",
+           "all_native"]
 
 #: page modules, imported by :func:`sections`
 MODULES = ("photogram.report.pages_summary", "photogram.report.pages_cameras",
@@ -44,16 +50,21 @@ class Section:
     order: float
     applies: Callable
     build: Callable
+    native: bool = False
 
 
 SECTIONS: dict[str, Section] = {}
 
 
-def section(name: str, title: str, order: float, applies: Callable | None = None):
+def section(name: str, title: str, order: float, applies: Callable | None = None, *,
+            native: bool = False):
     """Decorator registering ``build(doc, data)`` as the section ``name``
-    (a later registration under the same name replaces an earlier one)."""
+    (a later registration under the same name replaces an earlier one);
+    ``native``: the builder also draws on the native document (it uses only
+    what :class:`photogram.report.native.NativeDocument` and its axes offer)."""
     def register(build):
-        SECTIONS[name] = Section(name, title, order, applies or (lambda data: True), build)
+        SECTIONS[name] = Section(name, title, order, applies or (lambda data: True), build,
+                                 native)
         return build
     return register
 
@@ -68,3 +79,8 @@ def sections(data=None) -> list[Section]:
         return out
     skip = INPUT_ONLY.get(data.command, ())
     return [s for s in out if s.name not in skip and s.applies(data)]
+
+
+def all_native(secs) -> bool:
+    """Whether every section of ``secs`` has a native builder."""
+    return all(s.native for s in secs)

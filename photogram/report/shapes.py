@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 __all__ = ["convex_hull", "polygon_area", "ellipse", "nice", "coverage_fraction",
-           "segments_path", "cell_means", "ray_counts", "ray_layer"]
+           "segments_path", "cell_means", "ray_counts", "ray_layer", "native_ray_layer",
+           "convex_grid_mask"]
 
 
 def convex_hull(xy) -> np.ndarray:
@@ -29,19 +30,20 @@ def convex_hull(xy) -> np.ndarray:
 
 def _monotone_chain(pts) -> np.ndarray:
     """Andrew's monotone chain of sorted unique points (n >= 3)."""
-    def turn(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
     def half(points):
-        out = []
+        out = []                              # (x, y) tuples: no numpy per step
         for p in points:
-            while len(out) >= 2 and turn(out[-2], out[-1], p) <= 0:
+            while len(out) >= 2:
+                (ox, oy), (ax, ay) = out[-2], out[-1]
+                if (ax - ox) * (p[1] - oy) - (ay - oy) * (p[0] - ox) > 0:
+                    break
                 out.pop()
             out.append(p)
         return out
 
-    lower, upper = half(pts), half(pts[::-1])
-    return np.array(lower[:-1] + upper[:-1])
+    xy = [tuple(p) for p in np.asarray(pts, float).tolist()]
+    lower, upper = half(xy), half(xy[::-1])
+    return np.array(lower[:-1] + upper[:-1], dtype=float).reshape(-1, 2)
 
 
 def _inside_extremes(pts) -> np.ndarray:
@@ -74,16 +76,33 @@ def polygon_area(poly) -> float:
 def coverage_fraction(hulls, fmt, n=200) -> float:
     """Fraction of the format ``(w, h)`` covered by the union of polygons,
     on an ``n`` x ``n`` raster."""
-    from matplotlib.path import Path
-
     w, h = fmt
-    gx, gy = np.meshgrid((np.arange(n) + 0.5) * w / n, (np.arange(n) + 0.5) * h / n)
-    grid = np.stack([gx.ravel(), gy.ravel()], -1)
-    inside = np.zeros(len(grid), bool)
+    xs, ys = (np.arange(n) + 0.5) * w / n, (np.arange(n) + 0.5) * h / n
+    inside = np.zeros((n, n), bool)
     for poly in hulls:
         if len(poly) >= 3:
-            inside |= Path(poly).contains_points(grid)
+            inside |= convex_grid_mask(poly, xs, ys)
     return float(inside.mean())
+
+
+def convex_grid_mask(poly, xs, ys) -> np.ndarray:
+    """Mask (len(ys), len(xs)) of the grid points ``(xs[j], ys[i])`` inside
+    the convex polygon ``poly`` (k, 2): per grid row the span between the two
+    edges it crosses (the crossing rule: an edge counts for the rows with
+    ``min(y_a, y_b) <= y < max(y_a, y_b)``), vectorized over rows and edges."""
+    poly = np.asarray(poly, float)
+    a, b = poly, np.roll(poly, -1, axis=0)
+    y = np.asarray(ys, float)[:, None]
+    lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
+    crosses = (y >= lo) & (y < hi)                                # (rows, edges)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (y - a[:, 1]) / (b[:, 1] - a[:, 1])
+    x = np.where(crosses, a[:, 0] + t * (b[:, 0] - a[:, 0]), np.nan)
+    some = crosses.any(axis=1)
+    left = np.where(some, np.nanmin(np.where(some[:, None], x, 0.0), axis=1), np.inf)
+    right = np.where(some, np.nanmax(np.where(some[:, None], x, 0.0), axis=1), -np.inf)
+    xs = np.asarray(xs, float)[None, :]
+    return (xs > left[:, None]) & (xs < right[:, None])
 
 
 def ellipse(cov2) -> tuple[float, float, float]:
@@ -293,3 +312,19 @@ def ray_layer(ax, a, b, color, alpha: float, dpi: float = 100.0, **kwargs):
     rgba[..., 3] = 1.0 - (1.0 - alpha) ** counts
     return ax.imshow(rgba, extent=(x0, x1, y0, y1), origin="lower", interpolation="nearest",
                      aspect="auto", **kwargs)
+
+
+def native_ray_layer(ax, a, b, color, alpha: float, dpi: float = 100.0, zorder=1.0):
+    """:func:`ray_layer` on a native axes (:mod:`photogram.report.pdf.axes`):
+    the same counts and opacity, one RGBA image."""
+    from photogram.report.pdf.colors import rgb
+
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    shape = (max(int(round(ax.height_in * dpi)), 1), max(int(round(ax.width_in * dpi)), 1))
+    counts = ray_counts(a, b, (x0, x1, y0, y1), shape)
+    rgba = np.empty(shape + (4,))
+    rgba[..., :3] = rgb(color)
+    rgba[..., 3] = 1.0 - (1.0 - alpha) ** counts
+    return ax.imshow(rgba, extent=(x0, x1, y0, y1), origin="lower", aspect="auto",
+                     zorder=zorder)

@@ -1,5 +1,12 @@
 """Build the report of a results folder and write report.pdf.
 
+Two ways to draw it: a report whose sections all have native builders
+(``native=True`` in :mod:`photogram.report.registry`: the pages of calibrate
+and orient) is drawn by the native PDF writer (:mod:`photogram.report.native`,
+no matplotlib import: about 0.1 s instead of 2 s for CAMCAL, issue 23); the
+others (intersect, Monte Carlo, mocap) and any report with text outside
+cp1252 are drawn with matplotlib as described below.
+
 The PDF is reproducible: matplotlib's default style (not the user's
 matplotlibrc), no creation date, and nothing in the pages that depends on
 the time or the machine, so that the same results folder gives a
@@ -27,7 +34,7 @@ from photogram.errors import InputError
 from photogram.project.atomic import atomic_write_bytes
 from photogram.report.data import ReportData, load
 from photogram.report.layout import Document
-from photogram.report.registry import sections
+from photogram.report.registry import all_native, sections
 
 __all__ = ["write_report", "build_report", "REPORT_NAME", "RC"]
 
@@ -72,20 +79,59 @@ def core_fonts_fit(fig) -> bool:
     return True
 
 
-def build_report(data: ReportData):
-    """Lay out the pages of ``data``; returns ``(figures, outline)`` with
-    ``outline`` a list of ``(section title, number of pages)``. Call inside
-    the report's style (see :func:`write_report`)."""
-    doc = Document(header=f"photogram {photogram.__version__} {data.command} report: "
-                          f"{data.name}")
+def _header(data) -> str:
+    return f"photogram {photogram.__version__} {data.command} report: {data.name}"
+
+
+def _footer(data) -> str:
+    return f"photogram {photogram.__version__} - accuracy report of {data.name} ({data.command})"
+
+
+def _lay_out(doc, data, secs):
     outline = []
-    for sec in sections(data):
+    for sec in secs:
         before = len(doc.pages)
         sec.build(doc, data)
         outline.append((sec.title, len(doc.pages) - before))
-    figures = doc.finish(f"photogram {photogram.__version__} - accuracy report of "
-                         f"{data.name} ({data.command})")
-    return figures, outline
+    return doc.finish(_footer(data)), outline
+
+
+def build_report(data: ReportData, secs=None):
+    """Lay out the pages of ``data`` with matplotlib; returns ``(figures,
+    outline)`` with ``outline`` a list of ``(section title, number of
+    pages)``. Call inside the report's style (see :func:`write_report`)."""
+    return _lay_out(Document(header=_header(data)), data,
+                    sections(data) if secs is None else secs)
+
+
+def _meta(data) -> dict:
+    return {"Title": f"Accuracy report: {data.name} ({data.command})",
+            "Author": None, "Subject": "photogrammetric adjustment results",
+            "Creator": f"photogram {photogram.__version__}", "CreationDate": None,
+            "ModDate": None}
+
+
+def build_native(data: ReportData, secs=None):
+    """Lay out and draw the pages of ``data`` with the native PDF writer;
+    returns ``(pdf bytes, outline)``. Raises UnicodeEncodeError for text
+    outside cp1252 (the standard fonts' encoding)."""
+    from photogram.report.native import NativeDocument
+
+    doc = NativeDocument(header=_header(data), info=_meta(data))
+    _, outline = _lay_out(doc, data, sections(data) if secs is None else secs)
+    return doc.tobytes(), outline
+
+
+def _matplotlib_pdf(figures, meta) -> bytes:
+    import matplotlib
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    buf = io.BytesIO()
+    with PdfPages(buf, metadata=meta) as pdf:
+        for fig in figures:
+            with matplotlib.rc_context({"pdf.use14corefonts": core_fonts_fit(fig)}):
+                pdf.savefig(fig)
+    return buf.getvalue()
 
 
 def report_units(data, units=None) -> str:
@@ -110,7 +156,8 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
         Folder to write report.pdf into (default ``folder``).
     png_folder : str or Path, optional
         Also write every page as ``page-NN.png`` there (``dpi``), rendered
-        by matplotlib from the same figures (for a quick look and tests).
+        by matplotlib (the matplotlib layout of the same pages, also when
+        report.pdf is drawn natively; for a quick look and tests).
     project : Project, optional
         The project the results were computed from, as read from its file
         and not changed since (a command passes the one it has in memory,
@@ -132,9 +179,6 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
     InputError
         ``folder`` is not a results folder (one line naming what is missing).
     """
-    import matplotlib
-    from matplotlib.backends.backend_pdf import PdfPages
-
     data = load(folder, project)
     data.extra["units"] = report_units(data, units)
     target = Path(output) if output is not None else Path(folder)
@@ -143,18 +187,22 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
     except OSError as exc:
         raise InputError(f"cannot create the report folder: {exc.strerror}", file=target,
                          hint="check the path and permissions (--output)") from None
-    buf = io.BytesIO()
+    secs = sections(data)
+    pdf = None
+    if all_native(secs):
+        try:
+            pdf, contents = build_native(data, secs)
+        except UnicodeEncodeError:          # not cp1252: matplotlib with embedded DejaVu
+            pdf = None
+    if pdf is not None and png_folder is None:
+        if outline is not None:
+            outline.extend(contents)
+        return atomic_write_bytes(target / REPORT_NAME, pdf)
     with ExitStack() as stack:
         _style(stack)
-        figures, contents = build_report(data)
-        meta = {"Title": f"Accuracy report: {data.name} ({data.command})",
-                "Author": None, "Subject": "photogrammetric adjustment results",
-                "Creator": f"photogram {photogram.__version__}", "CreationDate": None,
-                "ModDate": None}
-        with PdfPages(buf, metadata=meta) as pdf:
-            for fig in figures:
-                with matplotlib.rc_context({"pdf.use14corefonts": core_fonts_fit(fig)}):
-                    pdf.savefig(fig)
+        figures, mpl_contents = build_report(data, secs)
+        if pdf is None:
+            pdf, contents = _matplotlib_pdf(figures, _meta(data)), mpl_contents
         if png_folder is not None:
             png_folder = Path(png_folder)
             png_folder.mkdir(parents=True, exist_ok=True)
@@ -163,4 +211,4 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
                             metadata={"Software": None})
     if outline is not None:
         outline.extend(contents)
-    return atomic_write_bytes(target / REPORT_NAME, buf.getvalue())
+    return atomic_write_bytes(target / REPORT_NAME, pdf)
