@@ -20,6 +20,7 @@ import numpy as np
 from photogram.adjust import kernels, rcs_iterative
 from photogram.bundle.bal import bal_options, build_bal_problem, solve_bal
 from photogram.simulation.bal_sphere import sphere_bal
+from bal_scaling import warm_up
 
 
 def counting_pcg(steps):
@@ -44,9 +45,8 @@ def main():
                     help="observations sorted by point instead of by camera")
     ap.add_argument("--max-iterations", type=int, default=50)
     args = ap.parse_args()
+    warm_up()
     kernels.use_numba(not args.numpy)
-    warm = sphere_bal(20, obs_per_camera=500, seed=99).problem
-    solve_bal(build_bal_problem(warm, behind="keep"), bal_options(max_iterations=2))
     steps = []
     counting_pcg(steps)
     bal = sphere_bal(args.cameras, seed=args.seed).problem

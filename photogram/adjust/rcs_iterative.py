@@ -59,7 +59,10 @@ class SchurOperator:
         # numba: W_o^T copied into point order; numpy: W^T as a CSR matrix
         # (once per linearization: repeated damped solves reuse it)
         cache = system.__dict__.setdefault("_rcs_cache", {})
-        if self.fast:
+        self.point = getattr(system, "plan", None)          # a point_rows.PointSystem
+        if self.point is not None:
+            self.WTp, self.Wt = system.WTp, None
+        elif self.fast:
             if "WTp" not in cache:
                 cache["WTp"] = system.WT[rows]
             self.WTp, self.Wt = cache["WTp"], None
@@ -77,6 +80,12 @@ class SchurOperator:
 
     def __call__(self, x):
         x_ext = np.append(x, 0.0)
+        if self.point is not None:
+            from photogram.adjust import _numba_point
+            out = np.zeros(self.n_r + 1)
+            pl = self.point
+            _numba_point.matvec(self.WTp, pl.group, pl.gcols, pl.ptr, self.Ainv, x_ext, out)
+            return self.Ncc @ x - out[:self.n_r]
         if self.fast:
             out = np.zeros(self.n_r + 1)
             kernels.compiled().schur_matvec(self.WTp, self.rcp, self.ptr, self.Ainv, x_ext, out)
@@ -196,16 +205,19 @@ def _group_schur_grams(system, Ainv):
     return out
 
 
-def schur_jacobi(op):
+def schur_jacobi(op, coupling=None):
     """The Schur-Jacobi preconditioner of a :class:`SchurOperator`: a
-    function ``z = P^-1 r``."""
+    function ``z = P^-1 r``. ``coupling``: the blocks'
+    ``-sum W A^-1 W^T`` part when already summed (n_g, s, s)."""
     system, Ncc, Ainv = op.system, op.Ncc, op.Ainv
     st = system.structure
     n_r = st.n_r
     gc = st.group_cols                                       # (n_g, s), padded with n_r
     n_g, s = gc.shape
     blocks = _ncc_group_blocks(Ncc, gc, n_r)
-    if len(st.pt_rows) and s:
+    if coupling is not None:
+        blocks += coupling
+    elif len(st.pt_rows) and s:
         if not op.fast and _merged_rows_plan(op) is None:
             blocks -= _group_schur_grams(system, Ainv)
         else:

@@ -277,10 +277,15 @@ def _solve_iterative(system, Ncc, Ainv, layout, tolerance, max_iterations):
     n_r, n_e = layout.n_reduced, layout.n_eliminated
     g_c, g_e = system.g[:n_r], system.g[n_r:].reshape(n_e, 3)
     op = rcs_iterative.SchurOperator(system, Ncc, Ainv)
-    rhs_c = -g_c + op.w_times_e(np.einsum("nij,nj->ni", Ainv, g_e))
+    parts = system.schur_parts(Ncc, Ainv) if hasattr(system, "schur_parts") else None
+    if parts is None:
+        rhs_c = -g_c + op.w_times_e(np.einsum("nij,nj->ni", Ainv, g_e))
+        precond = rcs_iterative.schur_jacobi(op)
+    else:                          # point_rows.PointSystem: one pass for both
+        rhs_c = -g_c + parts[1]
+        precond = rcs_iterative.schur_jacobi(op, parts[0])
     rhs_c[~layout.free[:n_r]] = 0.0
-    dx_c, _ = rcs_iterative.pcg(op, rhs_c, rcs_iterative.schur_jacobi(op),
-                                tolerance, max_iterations)
+    dx_c, _ = rcs_iterative.pcg(op, rhs_c, precond, tolerance, max_iterations)
     rhs_e = -g_e - system.wt_times_c(dx_c)
     dx_e = np.matmul(Ainv, rhs_e[:, :, None])[:, :, 0].ravel()
     dx = np.concatenate([dx_c, dx_e])

@@ -22,15 +22,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from photogram.adjust import kernels
+from photogram.adjust import kernels, point_rows
 from photogram.adjust.diagnostics import worst_observations
 from photogram.adjust.normal import Structure, assemble
 from photogram.adjust.schur import RCS_METHODS, solve as schur_solve
 from photogram.errors import GeometryError
 
 DAMPINGS = ("none", "lm", "armijo", "trust_region")
-# reduced columns from which "auto" solves the RCS iteratively: {numba: n}
-ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000}
+# reduced columns from which "auto" solves the RCS iteratively: {numba: n;
+# "fused": numba with point_rows' fused BAL linearization}
+ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000, "fused": 500}
 
 
 @dataclass
@@ -55,8 +56,10 @@ class SolverOptions:
     ITERATIVE_SCHUR; :mod:`photogram.adjust.rcs_iterative`) or ``"auto"``
     (default): iterative when the problem has no datum conditions (inner
     constraints) and at least ``iterative_min_columns`` reduced columns
-    (None: 1500 when the numba kernels run, 4000 on the pure-numpy path,
-    the crossovers measured on SIMULATED BAL problems), dense otherwise. CG stops when the preconditioned residual has
+    (None: 1500 when the numba kernels run, 500 when they run the fused
+    BAL linearization of :mod:`photogram.adjust.point_rows`, 4000 on the
+    pure-numpy path, the crossovers measured on SIMULATED BAL problems),
+    dense otherwise. CG stops when the preconditioned residual has
     fallen by ``cg_tolerance`` or after ``cg_max_iterations`` steps.
     """
 
@@ -164,6 +167,9 @@ class Problem:
         return rs, Js
 
     def cost(self, state) -> float:
+        fused = point_rows.cost(self, state)
+        if fused is not None:
+            return fused
         rs, _ = self.evaluate(state, jacobians=False)
         return 0.5 * sum(float(np.sum(r * r)) for r in rs)
 
@@ -178,6 +184,9 @@ class Problem:
 
     def linearize(self, state):
         """The normal equations at ``state`` (residuals, Jacobians, sums)."""
+        fused = point_rows.linearize(self, state)
+        if fused is not None:
+            return fused
         rs, Js = self.evaluate(state)
         return assemble(self.structure, rs, Js, sparse=self.rcs["method"] == "iterative")
 
@@ -267,7 +276,9 @@ def rcs_method(problem: Problem, options: SolverOptions) -> str:
         return choice
     least = options.iterative_min_columns
     if least is None:
-        least = ITERATIVE_MIN_COLUMNS[kernels.active(problem.structure.n_e_rows)]
+        fused = problem.G is None and point_rows.plan(problem, "iterative") is not None
+        least = ITERATIVE_MIN_COLUMNS["fused" if fused else
+                                      kernels.active(problem.structure.n_e_rows)]
     big = problem.layout.n_reduced >= least
     return "iterative" if big and problem.G is None and problem.structure.n_e_rows else "dense"
 
