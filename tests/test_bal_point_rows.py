@@ -143,3 +143,35 @@ def test_fused_solve_matches_dense_solve_and_auto_switch(numba_small):
     assert rcs_method(mid, SolverOptions()) == "iterative"
     kernels.use_numba(False)
     assert rcs_method(mid, SolverOptions()) == "dense"
+
+
+def test_point_seen_twice_by_one_camera(numba_small):
+    """Two rows of one (point, camera): the Schur-Jacobi blocks merge them
+    (generic pass); the fused system still gives the dense step."""
+    from photogram.io.bal import BALProblem
+    bal = sphere_bal(12, obs_per_camera=150, seed=3).problem
+    extra = np.arange(0, bal.n_observations, 97)
+    twice = BALProblem(bal.cameras, bal.points, np.r_[bal.camera, bal.camera[extra]],
+                       np.r_[bal.point, bal.point[extra]], np.r_[bal.xy, bal.xy[extra] + 0.3])
+    problem = build_bal_problem(twice, behind="keep").problem
+    problem.rcs["method"] = "iterative"
+    fused = problem.linearize(problem.state)
+    assert isinstance(fused, point_rows.PointSystem) and not fused.plan.unique
+    assert fused.schur_parts(*schur.damped(fused, problem.layout, 0.1)) is None
+    dense_sys = _generic(problem, problem.state)
+    problem.rcs["method"] = "dense"
+    dense = problem.linearize(problem.state)
+    dx_d, _ = schur.solve(dense, problem.layout, 1e-3)
+    dx_i, _ = schur.solve(fused, problem.layout, 1e-3, method="iterative", cg_tolerance=1e-12,
+                          cg_max_iterations=5000)
+    assert np.max(np.abs(dx_i - dx_d)) <= 1e-7 * np.max(np.abs(dx_d))
+    Ncc, A = schur.damped(fused, problem.layout, 0.1)
+    Ainv = schur.invert_point_blocks(A)
+    S, _ = schur.reduced_camera_system(dense_sys, Ainv, Ncc.toarray())
+    op = rcs_iterative.SchurOperator(fused, Ncc, Ainv)
+    x = np.random.default_rng(0).standard_normal(len(S))
+    block = np.zeros_like(S)
+    for cols in problem.structure.group_cols:
+        block[np.ix_(cols, cols)] = S[np.ix_(cols, cols)]
+    np.testing.assert_allclose(rcs_iterative.schur_jacobi(op)(x), np.linalg.solve(block, x),
+                               rtol=1e-8)

@@ -1,6 +1,9 @@
 """numba kernels of the point-ordered iterative path
-(:mod:`photogram.adjust.point_rows`): the E-rows stored in point order
-(``Structure.pt_rows``), a point's rows contiguous, so that every pass
+(:mod:`photogram.adjust.point_rows`): the E-rows stored point by point (a
+point's rows contiguous, segment i of the CSR pointer ``ptr`` holding the
+rows of the i-th point of an order where neighbours share
+cameras, so that the per-camera sums stay in cache; every per-point array,
+``A``, ``A^-1``, ``g_e``, in segment order), so that every pass
 keeps the point's data in registers and streams through ``W_o^T``; the
 reduced columns of a row are those of its row group (``group_cols[g]``,
 a table that stays in cache) instead of a per-row column array.
@@ -22,20 +25,22 @@ def bal_linearize(xy, points, R, X0, io, ptr, station, camera, group,
                   A, g_e, WT, g_grp, G):
     """Residuals, Jacobians and their normal-equation sums of the ``bal``
     model in one pass over the point-ordered rows (``ptr``: CSR pointer
-    per point; ``station``, ``camera``, ``group`` per row). Writes
-    ``A[p] = sum Je^T Je`` and ``g_e[p] = sum Je^T r`` for every point,
+    per segment, ``points[i]`` the point of segment i; ``station``,
+    ``camera``, ``group`` per row). Writes, in segment order,
+    ``A[i] = sum Je^T Je`` and ``g_e[i] = sum Je^T r`` for every point,
     ``WT[k] = Je^T Jc`` (3 x 9, ``Jc = [station (X0, rotation) | f k1
     k2]``); adds ``Jc^T r`` to ``g_grp[g]`` and the upper triangle of
     ``Jc^T Jc`` to ``G[g]``. Returns ``sum r^2``."""
     c0 = np.empty(9)
     c1 = np.empty(9)
     total = 0.0
-    for p in range(len(ptr) - 1):
+    for i in range(len(ptr) - 1):
+        p = i
         a00 = a01 = a02 = a11 = a12 = a22 = 0.0
         ge0 = ge1 = ge2 = 0.0
         part = 0.0
         px, py, pz = points[p, 0], points[p, 1], points[p, 2]
-        for k in range(ptr[p], ptr[p + 1]):
+        for k in range(ptr[i], ptr[i + 1]):
             s = station[k]
             c = camera[k]
             q = group[k]
@@ -98,15 +103,15 @@ def bal_linearize(xy, points, R, X0, io, ptr, station, camera, group,
                 WT[k, 0, j] = e00 * u + e10 * v
                 WT[k, 1, j] = e01 * u + e11 * v
                 WT[k, 2, j] = e02 * u + e12 * v
-                for i in range(j + 1):
-                    G[q, i, j] += c0[i] * u + c1[i] * v
-        A[p, 0, 0] = a00
-        A[p, 0, 1] = A[p, 1, 0] = a01
-        A[p, 0, 2] = A[p, 2, 0] = a02
-        A[p, 1, 1] = a11
-        A[p, 1, 2] = A[p, 2, 1] = a12
-        A[p, 2, 2] = a22
-        g_e[p, 0], g_e[p, 1], g_e[p, 2] = ge0, ge1, ge2
+                for m in range(j + 1):
+                    G[q, m, j] += c0[m] * u + c1[m] * v
+        A[i, 0, 0] = a00
+        A[i, 0, 1] = A[i, 1, 0] = a01
+        A[i, 0, 2] = A[i, 2, 0] = a02
+        A[i, 1, 1] = a11
+        A[i, 1, 2] = A[i, 2, 1] = a12
+        A[i, 2, 2] = a22
+        g_e[i, 0], g_e[i, 1], g_e[i, 2] = ge0, ge1, ge2
         total += part
     return total
 
@@ -116,10 +121,11 @@ def bal_cost(xy, points, R, X0, io, ptr, station, camera):
     """``sum r^2`` of the ``bal`` model over the point-ordered rows (the
     residuals of :func:`bal_linearize`, nothing stored)."""
     total = 0.0
-    for p in range(len(ptr) - 1):
+    for i in range(len(ptr) - 1):
+        p = i
         part = 0.0
         px, py, pz = points[p, 0], points[p, 1], points[p, 2]
-        for k in range(ptr[p], ptr[p + 1]):
+        for k in range(ptr[i], ptr[i + 1]):
             s = station[k]
             c = camera[k]
             d0 = px - X0[s, 0]
@@ -142,14 +148,16 @@ def bal_cost(xy, points, R, X0, io, ptr, station, camera):
 
 @njit
 def matvec(WT, group, gcols, ptr, Ainv, x, out):
-    """``out += W A^-1 W^T x`` point by point (``x`` padded with a zero
+    """``out += W A^-1 W^T x`` point by point (``Ainv`` in segment order;
+    ``x`` padded with a zero
     at the dummy column ``n_r``; the columns of row k are
     ``gcols[group[k]]``)."""
     s = WT.shape[2]
-    for p in range(len(ptr) - 1):
-        lo, hi = ptr[p], ptr[p + 1]
+    for i in range(len(ptr) - 1):
+        lo, hi = ptr[i], ptr[i + 1]
         if hi == lo:
             continue
+        p = i
         y0 = y1 = y2 = 0.0
         for k in range(lo, hi):
             g = group[k]
@@ -169,12 +177,13 @@ def matvec(WT, group, gcols, ptr, Ainv, x, out):
 
 @njit
 def back(WT, group, gcols, ptr, x, out):
-    """``out[p] = sum_k W_k^T x[gcols[group[k]]]`` over the rows of every
-    point (``x`` padded)."""
+    """``out[i] = sum_k W_k^T x[gcols[group[k]]]`` over the rows of every
+    segment i (``x`` padded)."""
     s = WT.shape[2]
-    for p in range(len(ptr) - 1):
+    for i in range(len(ptr) - 1):
+        p = i
         y0 = y1 = y2 = 0.0
-        for k in range(ptr[p], ptr[p + 1]):
+        for k in range(ptr[i], ptr[i + 1]):
             g = group[k]
             for j in range(s):
                 xv = x[gcols[g, j]]
@@ -188,16 +197,17 @@ def back(WT, group, gcols, ptr, x, out):
 def jacobi_rhs(WT, group, ptr, Ainv, g_e, blocks, rhs_g):
     """One pass for the Schur-Jacobi blocks and the reduced right-hand
     side: ``blocks[g] -= W_k A_p^-1 W_k^T`` (s x s) and ``rhs_g[g] +=
-    W_k A_p^-1 g_e[p]`` (s) for every row k of point p (one row per
-    group and point)."""
+    W_k A_i^-1 g_e[i]`` (s) for every row k of segment i (one row per
+    group and point; ``Ainv`` and ``g_e`` in segment order)."""
     s = WT.shape[2]
     Y = np.empty((3, s))
-    for p in range(len(ptr) - 1):
+    for i in range(len(ptr) - 1):
+        p = i
         b00, b01, b02 = Ainv[p, 0, 0], Ainv[p, 0, 1], Ainv[p, 0, 2]
         b10, b11, b12 = Ainv[p, 1, 0], Ainv[p, 1, 1], Ainv[p, 1, 2]
         b20, b21, b22 = Ainv[p, 2, 0], Ainv[p, 2, 1], Ainv[p, 2, 2]
         e0, e1, e2 = g_e[p, 0], g_e[p, 1], g_e[p, 2]
-        for k in range(ptr[p], ptr[p + 1]):
+        for k in range(ptr[i], ptr[i + 1]):
             g = group[k]
             for j in range(s):
                 w0, w1, w2 = WT[k, 0, j], WT[k, 1, j], WT[k, 2, j]
@@ -210,3 +220,36 @@ def jacobi_rhs(WT, group, ptr, Ainv, g_e, blocks, rhs_g):
                 w0, w1, w2 = WT[k, 0, a], WT[k, 1, a], WT[k, 2, a]
                 for b in range(a, s):
                     blocks[g, a, b] -= w0 * Y[0, b] + w1 * Y[1, b] + w2 * Y[2, b]
+
+
+@njit
+def damped_inverse(A, damping, fixed, out):
+    """``out[p]`` = inverse of ``A[p]`` with its diagonal times ``1 +
+    damping`` plus ``fixed[p]`` (the closed form of
+    ``schur.invert_point_blocks``, symmetrized). Returns the number of
+    blocks whose determinant is not above ``1e-14 trace^3`` (their
+    ``out`` is not valid; the caller reports them)."""
+    bad = 0
+    f = 1.0 + damping
+    for p in range(A.shape[0]):
+        a = A[p, 0, 0] * f + fixed[p, 0]
+        e = A[p, 1, 1] * f + fixed[p, 1]
+        i = A[p, 2, 2] * f + fixed[p, 2]
+        b, c, d = A[p, 0, 1], A[p, 0, 2], A[p, 1, 0]
+        ff, g, h = A[p, 1, 2], A[p, 2, 0], A[p, 2, 1]
+        c00, c01, c02 = e * i - ff * h, c * h - b * i, b * ff - c * e
+        c10, c11, c12 = ff * g - d * i, a * i - c * g, c * d - a * ff
+        c20, c21, c22 = d * h - e * g, b * g - a * h, a * e - b * d
+        det = a * c00 + b * c10 + c * c20
+        tr = a + e + i
+        if not abs(det) > 1e-14 * (tr * tr * tr + 1e-300):
+            bad += 1
+            continue
+        w = 1.0 / det
+        out[p, 0, 0] = c00 * w
+        out[p, 1, 1] = c11 * w
+        out[p, 2, 2] = c22 * w
+        out[p, 0, 1] = out[p, 1, 0] = 0.5 * (c01 + c10) * w
+        out[p, 0, 2] = out[p, 2, 0] = 0.5 * (c02 + c20) * w
+        out[p, 1, 2] = out[p, 2, 1] = 0.5 * (c12 + c21) * w
+    return bad

@@ -46,23 +46,29 @@ class SchurOperator:
     vectorized numpy steps otherwise.
     """
 
-    def __init__(self, system, Ncc, Ainv):
+    def __init__(self, system, Ncc, Ainv, ordered=False):
         st = system.structure
         self.system, self.Ncc, self.Ainv = system, Ncc, Ainv
         self.n_r, self.n_e = st.n_r, st.layout.n_eliminated
         rows = st.pt_rows
         self.ptr = st.pt_ptr
-        if getattr(st, "_pt_index", None) is None:       # fixed: once per structure
-            st._pt_index = (st.e_rcols[rows], st.e_point[rows], st.e_group[rows])
-        self.rcp, self.pidx, self.grp = st._pt_index
         self.fast = kernels.active(st.n_e_rows)
         # numba: W_o^T copied into point order; numpy: W^T as a CSR matrix
         # (once per linearization: repeated damped solves reuse it)
         cache = system.__dict__.setdefault("_rcs_cache", {})
         self.point = getattr(system, "plan", None)          # a point_rows.PointSystem
         if self.point is not None:
+            # point_rows.PointSystem: A^-1 also in its plan's point order
+            # (``ordered``: given so; else gathered, and given back in
+            # point-number order for the generic preconditioner)
             self.WTp, self.Wt = system.WTp, None
-        elif self.fast:
+            self.Ainv_o = Ainv if ordered else Ainv[self.point.point]
+            if ordered and not self.point.unique:
+                self.Ainv = np.empty_like(Ainv)
+                self.Ainv[self.point.point] = Ainv
+            return
+        self._index()
+        if self.fast:
             if "WTp" not in cache:
                 cache["WTp"] = system.WT[rows]
             self.WTp, self.Wt = cache["WTp"], None
@@ -71,8 +77,21 @@ class SchurOperator:
                 cache["Wt"] = _wt_matrix(st, system.WT)
             self.WTp, self.Wt = None, cache["Wt"]
 
+    def _index(self):
+        """Reduced columns, point and group of the point-ordered rows
+        (fixed: computed once per structure)."""
+        st = self.system.structure
+        if getattr(st, "_pt_index", None) is None:
+            rows = st.pt_rows
+            st._pt_index = (st.e_rcols[rows], st.e_point[rows], st.e_group[rows])
+        self.rcp, self.pidx, self.grp = st._pt_index
+
     def w_times_e(self, y):
         """``W y`` (n_r,) for y (n_e, 3)."""
+        if self.point is not None:
+            return self.system.w_times_e(y)
+        if not hasattr(self, "rcp"):
+            self._index()
         if self.Wt is not None:
             return (self.Wt.T @ y.ravel())[:self.n_r]
         u = np.einsum("nis,ni->ns", self.WTp, y[self.pidx])
@@ -84,7 +103,7 @@ class SchurOperator:
             from photogram.adjust import _numba_point
             out = np.zeros(self.n_r + 1)
             pl = self.point
-            _numba_point.matvec(self.WTp, pl.group, pl.gcols, pl.ptr, self.Ainv, x_ext, out)
+            _numba_point.matvec(self.WTp, pl.group, pl.gcols, pl.ptr, self.Ainv_o, x_ext, out)
             return self.Ncc @ x - out[:self.n_r]
         if self.fast:
             out = np.zeros(self.n_r + 1)
@@ -151,7 +170,8 @@ def _merged_rows(op):
     point; the point-ordered E-rows themselves when no point has two rows
     in one group."""
     starts = _merged_rows_plan(op)
-    WTp = op.WTp if op.WTp is not None else op.system.WT[op.system.structure.pt_rows]
+    WTp = op.WTp if op.WTp is not None and op.point is None else \
+        op.system.WT[op.system.structure.pt_rows]
     if starts is None:
         return WTp, op.grp, op.pidx
     return np.add.reduceat(WTp, starts, axis=0), op.grp[starts], op.pidx[starts]
@@ -218,6 +238,8 @@ def schur_jacobi(op, coupling=None):
     if coupling is not None:
         blocks += coupling
     elif len(st.pt_rows) and s:
+        if not hasattr(op, "rcp"):
+            op._index()
         if not op.fast and _merged_rows_plan(op) is None:
             blocks -= _group_schur_grams(system, Ainv)
         else:

@@ -213,6 +213,10 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
         raise ValueError(f"unknown reduced-camera-system method {method!r}")
     n_r, n_e = layout.n_reduced, layout.n_eliminated
     fixed = ~layout.free
+    if method == "iterative" and G is None and hasattr(system, "solve_iterative"):
+        # photogram.adjust.point_rows.PointSystem: everything in its point order
+        return system.solve_iterative(layout, damping, cg_tolerance, cg_max_iterations,
+                                      point_labels), None
     Ncc, A = damped(system, layout, damping)
     g_c, g_e = system.g[:n_r], system.g[n_r:]
     Ainv = invert_point_blocks(A, point_labels)
@@ -277,15 +281,10 @@ def _solve_iterative(system, Ncc, Ainv, layout, tolerance, max_iterations):
     n_r, n_e = layout.n_reduced, layout.n_eliminated
     g_c, g_e = system.g[:n_r], system.g[n_r:].reshape(n_e, 3)
     op = rcs_iterative.SchurOperator(system, Ncc, Ainv)
-    parts = system.schur_parts(Ncc, Ainv) if hasattr(system, "schur_parts") else None
-    if parts is None:
-        rhs_c = -g_c + op.w_times_e(np.einsum("nij,nj->ni", Ainv, g_e))
-        precond = rcs_iterative.schur_jacobi(op)
-    else:                          # point_rows.PointSystem: one pass for both
-        rhs_c = -g_c + parts[1]
-        precond = rcs_iterative.schur_jacobi(op, parts[0])
+    rhs_c = -g_c + op.w_times_e(np.einsum("nij,nj->ni", Ainv, g_e))
     rhs_c[~layout.free[:n_r]] = 0.0
-    dx_c, _ = rcs_iterative.pcg(op, rhs_c, precond, tolerance, max_iterations)
+    dx_c, _ = rcs_iterative.pcg(op, rhs_c, rcs_iterative.schur_jacobi(op),
+                                tolerance, max_iterations)
     rhs_e = -g_e - system.wt_times_c(dx_c)
     dx_e = np.matmul(Ainv, rhs_e[:, :, None])[:, :, 0].ravel()
     dx = np.concatenate([dx_c, dx_e])

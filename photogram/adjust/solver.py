@@ -469,6 +469,7 @@ def _trust_region(problem, opt, s, state, cost):
             if opt.callback is not None:
                 opt.callback(it, cost, lam)
             t = time.perf_counter()
+            system = None          # the old system's buffers are free for the new one
             system = problem.linearize(state)
             t_lin += time.perf_counter() - t
         else:
