@@ -306,7 +306,8 @@ class PointSystem(NormalSystem):
             invert_point_blocks(damped(self, layout, damping)[1], point_labels)   # raises
         return Ncc, Ainv
 
-    def solve_iterative(self, layout, damping, tolerance, max_iterations, point_labels=None):
+    def solve_iterative(self, layout, damping, tolerance, max_iterations, point_labels=None,
+                        criterion="residual"):
         """The damped step by preconditioned CG on the reduced camera
         system (:func:`photogram.adjust.schur.solve`'s iterative method),
         every point-side quantity in the plan's order."""
@@ -325,7 +326,7 @@ class PointSystem(NormalSystem):
             rhs_c = -self.g[:n_r] + parts[1]
             precond = rcs_iterative.schur_jacobi(op, parts[0])
         rhs_c[~layout.free[:n_r]] = 0.0
-        dx_c, _ = rcs_iterative.pcg(op, rhs_c, precond, tolerance, max_iterations)
+        dx_c, _ = rcs_iterative.pcg(op, rhs_c, precond, tolerance, max_iterations, criterion)
         rhs_o = -self.g_o - self.back_o(dx_c)
         dx = np.empty(layout.n_columns)
         dx[:n_r] = dx_c

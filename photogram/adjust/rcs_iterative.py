@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from photogram.adjust import kernels
 from photogram.errors import GeometryError
 
-__all__ = ["SchurOperator", "schur_jacobi", "pcg", "solve_reduced"]
+__all__ = ["SchurOperator", "schur_jacobi", "pcg", "solve_reduced", "CG_CRITERIA"]
 
 
 class SchurOperator:
@@ -276,10 +276,22 @@ def schur_jacobi(op, coupling=None):
     return apply
 
 
-def pcg(op, b, precond, tolerance=0.1, max_iterations=500):
-    """Preconditioned conjugate gradients for ``op(x) = b`` from ``x = 0``;
-    stops when ``sqrt(r^T P^-1 r) <= tolerance * sqrt(b^T P^-1 b)``.
-    Returns ``(x, iterations)``."""
+CG_CRITERIA = ("residual", "model")
+
+
+def pcg(op, b, precond, tolerance=0.1, max_iterations=500, criterion="residual"):
+    """Preconditioned conjugate gradients for ``op(x) = b`` from ``x = 0``.
+    Returns ``(x, iterations)``.
+
+    ``criterion="residual"``: stop when ``sqrt(r^T P^-1 r) <= tolerance *
+    sqrt(b^T P^-1 b)``. ``criterion="model"``: Ceres' truncated-Newton
+    test for Levenberg-Marquardt steps (Nash and Sofer 1990; Ceres'
+    ``ConjugateGradientsSolver`` with ``q_tolerance = eta``): with the
+    quadratic model ``Q(x) = x^T S x - 2 b^T x = -x^T (b + r)``, stop at
+    step i when ``i (Q_i - Q_{i-1}) / Q_i < tolerance``, i.e. when the
+    last step's share of the model decrease so far, times i, is small."""
+    if criterion not in CG_CRITERIA:
+        raise ValueError(f"unknown CG criterion {criterion!r} ({', '.join(CG_CRITERIA)})")
     x = np.zeros_like(b)
     r = b.copy()
     z = precond(r)
@@ -287,6 +299,8 @@ def pcg(op, b, precond, tolerance=0.1, max_iterations=500):
     if not rz > 0.0:
         return x, 0
     stop = tolerance * tolerance * rz
+    model = criterion == "model"
+    q0 = 0.0
     p = z.copy()
     it = 0
     for it in range(1, max_iterations + 1):
@@ -300,18 +314,26 @@ def pcg(op, b, precond, tolerance=0.1, max_iterations=500):
         alpha = rz / pq
         x += alpha * p
         r -= alpha * q
+        if model:
+            q1 = -float(x @ (b + r))
+            if q1 < 0.0 and it * (q1 - q0) / q1 < tolerance:
+                break
+            q0 = q1
         z = precond(r)
         rz_new = float(r @ z)
-        if rz_new <= stop:
+        if not model and rz_new <= stop:
+            break
+        if rz_new == 0.0:
             break
         p = z + (rz_new / rz) * p
         rz = rz_new
     return x, it
 
 
-def solve_reduced(system, Ncc, Ainv, rhs_c, tolerance=0.1, max_iterations=500):
+def solve_reduced(system, Ncc, Ainv, rhs_c, tolerance=0.1, max_iterations=500,
+                  criterion="residual"):
     """``dx_c`` of ``S dx_c = rhs_c`` by preconditioned CG (``Ncc``
     damped, sparse or dense; ``Ainv`` the inverse damped point blocks).
     Returns ``(dx_c, cg_iterations)``."""
     op = SchurOperator(system, Ncc, Ainv)
-    return pcg(op, rhs_c, schur_jacobi(op), tolerance, max_iterations)
+    return pcg(op, rhs_c, schur_jacobi(op), tolerance, max_iterations, criterion)

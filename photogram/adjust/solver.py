@@ -61,7 +61,11 @@ class SolverOptions:
     BAL linearization of :mod:`photogram.adjust.point_rows`, 4000 on the
     pure-numpy path, the crossovers measured on SIMULATED BAL problems),
     dense otherwise. CG stops when the preconditioned residual has
-    fallen by ``cg_tolerance`` or after ``cg_max_iterations`` steps.
+    fallen by ``cg_tolerance`` (``cg_criterion="residual"``) or, with
+    ``"model"``, by Ceres' test for Levenberg-Marquardt steps (the last
+    step's share of the quadratic model's decrease, times the step count,
+    below ``cg_tolerance``; :func:`photogram.adjust.rcs_iterative.pcg`), or
+    after ``cg_max_iterations`` steps.
     """
 
     max_iterations: int = 50
@@ -85,6 +89,7 @@ class SolverOptions:
     iterative_min_columns: int | None = None   # None: 1500 with numba kernels, 4000 without
     cg_tolerance: float = 0.1         # Ceres' eta (ITERATIVE_SCHUR)
     cg_max_iterations: int = 500
+    cg_criterion: str = "residual"    # residual | model (Ceres' LM test, rcs_iterative.pcg)
 
 
 @dataclass
@@ -133,7 +138,8 @@ class Problem:
         self._all_fixed = [[not np.any(m) for m in ms] for ms in self._free_masks]
         # how solve_linear solves the reduced camera system (set by solve()
         # for its run from SolverOptions; dense otherwise)
-        self.rcs = {"method": "dense", "cg_tolerance": 0.1, "cg_max_iterations": 500}
+        self.rcs = {"method": "dense", "cg_tolerance": 0.1, "cg_max_iterations": 500,
+                    "cg_criterion": "residual"}
 
     def weights(self, k):
         """sqrt of the weight of every residual of block k (0 = not used)."""
@@ -251,7 +257,7 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     opt = options or SolverOptions()
     saved = dict(problem.rcs)
     problem.rcs.update(method=rcs_method(problem, opt), cg_tolerance=opt.cg_tolerance,
-                       cg_max_iterations=opt.cg_max_iterations)
+                       cg_max_iterations=opt.cg_max_iterations, cg_criterion=opt.cg_criterion)
     try:
         with single_thread_blas():
             s = _solve(problem, opt)
