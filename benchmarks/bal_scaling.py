@@ -42,7 +42,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from photogram.adjust import kernels  # noqa: E402
+from photogram.adjust import kernels, rcs_iterative  # noqa: E402
 from photogram.bundle.bal import bal_options, build_bal_problem, solve_bal  # noqa: E402
 from photogram.simulation.bal_sphere import sphere_bal  # noqa: E402
 
@@ -64,6 +64,22 @@ def warm_up():
 
 def photogram_run(bal, iterations, numba):
     kernels.use_numba(numba)
+    steps, original = [], rcs_iterative.pcg
+
+    def pcg(*args, **kw):                  # count the CG steps of every RCS solve
+        x, it = original(*args, **kw)
+        steps.append(it)
+        return x, it
+    rcs_iterative.pcg = pcg
+    try:
+        out = _photogram_run(bal, iterations)
+    finally:
+        rcs_iterative.pcg = original
+    out["cg"] = steps
+    return out
+
+
+def _photogram_run(bal, iterations):
     built = build_bal_problem(bal, behind="keep")
     marks = []
     opt = bal_options(max_iterations=iterations,
@@ -195,8 +211,9 @@ def report(row):
     for key in ("numba", "numpy"):
         r = row.get(key)
         if r:
+            cg = f", CG steps {'+'.join(map(str, r['cg']))}" if r.get("cg") else ""
             print(f"  photogram {key:<6} ({r['solver']:<9}) {r['cpu']:8.3f} ({r['wall']:7.3f})  "
-                  f"{r['iterations']} it, cost {r['final']:.6g}")
+                  f"{r['iterations']} it, cost {r['final']:.6g}{cg}")
     for (kind, threads), r in row["ceres"].items():
         if r is None:
             print(f"  Ceres {kind:<15} {threads} thr   skipped (extrapolated beyond the limit)")
