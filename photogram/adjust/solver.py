@@ -283,7 +283,8 @@ def rcs_method(problem: Problem, options: SolverOptions) -> str:
         return choice
     least = options.iterative_min_columns
     if least is None:
-        fused = problem.G is None and point_rows.plan(problem, "iterative") is not None
+        fused = (problem.layout.n_reduced >= ITERATIVE_MIN_COLUMNS["fused"] and problem.G is None
+                 and point_rows.plan(problem, "iterative") is not None)
         least = ITERATIVE_MIN_COLUMNS["fused" if fused else
                                       kernels.active(problem.structure.n_e_rows)]
     big = problem.layout.n_reduced >= least
