@@ -5,7 +5,7 @@ problem (:func:`photogram.simulation.bal_sphere.sphere_bal`), for one CG
 tolerance (``SolverOptions.cg_tolerance``).
 
 Run: /work/venv-bal/bin/python benchmarks/bal_converge.py CAMERAS SEED
-     [--tolerance 0.1] [--numpy] [--method iterative|dense|auto]
+     [--tolerance 0.1] [--criterion residual|model] [--numpy] [--method iterative|dense|auto]
      [--point-order] [--max-iterations 50]
 Prints one line ``RESULT ...`` (CPU s from ``time.process_time``; the
 set-up inside the solve is included).
@@ -20,6 +20,7 @@ import numpy as np
 from photogram.adjust import kernels, rcs_iterative
 from photogram.bundle.bal import bal_options, build_bal_problem, solve_bal
 from photogram.simulation.bal_sphere import sphere_bal
+from bal_scaling import warm_up
 
 
 def counting_pcg(steps):
@@ -38,15 +39,16 @@ def main():
     ap.add_argument("cameras", type=int)
     ap.add_argument("seed", type=int)
     ap.add_argument("--tolerance", type=float, default=0.1)
+    ap.add_argument("--criterion", default="residual", choices=("residual", "model"),
+                    help="CG stopping test (SolverOptions.cg_criterion)")
     ap.add_argument("--numpy", action="store_true", help="the pure-numpy path")
     ap.add_argument("--method", default="iterative", choices=("iterative", "dense", "auto"))
     ap.add_argument("--point-order", action="store_true",
                     help="observations sorted by point instead of by camera")
     ap.add_argument("--max-iterations", type=int, default=50)
     args = ap.parse_args()
+    warm_up()
     kernels.use_numba(not args.numpy)
-    warm = sphere_bal(20, obs_per_camera=500, seed=99).problem
-    solve_bal(build_bal_problem(warm, behind="keep"), bal_options(max_iterations=2))
     steps = []
     counting_pcg(steps)
     bal = sphere_bal(args.cameras, seed=args.seed).problem
@@ -54,6 +56,7 @@ def main():
         bal = bal.subset(np.argsort(bal.point, kind="stable"))
     built = build_bal_problem(bal, behind="keep")
     opt = bal_options(max_iterations=args.max_iterations, cg_tolerance=args.tolerance,
+                      cg_criterion=args.criterion,
                       linear_solver=args.method)
     c0, w0 = time.process_time(), time.perf_counter()
     s = solve_bal(built, opt)
@@ -61,7 +64,7 @@ def main():
     it = max(s.iterations, 1)
     print(f"RESULT cameras={args.cameras} seed={args.seed} obs={bal.n_observations} "
           f"path={'numpy' if args.numpy else 'numba'} method={s.linear_solver} "
-          f"tolerance={args.tolerance} point_order={args.point_order} status={s.status} "
+          f"tolerance={args.tolerance} criterion={args.criterion} point_order={args.point_order} status={s.status} "
           f"iterations={s.iterations} cpu={cpu:.1f} wall={wall:.1f} cpu_per_it={cpu / it:.3f} "
           f"final_cost={s.final_cost:.8g} cg_steps={sum(steps)} per_solve={','.join(map(str, steps))} "
           "data=SIMULATED")

@@ -42,15 +42,44 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from photogram.adjust import kernels  # noqa: E402
+from photogram.adjust import kernels, rcs_iterative  # noqa: E402
 from photogram.bundle.bal import bal_options, build_bal_problem, solve_bal  # noqa: E402
 from photogram.simulation.bal_sphere import sphere_bal  # noqa: E402
 
 SETTINGS = [(k, t) for k in ("DENSE_SCHUR", "SPARSE_SCHUR", "ITERATIVE_SCHUR") for t in (1, 2)]
 
 
+def warm_up():
+    """Load numba's cached kernels (both RCS solves) before any timing: a
+    problem above the kernels' row threshold (20,000 E-rows), solved for
+    two iterations with the dense and with the iterative RCS."""
+    if not kernels.HAVE_NUMBA:
+        return
+    kernels.use_numba(True)
+    warm = sphere_bal(20, obs_per_camera=1500, seed=99).problem
+    for method in ("dense", "iterative"):
+        solve_bal(build_bal_problem(warm, behind="keep"),
+                  bal_options(max_iterations=2, linear_solver=method))
+
+
 def photogram_run(bal, iterations, numba):
     kernels.use_numba(numba)
+    steps, original = [], rcs_iterative.pcg
+
+    def pcg(*args, **kw):                  # count the CG steps of every RCS solve
+        x, it = original(*args, **kw)
+        steps.append(it)
+        return x, it
+    rcs_iterative.pcg = pcg
+    try:
+        out = _photogram_run(bal, iterations)
+    finally:
+        rcs_iterative.pcg = original
+    out["cg"] = steps
+    return out
+
+
+def _photogram_run(bal, iterations):
     built = build_bal_problem(bal, behind="keep")
     marks = []
     opt = bal_options(max_iterations=iterations,
@@ -150,8 +179,7 @@ def main():
     print(f"SIMULATED sphere BAL problems, seed {args.seed}, {args.iterations} iterations; "
           f"numba {'installed' if kernels.HAVE_NUMBA else 'missing'}; times per iteration, "
           "CPU s (wall s)")
-    warm = sphere_bal(20, obs_per_camera=500, seed=99).problem
-    photogram_run(warm, 2, kernels.HAVE_NUMBA)          # numba's cached kernels load
+    warm_up()
     rows, hist = [], {s: [] for s in SETTINGS}
     for n_c in sizes:
         bal = sphere_bal(n_c, seed=args.seed).problem
@@ -183,8 +211,9 @@ def report(row):
     for key in ("numba", "numpy"):
         r = row.get(key)
         if r:
+            cg = f", CG steps {'+'.join(map(str, r['cg']))}" if r.get("cg") else ""
             print(f"  photogram {key:<6} ({r['solver']:<9}) {r['cpu']:8.3f} ({r['wall']:7.3f})  "
-                  f"{r['iterations']} it, cost {r['final']:.6g}")
+                  f"{r['iterations']} it, cost {r['final']:.6g}{cg}")
     for (kind, threads), r in row["ceres"].items():
         if r is None:
             print(f"  Ceres {kind:<15} {threads} thr   skipped (extrapolated beyond the limit)")

@@ -346,13 +346,13 @@ def solve_dense(problem, state, damping=0.0):
 
 
 def parameter_scale(problem, state):
-    from photogram.adjust.solver import _parameter_scale
+    from photogram.adjust.lm_loops import _parameter_scale
     return _parameter_scale(problem, state)[dense_structure(problem).free]
 
 
 def gauss_newton(problem, *, tolerance=1e-10, max_iterations=30, scale=None):
     """Undamped Gauss-Newton on ``problem.state`` (in place) until the largest
-    step relative to the parameter scale (:func:`solver._parameter_scale`,
+    step relative to the parameter scale (:func:`lm_loops._parameter_scale`,
     taken at the start) is below ``tolerance``; returns the iterations.
     A problem whose free unknowns are all eliminated points (fixed
     orientation) is solved point by point (3x3 normal equations each,

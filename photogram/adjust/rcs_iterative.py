@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from photogram.adjust import kernels
 from photogram.errors import GeometryError
 
-__all__ = ["SchurOperator", "schur_jacobi", "pcg", "solve_reduced"]
+__all__ = ["SchurOperator", "schur_jacobi", "pcg", "solve_reduced", "CG_CRITERIA"]
 
 
 class SchurOperator:
@@ -46,19 +46,28 @@ class SchurOperator:
     vectorized numpy steps otherwise.
     """
 
-    def __init__(self, system, Ncc, Ainv):
+    def __init__(self, system, Ncc, Ainv, ordered=False):
         st = system.structure
         self.system, self.Ncc, self.Ainv = system, Ncc, Ainv
         self.n_r, self.n_e = st.n_r, st.layout.n_eliminated
         rows = st.pt_rows
         self.ptr = st.pt_ptr
-        if getattr(st, "_pt_index", None) is None:       # fixed: once per structure
-            st._pt_index = (st.e_rcols[rows], st.e_point[rows], st.e_group[rows])
-        self.rcp, self.pidx, self.grp = st._pt_index
         self.fast = kernels.active(st.n_e_rows)
         # numba: W_o^T copied into point order; numpy: W^T as a CSR matrix
         # (once per linearization: repeated damped solves reuse it)
         cache = system.__dict__.setdefault("_rcs_cache", {})
+        self.point = getattr(system, "plan", None)          # a point_rows.PointSystem
+        if self.point is not None:
+            # point_rows.PointSystem: A^-1 also in its plan's point order
+            # (``ordered``: given so; else gathered, and given back in
+            # point-number order for the generic preconditioner)
+            self.WTp, self.Wt = system.WTp, None
+            self.Ainv_o = Ainv if ordered else Ainv[self.point.point]
+            if ordered and not self.point.unique:
+                self.Ainv = np.empty_like(Ainv)
+                self.Ainv[self.point.point] = Ainv
+            return
+        self._index()
         if self.fast:
             if "WTp" not in cache:
                 cache["WTp"] = system.WT[rows]
@@ -68,8 +77,21 @@ class SchurOperator:
                 cache["Wt"] = _wt_matrix(st, system.WT)
             self.WTp, self.Wt = None, cache["Wt"]
 
+    def _index(self):
+        """Reduced columns, point and group of the point-ordered rows
+        (fixed: computed once per structure)."""
+        st = self.system.structure
+        if getattr(st, "_pt_index", None) is None:
+            rows = st.pt_rows
+            st._pt_index = (st.e_rcols[rows], st.e_point[rows], st.e_group[rows])
+        self.rcp, self.pidx, self.grp = st._pt_index
+
     def w_times_e(self, y):
         """``W y`` (n_r,) for y (n_e, 3)."""
+        if self.point is not None:
+            return self.system.w_times_e(y)
+        if not hasattr(self, "rcp"):
+            self._index()
         if self.Wt is not None:
             return (self.Wt.T @ y.ravel())[:self.n_r]
         u = np.einsum("nis,ni->ns", self.WTp, y[self.pidx])
@@ -77,6 +99,12 @@ class SchurOperator:
 
     def __call__(self, x):
         x_ext = np.append(x, 0.0)
+        if self.point is not None:
+            from photogram.adjust import _numba_point
+            out = np.zeros(self.n_r + 1)
+            pl = self.point
+            _numba_point.matvec(self.WTp, pl.group, pl.gcols, pl.ptr, self.Ainv_o, x_ext, out)
+            return self.Ncc @ x - out[:self.n_r]
         if self.fast:
             out = np.zeros(self.n_r + 1)
             kernels.compiled().schur_matvec(self.WTp, self.rcp, self.ptr, self.Ainv, x_ext, out)
@@ -142,7 +170,8 @@ def _merged_rows(op):
     point; the point-ordered E-rows themselves when no point has two rows
     in one group."""
     starts = _merged_rows_plan(op)
-    WTp = op.WTp if op.WTp is not None else op.system.WT[op.system.structure.pt_rows]
+    WTp = op.WTp if op.WTp is not None and op.point is None else \
+        op.system.WT[op.system.structure.pt_rows]
     if starts is None:
         return WTp, op.grp, op.pidx
     return np.add.reduceat(WTp, starts, axis=0), op.grp[starts], op.pidx[starts]
@@ -196,16 +225,21 @@ def _group_schur_grams(system, Ainv):
     return out
 
 
-def schur_jacobi(op):
+def schur_jacobi(op, coupling=None):
     """The Schur-Jacobi preconditioner of a :class:`SchurOperator`: a
-    function ``z = P^-1 r``."""
+    function ``z = P^-1 r``. ``coupling``: the blocks'
+    ``-sum W A^-1 W^T`` part when already summed (n_g, s, s)."""
     system, Ncc, Ainv = op.system, op.Ncc, op.Ainv
     st = system.structure
     n_r = st.n_r
     gc = st.group_cols                                       # (n_g, s), padded with n_r
     n_g, s = gc.shape
     blocks = _ncc_group_blocks(Ncc, gc, n_r)
-    if len(st.pt_rows) and s:
+    if coupling is not None:
+        blocks += coupling
+    elif len(st.pt_rows) and s:
+        if not hasattr(op, "rcp"):
+            op._index()
         if not op.fast and _merged_rows_plan(op) is None:
             blocks -= _group_schur_grams(system, Ainv)
         else:
@@ -242,10 +276,22 @@ def schur_jacobi(op):
     return apply
 
 
-def pcg(op, b, precond, tolerance=0.1, max_iterations=500):
-    """Preconditioned conjugate gradients for ``op(x) = b`` from ``x = 0``;
-    stops when ``sqrt(r^T P^-1 r) <= tolerance * sqrt(b^T P^-1 b)``.
-    Returns ``(x, iterations)``."""
+CG_CRITERIA = ("residual", "model")
+
+
+def pcg(op, b, precond, tolerance=0.1, max_iterations=500, criterion="residual"):
+    """Preconditioned conjugate gradients for ``op(x) = b`` from ``x = 0``.
+    Returns ``(x, iterations)``.
+
+    ``criterion="residual"``: stop when ``sqrt(r^T P^-1 r) <= tolerance *
+    sqrt(b^T P^-1 b)``. ``criterion="model"``: Ceres' truncated-Newton
+    test for Levenberg-Marquardt steps (Nash and Sofer 1990; Ceres'
+    ``ConjugateGradientsSolver`` with ``q_tolerance = eta``): with the
+    quadratic model ``Q(x) = x^T S x - 2 b^T x = -x^T (b + r)``, stop at
+    step i when ``i (Q_i - Q_{i-1}) / Q_i < tolerance``, i.e. when the
+    last step's share of the model decrease so far, times i, is small."""
+    if criterion not in CG_CRITERIA:
+        raise ValueError(f"unknown CG criterion {criterion!r} ({', '.join(CG_CRITERIA)})")
     x = np.zeros_like(b)
     r = b.copy()
     z = precond(r)
@@ -253,6 +299,8 @@ def pcg(op, b, precond, tolerance=0.1, max_iterations=500):
     if not rz > 0.0:
         return x, 0
     stop = tolerance * tolerance * rz
+    model = criterion == "model"
+    q0 = 0.0
     p = z.copy()
     it = 0
     for it in range(1, max_iterations + 1):
@@ -266,18 +314,26 @@ def pcg(op, b, precond, tolerance=0.1, max_iterations=500):
         alpha = rz / pq
         x += alpha * p
         r -= alpha * q
+        if model:
+            q1 = -float(x @ (b + r))
+            if q1 < 0.0 and it * (q1 - q0) / q1 < tolerance:
+                break
+            q0 = q1
         z = precond(r)
         rz_new = float(r @ z)
-        if rz_new <= stop:
+        if not model and rz_new <= stop:
+            break
+        if rz_new == 0.0:
             break
         p = z + (rz_new / rz) * p
         rz = rz_new
     return x, it
 
 
-def solve_reduced(system, Ncc, Ainv, rhs_c, tolerance=0.1, max_iterations=500):
+def solve_reduced(system, Ncc, Ainv, rhs_c, tolerance=0.1, max_iterations=500,
+                  criterion="residual"):
     """``dx_c`` of ``S dx_c = rhs_c`` by preconditioned CG (``Ncc``
     damped, sparse or dense; ``Ainv`` the inverse damped point blocks).
     Returns ``(dx_c, cg_iterations)``."""
     op = SchurOperator(system, Ncc, Ainv)
-    return pcg(op, rhs_c, schur_jacobi(op), tolerance, max_iterations)
+    return pcg(op, rhs_c, schur_jacobi(op), tolerance, max_iterations, criterion)

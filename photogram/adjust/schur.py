@@ -182,7 +182,7 @@ RCS_METHODS = ("dense", "iterative")
 
 
 def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense",
-          cg_tolerance=0.1, cg_max_iterations=500):
+          cg_tolerance=0.1, cg_max_iterations=500, cg_criterion="residual"):
     """One Gauss-Newton (or damped, Levenberg-Marquardt) step.
 
     Parameters
@@ -201,7 +201,8 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
         solved by conjugate gradients on the implicit Schur complement
         with the Schur-Jacobi preconditioner
         (:mod:`photogram.adjust.rcs_iterative`; inexact to
-        ``cg_tolerance``, not with datum conditions ``G``, no
+        ``cg_tolerance`` by ``cg_criterion``, see
+        :func:`photogram.adjust.rcs_iterative.pcg`; not with datum conditions ``G``, no
         factorization: ``fact`` is None).
 
     Returns
@@ -213,6 +214,10 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
         raise ValueError(f"unknown reduced-camera-system method {method!r}")
     n_r, n_e = layout.n_reduced, layout.n_eliminated
     fixed = ~layout.free
+    if method == "iterative" and G is None and hasattr(system, "solve_iterative"):
+        # photogram.adjust.point_rows.PointSystem: everything in its point order
+        return system.solve_iterative(layout, damping, cg_tolerance, cg_max_iterations,
+                                      point_labels, cg_criterion), None
     Ncc, A = damped(system, layout, damping)
     g_c, g_e = system.g[:n_r], system.g[n_r:]
     Ainv = invert_point_blocks(A, point_labels)
@@ -220,7 +225,8 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
         if G is not None:
             raise ValueError("the iterative reduced-camera-system solve takes no datum "
                              "conditions G (use method='dense')")
-        return _solve_iterative(system, Ncc, Ainv, layout, cg_tolerance, cg_max_iterations)
+        return _solve_iterative(system, Ncc, Ainv, layout, cg_tolerance, cg_max_iterations,
+                                cg_criterion)
     S, YGe = reduced_camera_system(system, Ainv, Ncc)
     rhs_c = -g_c + YGe
 
@@ -271,7 +277,7 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
     return dx, Factorization(Ainv, M, cho, d if G is None else dd, AinvGe, n_r, system)
 
 
-def _solve_iterative(system, Ncc, Ainv, layout, tolerance, max_iterations):
+def _solve_iterative(system, Ncc, Ainv, layout, tolerance, max_iterations, criterion):
     """The step by conjugate gradients on the reduced camera system."""
     from photogram.adjust import rcs_iterative
     n_r, n_e = layout.n_reduced, layout.n_eliminated
@@ -280,7 +286,7 @@ def _solve_iterative(system, Ncc, Ainv, layout, tolerance, max_iterations):
     rhs_c = -g_c + op.w_times_e(np.einsum("nij,nj->ni", Ainv, g_e))
     rhs_c[~layout.free[:n_r]] = 0.0
     dx_c, _ = rcs_iterative.pcg(op, rhs_c, rcs_iterative.schur_jacobi(op),
-                                tolerance, max_iterations)
+                                tolerance, max_iterations, criterion)
     rhs_e = -g_e - system.wt_times_c(dx_c)
     dx_e = np.matmul(Ainv, rhs_e[:, :, None])[:, :, 0].ravel()
     dx = np.concatenate([dx_c, dx_e])

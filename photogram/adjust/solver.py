@@ -22,15 +22,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from photogram.adjust import kernels
+from photogram.adjust import kernels, point_rows
 from photogram.adjust.diagnostics import worst_observations
+from photogram.adjust.lm_loops import gauss_newton, trust_region
 from photogram.adjust.normal import Structure, assemble
 from photogram.adjust.schur import RCS_METHODS, solve as schur_solve
 from photogram.errors import GeometryError
 
 DAMPINGS = ("none", "lm", "armijo", "trust_region")
-# reduced columns from which "auto" solves the RCS iteratively: {numba: n}
-ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000}
+# reduced columns from which "auto" solves the RCS iteratively: {numba: n;
+# "fused": numba with point_rows' fused BAL linearization}
+ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000, "fused": 500}
 
 
 @dataclass
@@ -55,9 +57,15 @@ class SolverOptions:
     ITERATIVE_SCHUR; :mod:`photogram.adjust.rcs_iterative`) or ``"auto"``
     (default): iterative when the problem has no datum conditions (inner
     constraints) and at least ``iterative_min_columns`` reduced columns
-    (None: 1500 when the numba kernels run, 4000 on the pure-numpy path,
-    the crossovers measured on SIMULATED BAL problems), dense otherwise. CG stops when the preconditioned residual has
-    fallen by ``cg_tolerance`` or after ``cg_max_iterations`` steps.
+    (None: 1500 when the numba kernels run, 500 when they run the fused
+    BAL linearization of :mod:`photogram.adjust.point_rows`, 4000 on the
+    pure-numpy path, the crossovers measured on SIMULATED BAL problems),
+    dense otherwise. CG stops when the preconditioned residual has
+    fallen by ``cg_tolerance`` (``cg_criterion="residual"``) or, with
+    ``"model"``, by Ceres' test for Levenberg-Marquardt steps (the last
+    step's share of the quadratic model's decrease, times the step count,
+    below ``cg_tolerance``; :func:`photogram.adjust.rcs_iterative.pcg`), or
+    after ``cg_max_iterations`` steps.
     """
 
     max_iterations: int = 50
@@ -81,6 +89,7 @@ class SolverOptions:
     iterative_min_columns: int | None = None   # None: 1500 with numba kernels, 4000 without
     cg_tolerance: float = 0.1         # Ceres' eta (ITERATIVE_SCHUR)
     cg_max_iterations: int = 500
+    cg_criterion: str = "residual"    # residual | model (Ceres' LM test, rcs_iterative.pcg)
 
 
 @dataclass
@@ -129,7 +138,8 @@ class Problem:
         self._all_fixed = [[not np.any(m) for m in ms] for ms in self._free_masks]
         # how solve_linear solves the reduced camera system (set by solve()
         # for its run from SolverOptions; dense otherwise)
-        self.rcs = {"method": "dense", "cg_tolerance": 0.1, "cg_max_iterations": 500}
+        self.rcs = {"method": "dense", "cg_tolerance": 0.1, "cg_max_iterations": 500,
+                    "cg_criterion": "residual"}
 
     def weights(self, k):
         """sqrt of the weight of every residual of block k (0 = not used)."""
@@ -164,6 +174,9 @@ class Problem:
         return rs, Js
 
     def cost(self, state) -> float:
+        fused = point_rows.cost(self, state)
+        if fused is not None:
+            return fused
         rs, _ = self.evaluate(state, jacobians=False)
         return 0.5 * sum(float(np.sum(r * r)) for r in rs)
 
@@ -178,6 +191,9 @@ class Problem:
 
     def linearize(self, state):
         """The normal equations at ``state`` (residuals, Jacobians, sums)."""
+        fused = point_rows.linearize(self, state)
+        if fused is not None:
+            return fused
         rs, Js = self.evaluate(state)
         return assemble(self.structure, rs, Js, sparse=self.rcs["method"] == "iterative")
 
@@ -241,7 +257,7 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     opt = options or SolverOptions()
     saved = dict(problem.rcs)
     problem.rcs.update(method=rcs_method(problem, opt), cg_tolerance=opt.cg_tolerance,
-                       cg_max_iterations=opt.cg_max_iterations)
+                       cg_max_iterations=opt.cg_max_iterations, cg_criterion=opt.cg_criterion)
     try:
         with single_thread_blas():
             s = _solve(problem, opt)
@@ -267,7 +283,10 @@ def rcs_method(problem: Problem, options: SolverOptions) -> str:
         return choice
     least = options.iterative_min_columns
     if least is None:
-        least = ITERATIVE_MIN_COLUMNS[kernels.active(problem.structure.n_e_rows)]
+        fused = (problem.layout.n_reduced >= ITERATIVE_MIN_COLUMNS["fused"] and problem.G is None
+                 and point_rows.plan(problem, "iterative") is not None)
+        least = ITERATIVE_MIN_COLUMNS["fused" if fused else
+                                      kernels.active(problem.structure.n_e_rows)]
     big = problem.layout.n_reduced >= least
     return "iterative" if big and problem.G is None and problem.structure.n_e_rows else "dense"
 
@@ -282,7 +301,7 @@ def _solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     which converges quadratically even in the narrow valleys of correlated
     interior parameters where a small fixed lambda crawls. With
     ``"armijo"`` a failed step is halved. With ``"trust_region"`` every
-    step is damped as in Ceres (:func:`_trust_region`).
+    step is damped as in Ceres (:func:`photogram.adjust.lm_loops.trust_region`).
     """
     opt = options or SolverOptions()
     if opt.damping not in DAMPINGS:
@@ -299,9 +318,9 @@ def _solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     s.initial_cost = cost
     s.cost_trace.append(cost)
     if opt.damping == "trust_region":
-        state, cost = _trust_region(problem, opt, s, state, cost)
+        state, cost = trust_region(problem, opt, s, state, cost)
     else:
-        state, cost = _gauss_newton(problem, opt, s, state, cost)
+        state, cost = gauss_newton(problem, opt, s, state, cost)
     problem.state = state
     s.final_cost = cost
     s.sigma0 = float(np.sqrt(2 * cost / s.redundancy)) if s.redundancy > 0 else float("nan")
@@ -311,172 +330,6 @@ def _solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     if s.status == "failed":
         raise GeometryError(s.message, hint="check the approximate values, the datum and gross errors")
     return s
-
-
-def _gauss_newton(problem, opt, s, state, cost):
-    """Gauss-Newton with Marquardt's damping after failures ("lm"), step
-    halving ("armijo") or nothing ("none"). The normal equations are
-    assembled once per iterate; only the solve is repeated per lambda."""
-    lam = opt.initial_lambda if opt.damping == "lm" else 0.0
-    s.status = "max_iterations"
-    system = None
-    for it in range(1, opt.max_iterations + 1):
-        accepted = False
-        if system is None:
-            system = problem.linearize(state)
-        while True:
-            dx, _ = problem.solve_linear(system, lam)
-            trial = state.updated(problem.layout, dx)
-            new_cost = problem.cost(trial)
-            if np.isfinite(new_cost) and new_cost <= cost * (1 + 1e-12):
-                accepted = True
-                break
-            if opt.damping == "lm" and lam < opt.max_lambda:
-                lam = lam * 10.0 if lam > 0 else opt.restart_lambda
-                continue
-            if opt.damping in ("armijo", "none"):
-                halved = False
-                for _ in range(20):
-                    dx = dx * 0.5
-                    trial = state.updated(problem.layout, dx)
-                    new_cost = problem.cost(trial)
-                    if np.isfinite(new_cost) and new_cost <= cost:
-                        accepted, halved = True, True
-                        break
-                if halved:
-                    break
-            break
-        s.iterations = it
-        if not accepted:
-            s.unsuccessful_steps += 1
-            if not np.isfinite(new_cost):
-                s.status, s.message = "failed", "the iteration diverged (non-finite cost)"
-            else:
-                s.status, s.message = "converged", "no step decreases the cost any further"
-            break
-        s.successful_steps += 1
-        decrease = cost - new_cost
-        state, cost = trial, new_cost
-        system = None
-        s.cost_trace.append(cost)
-        if opt.callback is not None:
-            opt.callback(it, cost, lam)
-        if opt.damping == "lm":
-            lam = 0.0 if lam <= opt.restart_lambda * 1e-2 else lam / 10.0
-        scale = _parameter_scale(problem, state)
-        small_step = np.max(np.abs(dx) / scale, initial=0.0) < opt.tolerance ** 0.5
-        if decrease <= opt.tolerance * max(cost, 1e-300) or small_step:
-            s.status, s.message = "converged", "relative change of the cost below tolerance"
-            break
-    else:
-        s.message = f"no convergence in {opt.max_iterations} iterations"
-    return state, cost
-
-
-def _trust_region(problem, opt, s, state, cost):
-    """Ceres' Levenberg-Marquardt trust region (levenberg_marquardt_strategy.cc,
-    trust_region_minimizer.cc): solve ``(N + diag(N) / radius) dx = -g``;
-    ``rho = (cost - new cost) / (model decrease)``; a step with
-    ``rho > min_relative_decrease`` is taken and the radius grows by
-    ``1 / max(1/3, 1 - (2 rho - 1)^3)``; otherwise the radius shrinks by a
-    factor that doubles with every consecutive failure. A singular damped
-    system counts as an invalid step (radius shrinks). Stops when
-    ``|cost change| <= ftol cost`` (Ceres' function tolerance; a decrease is
-    kept), ``|dx| <= ptol (|x| + ptol)``, ``max |g| <= gtol``, or the
-    radius falls below ``min_radius``.
-    """
-    ftol = opt.function_tolerance
-    if ftol is None:
-        ftol = 1e-6 if opt.tolerance == SolverOptions.tolerance else opt.tolerance
-    radius, factor = opt.initial_radius, 2.0
-    invalid = 0
-    s.status = "max_iterations"
-    s.message = f"no convergence in {opt.max_iterations} iterations"
-    t_sol = t_cost = 0.0
-    t = time.perf_counter()
-    system = problem.linearize(state)
-    t_lin = time.perf_counter() - t
-    for it in range(1, opt.max_iterations + 1):
-        s.iterations = it
-        free_g = system.g[problem.layout.free]
-        if np.max(np.abs(free_g), initial=0.0) <= opt.gradient_tolerance:
-            s.status, s.message = "converged", "gradient tolerance reached"
-            s.iterations = it - 1
-            break
-        lam = 1.0 / radius
-        error = None
-        t = time.perf_counter()
-        try:
-            dx, _ = problem.solve_linear(system, lam)
-            valid = True
-        except GeometryError as exc:
-            valid, error = False, exc
-        t_sol += time.perf_counter() - t
-        if valid:
-            model = -(float(system.g @ dx) + 0.5 * system.quadratic(dx))
-            t = time.perf_counter()
-            trial = state.updated(problem.layout, dx)
-            new_cost = problem.cost(trial)
-            t_cost += time.perf_counter() - t
-            valid = np.isfinite(new_cost) and model > 0
-        if not valid:
-            invalid += 1
-            s.unsuccessful_steps += 1
-            radius /= factor
-            factor *= 2.0
-            if invalid >= opt.max_invalid_steps or radius < opt.min_radius:
-                if error is not None:
-                    raise error
-                s.status, s.message = "converged", "no valid step (trust region collapsed)"
-                break
-            continue
-        invalid = 0
-        change = cost - new_cost
-        if np.linalg.norm(dx) <= opt.parameter_tolerance * (
-                _state_norm(state) + opt.parameter_tolerance):
-            s.status, s.message = "converged", "parameter tolerance reached"
-            if change > 0:
-                state, cost = trial, new_cost
-                s.cost_trace.append(cost)
-                s.successful_steps += 1
-            break
-        if abs(change) <= ftol * cost:
-            s.status, s.message = "converged", (
-                f"function tolerance reached: |cost change| / cost = {abs(change) / cost:.3g}")
-            if change > 0:
-                state, cost = trial, new_cost
-                s.cost_trace.append(cost)
-                s.successful_steps += 1
-            break
-        rho = change / model
-        if rho > opt.min_relative_decrease:
-            s.successful_steps += 1
-            state, cost = trial, new_cost
-            s.cost_trace.append(cost)
-            radius = min(opt.max_radius, radius / max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3))
-            factor = 2.0
-            if opt.callback is not None:
-                opt.callback(it, cost, lam)
-            t = time.perf_counter()
-            system = problem.linearize(state)
-            t_lin += time.perf_counter() - t
-        else:
-            s.unsuccessful_steps += 1
-            radius /= factor
-            factor *= 2.0
-            if radius < opt.min_radius:
-                s.status, s.message = "converged", "trust region radius below its minimum"
-                break
-    s.timings.update({"linearize": t_lin, "linear_solve": t_sol, "cost": t_cost})
-    return state, cost
-
-
-def _state_norm(state):
-    """|x| of the parameter vector (points, centres, interior; rotations
-    count as unit-norm 3-vectors), for Ceres' parameter tolerance."""
-    total = float(np.sum(state.points ** 2) + np.sum(state.X0 ** 2)
-                  + sum(float(np.sum(v ** 2)) for v in state.io)) + 3.0 * len(state.R)
-    return float(np.sqrt(total))
 
 
 def _non_finite_message(problem, state):
@@ -489,16 +342,3 @@ def _non_finite_message(problem, state):
         bad += [f"{blk.name} {labels[i] if labels is not None else i}" for i in rows[:3]]
     return ("non-finite residuals at the approximate values: " + ", ".join(bad[:5])
             + (" ..." if len(bad) > 5 else ""))
-
-
-def _parameter_scale(problem, state):
-    """A per-column scale for the step test: 1 for angles, the size of the
-    network for coordinates, the parameter itself (or 1) for interior ones."""
-    lay = problem.layout
-    scale = np.ones(lay.n_columns)
-    size = float(np.nanmax(np.abs(state.points), initial=1.0)) or 1.0
-    scale[lay.point_cols] = size
-    scale[lay.station_cols[:, :3]] = size
-    for k, cols in enumerate(lay.camera_cols):
-        scale[cols] = np.maximum(np.abs(state.io[k]), 1e-3)
-    return scale

@@ -1,0 +1,338 @@
+"""The point-ordered, fused linearization of BAL-type problems (many
+cameras; the iterative reduced-camera-system solve).
+
+For a problem of one image-point block of the ``bal`` camera model (the
+model names its compiled rows, ``row_kernel = "bal_rows"``), every point
+eliminated, every parameter free and unit weights, with the compiled
+kernels active and the reduced camera system solved iteratively, the
+generic path (:meth:`Problem.evaluate`, then
+:func:`photogram.adjust.normal.assemble`, then a copy of ``W_o^T`` into
+point order for the Schur products) stores the residuals, three Jacobian
+arrays and ``W_o^T`` twice per iteration, and most of its time goes into
+writing fresh memory. Here one compiled pass
+(:func:`photogram.adjust._numba_point.bal_linearize`) walks the
+observations point by point and sums the normal equations directly:
+``A_p`` and ``g_p`` in registers, ``W_o^T`` written once, in point order,
+into a buffer reused between iterations, ``N_cc`` and ``g_c`` summed per
+camera (a few hundred kB that stay in cache). The cost of a trial step is
+a second kernel that stores nothing.
+
+The result is a :class:`PointSystem`, a
+:class:`~photogram.adjust.normal.NormalSystem` whose ``W_o^T`` are kept in
+point order (``WTp``); its ``WT`` (E-row order) is built only on request.
+The values are those of the generic path up to rounding (the same
+formulas; sums in another order).
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+import scipy.sparse as sp
+
+from photogram.adjust import kernels
+from photogram.adjust.normal import NormalSystem, _NccSum
+
+__all__ = ["PointSystem", "plan", "linearize", "cost"]
+
+
+def _compiled():
+    """The point-ordered kernels (:mod:`photogram.adjust._numba_point`)."""
+    from photogram.adjust import _numba_point
+    return _numba_point
+
+
+class _Plan:
+    """Row indices of the fused path (fixed per structure): the E-rows
+    point by point, the points ordered by the first row group (camera)
+    that sees them, so that consecutive points share cameras and the
+    per-camera sums stay in cache (the order does not change any sum of
+    a point; the per-camera sums are taken in another order)."""
+
+    def __init__(self, block, st):
+        cls = st.e_classes[0]
+        ptr0 = st.pt_ptr
+        cnt = np.diff(ptr0)
+        grp0 = st.e_group[st.pt_rows]
+        first = np.full(len(cnt), np.iinfo(np.int64).max)
+        seen = cnt > 0
+        if seen.any():
+            first[seen] = np.minimum.reduceat(grp0, ptr0[:-1][seen])
+        order = np.argsort(first, kind="stable")
+        cnt = cnt[order]
+        ptr = np.concatenate([[0], np.cumsum(cnt)]).astype(np.int64)
+        idx = np.repeat(ptr0[order] - ptr[:-1], cnt) + np.arange(ptr[-1])
+        self.erows = st.pt_rows[idx]                        # E-row of each processed row
+        self.point = order.astype(np.int64)                 # point of each segment
+        self.ptr = ptr
+        rows = cls.rows[self.erows]                         # block row of each processed row
+        self.block = block
+        self.rows = rows
+        self.station = np.ascontiguousarray(block.station[rows], dtype=np.int64)
+        self.camera = np.ascontiguousarray(block.camera[rows], dtype=np.int64)
+        self.group = np.ascontiguousarray(st.e_group[self.erows], dtype=np.int64)
+        self.gcols = np.ascontiguousarray(st.group_cols, dtype=np.int64)
+        seg = np.repeat(np.arange(len(cnt)), cnt)
+        # at most one row per (point, group): the Schur-Jacobi pass needs no merging
+        self.unique = not np.any((seg[1:] == seg[:-1]) & (self.group[1:] == self.group[:-1]))
+        self._xy = (None, None)
+        self.buffers = []                                   # [(arrays, weakref to owner)]
+
+    def row_points(self):
+        """The point of every processed row."""
+        return np.repeat(self.point, np.diff(self.ptr))
+
+    def xy(self):
+        """The block's observations in point order (copied again when the
+        block's array is replaced, e.g. by ``set_observations``)."""
+        src, copy = self._xy
+        if src is not self.block.xy:
+            copy = np.ascontiguousarray(self.block.xy[self.rows])
+            self._xy = (self.block.xy, copy)
+        return copy
+
+    def buffers_for(self, shapes):
+        """Float arrays of ``shapes`` that no live :class:`PointSystem`
+        uses (reused between iterations: fresh memory costs page faults
+        as much as the kernel's work): ``(k, arrays)``; ``own(k, system)``
+        marks them used."""
+        for k, (arrs, owner) in enumerate(self.buffers):
+            if owner() is None and [a.shape for a in arrs] == list(shapes):
+                self.buffers[k] = (arrs, _taken)
+                return k, arrs
+        self.buffers.append(([np.empty(sh) for sh in shapes], _taken))
+        return len(self.buffers) - 1, self.buffers[-1][0]
+
+    def own(self, k, system):
+        self.buffers[k] = (self.buffers[k][0], weakref.ref(system))
+
+
+def _taken():
+    """Owner of a buffer handed out and not yet given to a system."""
+    return True
+
+
+def _eligible(problem):
+    """The fused path's structural conditions (fixed per problem)."""
+    from photogram.adjust.residual_blocks import ImagePointBlock
+    if len(problem.blocks) != 1:
+        return None
+    blk = problem.blocks[0]
+    st, lay = problem.structure, problem.layout
+    if (type(blk) is not ImagePointBlock or getattr(blk.model, "row_kernel", None) != "bal_rows"
+            or len(st.e_classes) != 1 or st.c_classes or lay.derived is not None):
+        return None
+    cls = st.e_classes[0]
+    n_p = len(problem.state.points)
+    if (cls.e_slot != 0 or cls.gather != [(1, None), (2, None)] or st.s != 9
+            or len(st.pt_rows) != st.n_e_rows or lay.n_eliminated != n_p
+            or not all(problem._all_free[0])):
+        return None
+    if not np.array_equal(lay.point_cols[:, 0], lay.n_reduced + 3 * np.arange(n_p)):
+        return None
+    if not np.array_equal(st.e_rcols, st.group_cols[st.e_group]):
+        return None
+    return _Plan(blk, st)
+
+
+def plan(problem, method=None):
+    """The fused path's plan of ``problem``, or None when it does not
+    apply (then the generic path runs). ``method``: the RCS solve to
+    assume (default: the problem's current one; only "iterative" fuses)."""
+    if (method or problem.rcs.get("method")) != "iterative":
+        return None
+    st = problem.structure
+    if not kernels.active(st.n_e_rows):
+        return None
+    cached = getattr(st, "_point_plan", False)
+    if cached is False:
+        cached = _eligible(problem)
+        st._point_plan = cached
+    if cached is None or not _unit_weights(problem):
+        return None
+    return cached
+
+
+def _unit_weights(problem):
+    """Every observation active with weight 1 (no whitening needed)."""
+    b = problem.blocks[0]
+    return (problem.variance[b.group] == 1.0 and bool(np.all(b.sigma == 1.0))
+            and bool(np.all(problem.active[0])) and bool(np.all(problem.coordinate_active[0]))
+            and bool(np.all(problem.robust_weight[0] == 1.0)))
+
+
+def _model_arrays(pl, state):
+    io = np.ascontiguousarray(np.stack([state.io[k] for k in pl.block.cameras]), dtype=float)
+    return (pl.xy(), np.ascontiguousarray(state.points[pl.point], dtype=float),
+            np.ascontiguousarray(state.R, dtype=float),
+            np.ascontiguousarray(state.X0, dtype=float), io)
+
+
+def cost(problem, state):
+    """``0.5 sum r^2`` by the fused kernel, or None (generic path)."""
+    pl = plan(problem)
+    if pl is None:
+        return None
+    xy, pts, R, X0, io = _model_arrays(pl, state)
+    return 0.5 * _compiled().bal_cost(xy, pts, R, X0, io, pl.ptr, pl.station, pl.camera)
+
+
+def linearize(problem, state):
+    """The normal equations at ``state`` as a :class:`PointSystem`, or
+    None (generic path)."""
+    pl = plan(problem)
+    if pl is None:
+        return None
+    st = problem.structure
+    n_r, n_e, s, n_g = st.n_r, st.layout.n_eliminated, st.s, st.n_groups
+    xy, pts, R, X0, io = _model_arrays(pl, state)
+    k, (WTp, A_o, g_o) = pl.buffers_for([(st.n_e_rows, 3, s), (n_e, 3, 3), (n_e, 3)])
+    g_grp = np.zeros((n_g, s))
+    G = np.zeros((n_g, s, s))
+    ssq = _compiled().bal_linearize(xy, pts, R, X0, io, pl.ptr, pl.station, pl.camera,
+                                    pl.group, A_o, g_o, WTp, g_grp, G)
+    iu = np.triu_indices(s, 1)
+    G[:, iu[1], iu[0]] = G[:, iu[0], iu[1]]
+    m = n_r + 1
+    Ncc = _NccSum(m, True)
+    Ncc.add(st._g_scatter, G.ravel())
+    g_c = np.bincount(st.group_cols.ravel(), weights=g_grp.ravel(), minlength=m)
+    g = np.empty(n_r + 3 * n_e)
+    g[:n_r] = g_c[:n_r]
+    g[n_r:].reshape(n_e, 3)[pl.point] = g_o
+    system = PointSystem(Ncc.matrix(), A_o, g_o, g, 0.5 * ssq, WTp, st, pl)
+    pl.own(k, system)
+    return system
+
+
+class PointSystem(NormalSystem):
+    """Normal equations whose per-E-row ``W_o^T`` are stored point by
+    point in the plan's order (``WTp[k]`` is E-row ``plan.erows[k]``),
+    with the point blocks and gradients in the plan's point order too
+    (``A_o[i]``, ``g_o[i]`` of point ``plan.point[i]``); ``A`` and ``WT``
+    in the engine's order are built on request."""
+
+    def __init__(self, Ncc, A_o, g_o, g, cost, WTp, structure, point_plan):
+        self.Ncc, self.A_o, self.g_o, self.g, self.cost = Ncc, A_o, g_o, g, cost
+        self.WTp = WTp
+        self.structure = structure
+        self.plan = point_plan
+        self._W = self._WT = self._A = None
+        self._last_back = None
+
+    @property
+    def A(self):
+        """The point blocks (n_e, 3, 3) in point-number order (a copy)."""
+        if self._A is None:
+            self._A = np.empty_like(self.A_o)
+            self._A[self.plan.point] = self.A_o
+        return self._A
+
+    @property
+    def WT(self):
+        """``W_o^T`` in E-row order (a copy, built on request)."""
+        if self._WT is None:
+            out = np.empty_like(self.WTp)
+            out[self.plan.erows] = self.WTp
+            self._WT = out
+        return self._WT
+
+    def back_o(self, x_c):
+        """``W^T x_c`` (n_e, 3) in the plan's point order; the last product
+        is kept (the trust region's model decrease asks again for the
+        step's back-substitution product)."""
+        last = self._last_back
+        if last is not None and np.array_equal(last[0], x_c):
+            return last[1]
+        pl = self.plan
+        out = np.empty((len(pl.point), 3))
+        _compiled().back(self.WTp, pl.group, pl.gcols, pl.ptr, np.append(x_c, 0.0), out)
+        self._last_back = (np.array(x_c, dtype=float), out)
+        return out
+
+    def wt_times_c(self, x_c):
+        """``W^T x_c`` as (n_e, 3) for x_c (n_r,)."""
+        out = np.empty((len(self.plan.point), 3))
+        out[self.plan.point] = self.back_o(x_c)
+        return out
+
+    def quadratic(self, dx):
+        """``dx^T N dx`` (= |J dx|^2) of the undamped normal equations."""
+        n_r = self.structure.n_r
+        dc = dx[:n_r]
+        de = dx[n_r:].reshape(-1, 3)[self.plan.point]
+        q = float(dc @ (self.Ncc @ dc)) + float(np.einsum("ni,nij,nj->", de, self.A_o, de))
+        return q + 2.0 * float(np.sum(self.back_o(dc) * de))
+
+    def w_times_e(self, x_e):
+        """``W x_e`` (n_r,) for x_e (n_e, 3)."""
+        pl, n_r = self.plan, self.structure.n_r
+        v = np.einsum("nis,ni->ns", self.WTp, x_e[pl.row_points()])
+        cols = pl.gcols[pl.group]
+        return np.bincount(cols.ravel(), weights=v.ravel(), minlength=n_r + 1)[:n_r]
+
+    def schur_parts(self, Ncc, Ainv, ordered=False):
+        """The Schur-Jacobi blocks before the ``N_cc`` part is added and
+        ``W A^-1 g_e`` (n_r,), in one pass: ``(-sum W A^-1 W^T per group,
+        rhs)`` (``Ainv`` in point-number order, or in the plan's with
+        ``ordered``); None when a point has two rows in one group (the
+        generic pass merges them)."""
+        st, pl = self.structure, self.plan
+        if not pl.unique:
+            return None
+        Ainv_o = Ainv if ordered else Ainv[pl.point]
+        n_g, s = st.group_cols.shape
+        blocks = np.zeros((n_g, s, s))
+        rhs_g = np.zeros((n_g, s))
+        _compiled().jacobi_rhs(self.WTp, pl.group, pl.ptr, Ainv_o, self.g_o, blocks, rhs_g)
+        iu = np.triu_indices(s, 1)
+        blocks[:, iu[1], iu[0]] = blocks[:, iu[0], iu[1]]
+        rhs = np.bincount(st.group_cols.ravel(), weights=rhs_g.ravel(), minlength=st.n_r + 1)
+        return blocks, rhs[:st.n_r]
+
+    def damped_inverse(self, layout, damping, point_labels=None):
+        """``(N_cc, A^-1)`` of the damped normal equations (as
+        ``schur.damped`` and ``schur.invert_point_blocks``; one compiled
+        pass for the point blocks, ``A^-1`` in the plan's point order)."""
+        n_r = layout.n_reduced
+        fixed = ~layout.free
+        d = self.Ncc.diagonal()
+        Ncc = (self.Ncc + sp.diags(d * damping + fixed[:n_r])).tocsr()
+        Ainv = np.empty_like(self.A_o)
+        fix_e = np.ascontiguousarray(fixed[n_r:].reshape(-1, 3)[self.plan.point], dtype=float)
+        if _compiled().damped_inverse(self.A_o, float(damping), fix_e, Ainv):
+            from photogram.adjust.schur import damped, invert_point_blocks
+            invert_point_blocks(damped(self, layout, damping)[1], point_labels)   # raises
+        return Ncc, Ainv
+
+    def solve_iterative(self, layout, damping, tolerance, max_iterations, point_labels=None,
+                        criterion="residual"):
+        """The damped step by preconditioned CG on the reduced camera
+        system (:func:`photogram.adjust.schur.solve`'s iterative method),
+        every point-side quantity in the plan's order."""
+        from photogram.adjust import rcs_iterative
+        from photogram.errors import GeometryError
+        n_r = layout.n_reduced
+        pl = self.plan
+        Ncc, Ainv_o = self.damped_inverse(layout, damping, point_labels)
+        op = rcs_iterative.SchurOperator(self, Ncc, Ainv_o, ordered=True)
+        parts = self.schur_parts(Ncc, Ainv_o, ordered=True)
+        if parts is None:
+            rhs_c = -self.g[:n_r] + op.w_times_e(
+                np.einsum("nij,nj->ni", op.Ainv, self.g[n_r:].reshape(-1, 3)))
+            precond = rcs_iterative.schur_jacobi(op)
+        else:
+            rhs_c = -self.g[:n_r] + parts[1]
+            precond = rcs_iterative.schur_jacobi(op, parts[0])
+        rhs_c[~layout.free[:n_r]] = 0.0
+        dx_c, _ = rcs_iterative.pcg(op, rhs_c, precond, tolerance, max_iterations, criterion)
+        rhs_o = -self.g_o - self.back_o(dx_c)
+        dx = np.empty(layout.n_columns)
+        dx[:n_r] = dx_c
+        dx[n_r:].reshape(-1, 3)[pl.point] = np.einsum("nij,nj->ni", Ainv_o, rhs_o)
+        dx[~layout.free] = 0.0
+        if not np.all(np.isfinite(dx)):
+            raise GeometryError("the adjustment produced a non-finite step (divergence)",
+                                hint="check the approximate values and the datum")
+        return dx
