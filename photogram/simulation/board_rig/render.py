@@ -67,12 +67,13 @@ def _key_camera(key) -> RigCamera:
                      np.zeros(3), size)
 
 
-@functools.lru_cache(maxsize=4)
+@functools.lru_cache(maxsize=2)
 def _centre_rays(key) -> np.ndarray:
     """Normalised coordinates (h + 2, w + 2, 2) of the pixel centres -1 .. w
     by -1 .. h (row, column: pixel (i, j) at [j + 1, i + 1]) of the camera of
     ``key`` (:func:`_camera_key`), exact (:func:`_undistort`): the same for
-    every view, so inverted once (15 MB at 1280 x 720)."""
+    every view, so inverted once (15 MB at 1280 x 720; :func:`render_rig`
+    renders camera after camera)."""
     cam = _key_camera(key)
     w, h = cam.image_size
     uu, vv = np.meshgrid(np.arange(-1, w + 1, dtype=float), np.arange(-1, h + 1, dtype=float))
