@@ -39,7 +39,8 @@ def _camera_key(camera: RigCamera, s: int) -> tuple:
 
 def _sample_rays(camera: RigCamera, s: int, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
     """Normalised coordinates (rows, cols, 2) of the samples of the output
-    pixels [y0, y1) x [x0, x1): sample (a, b) of pixel (i, j) at
+    pixels [y0, y1) x [x0, x1) (inside the image: 0 <= x0 < x1 <= w,
+    0 <= y0 < y1 <= h): sample (a, b) of pixel (i, j) at
     ``(i + (a + 0.5) / s - 0.5, j + (b + 0.5) / s - 0.5)`` (OpenCV pixel
     centres at integers).
 
