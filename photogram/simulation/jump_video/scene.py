@@ -42,21 +42,30 @@ def _value_noise(x, y, scale, table):
     n = len(table)
     if n & (n - 1) == 0 and table.shape == (n, n):
         # a power of two: the wrapped index is the low bits (a % n for
-        # negative a too), one lookup into the flat table
+        # negative a too), one lookup into the flat table; the wrapped
+        # rows and columns are computed once for the four corners
         flat, low = table.ravel(), n - 1
-
-        def at(a, b):
-            return flat[((a & low) * n) | (b & low)]
+        r0, r1 = (i & low) * n, ((i + 1) & low) * n
+        c0, c1 = j & low, (j + 1) & low
+        t00, t10, t01, t11 = flat[r0 | c0], flat[r1 | c0], flat[r0 | c1], flat[r1 | c1]
     else:
-        def at(a, b):
-            return table[a % n, b % n]
-    top = at(i, j) * (1 - fu) + at(i + 1, j) * fu
-    bot = at(i, j + 1) * (1 - fu) + at(i + 1, j + 1) * fu
+        t00, t10 = table[i % n, j % n], table[(i + 1) % n, j % n]
+        t01, t11 = table[i % n, (j + 1) % n], table[(i + 1) % n, (j + 1) % n]
+    top = t00 * (1 - fu) + t10 * fu
+    bot = t01 * (1 - fu) + t11 * fu
     return top * (1 - fv) + bot * fv
 
 
 def _slope_grey(X, Y, tables):
-    """Grey level of the slope surface at world points (X, Y)."""
+    """Grey level of the slope surface at world points (X, Y) (1-D); each
+    noise is evaluated only where it is used (forest, slope, rough snow)."""
+    out = np.empty(np.shape(X))
+    forest = np.abs(Y) > FOREST
+    Xf, Yf = X[forest], Y[forest]
+    out[forest] = (150.0 + 20.0 * _value_noise(Xf, Yf, 12.0, tables[4])
+                   + 10.0 * _value_noise(Xf, Yf, 2.5, tables[1]))
+    snow = ~forest
+    X, Y = X[snow], Y[snow]
     g = (212.0 + 7.0 * _value_noise(X, Y, 90.0, tables[0])
          + 3.5 * _value_noise(X, Y, 9.0, tables[1]) + 2.5 * _value_noise(X, Y, 1.6, tables[2]))
     prepared = np.abs(Y) <= SLOPE_HALF_WIDTH
@@ -64,10 +73,9 @@ def _slope_grey(X, Y, tables):
     line = prepared & (np.abs(((X - 400.0) + 25.0) % 50.0 - 25.0) < 0.6)
     g -= np.where(line, 18.0, 0.0)
     rough = ~prepared
-    g += np.where(rough, -6.0 + 6.0 * _value_noise(X, Y, 4.0, tables[3]), 0.0)
-    forest = np.abs(Y) > FOREST
-    return np.where(forest, 150.0 + 20.0 * _value_noise(X, Y, 12.0, tables[4])
-                    + 10.0 * _value_noise(X, Y, 2.5, tables[1]), g)
+    g[rough] += -6.0 + 6.0 * _value_noise(X[rough], Y[rough], 4.0, tables[3])
+    out[snow] = g
+    return out
 
 
 def _far(d, tables):
@@ -118,8 +126,11 @@ def _background(camera, size, rng, ss: int = 2) -> np.ndarray:
         d = camera.rays(ideal)
         t = (k - n @ camera.X0) / (d @ n)
         hit = camera.X0 + t[:, None] * d
-        grey = _slope_grey(hit[:, 0], hit[:, 1], tables)
-        bands.append(np.where(t > 0, grey, _far(d, tables)))
+        front = t > 0
+        grey = np.empty(len(t))
+        grey[front] = _slope_grey(hit[front, 0], hit[front, 1], tables)
+        grey[~front] = _far(d[~front], tables)
+        bands.append(grey)
     return np.concatenate(bands).reshape(h, ss, w, ss).mean(axis=(1, 3))
 
 
