@@ -267,8 +267,13 @@ def ray_counts(a, b, extent, shape, chunk: int = 1_000_000) -> np.ndarray:
     pb = (b - [x0, y0]) * scale
     ok = np.all(np.isfinite(pa) & np.isfinite(pb), axis=1)
     pa, pb = pa[ok], pb[ok]
-    length = np.abs(pb - pa).max(axis=1)            # along the longer axis, in pixels
+    d = pb - pa
+    length = np.abs(d).max(axis=1)                  # along the longer axis, in pixels
     steps = np.ceil(length).astype(np.int64) + 1
+    # x and y as separate contiguous columns, updated in place (issue 23: a
+    # third of the time of the (n, 2) version; the same numbers bit for bit)
+    ax, ay, dx, dy = (np.ascontiguousarray(v) for v in (pa[:, 0], pa[:, 1], d[:, 0], d[:, 1]))
+    div = np.maximum(length, 1e-300)
     counts = np.zeros(rows * cols, np.int64)
     ends = np.cumsum(steps)
     start = 0
@@ -278,18 +283,25 @@ def ray_counts(a, b, extent, shape, chunk: int = 1_000_000) -> np.ndarray:
         stop = max(stop, start + 1)
         n = steps[start:stop]
         seg = np.repeat(np.arange(start, stop), n)
-        k = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
-        L = length[seg]
-        t = np.minimum(k, L) / np.maximum(L, 1e-300)  # one pixel steps, the last to the end
-        xy = pa[seg] + t[:, None] * (pb[seg] - pa[seg])
-        ij = np.floor(xy).astype(np.int64)
-        last = np.zeros(len(k), bool)
-        last[np.cumsum(n) - 1] = True
-        again = np.zeros(len(k), bool)              # the end in the pixel of the step before
-        again[1:] = last[1:] & (k[1:] > 0) & np.all(ij[1:] == ij[:-1], axis=1)
-        inside = ((ij[:, 0] >= 0) & (ij[:, 0] < cols) & (ij[:, 1] >= 0) & (ij[:, 1] < rows)
-                  & ~again)
-        counts += np.bincount(ij[inside, 1] * cols + ij[inside, 0], minlength=rows * cols)
+        first = np.cumsum(n) - n
+        k = np.arange(int(n.sum()), dtype=np.int64)
+        k -= np.repeat(first, n)
+        t = np.minimum(k, length[seg])              # one pixel steps, the last to the end
+        t /= div[seg]
+        ix = dx[seg]
+        ix *= t
+        ix += ax[seg]
+        ix = np.floor(ix, out=ix).astype(np.int64)
+        iy = dy[seg]
+        iy *= t
+        iy += ay[seg]
+        iy = np.floor(iy, out=iy).astype(np.int64)
+        keep = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
+        last = (first + n - 1)[n > 1]               # the end in the pixel of the step before
+        keep[last[(ix[last] == ix[last - 1]) & (iy[last] == iy[last - 1])]] = False
+        iy *= cols
+        iy += ix
+        counts += np.bincount(iy[keep], minlength=rows * cols)
         start = stop
     return counts.reshape(rows, cols)
 
