@@ -52,3 +52,27 @@ def test_ray_counts_reference_is_not_trivial():
     # a horizontal segment across a 10 x 5 grid: one count in each column of row 2
     got = _ray_counts_reference([[0.05, 2.5]], [[9.95, 2.5]], (0, 10, 0, 5), (5, 10))
     assert got[2].tolist() == [1] * 10 and got.sum() == 10
+
+
+def _raster_reference(centre, u, v, idx, t, x0, y0, k):
+    """The (n, 2) pixel expression of raster_ellipses before round 5."""
+    px = (centre[idx] + u[idx] * np.cos(t)[:, None] + v[idx] * np.sin(t)[:, None]
+          - [x0, y0]) * k
+    return np.floor(px[:, 0]).astype(np.int64), np.floor(px[:, 1]).astype(np.int64)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_ellipse_pixels_match_reference(seed):
+    from photogram.report.pdf.artists import _pixel
+
+    rng = np.random.default_rng(seed)
+    n = 50
+    centre, u, v = (rng.normal(size=(n, 2)) * s for s in (100.0, 5.0, 3.0))
+    idx = rng.integers(0, n, 4000)
+    t = rng.uniform(0, 2 * np.pi, 4000)
+    x0, y0, k = rng.normal() * 10, rng.normal() * 10, 150 / 72
+    want = _raster_reference(centre, u, v, idx, t, x0, y0, k)
+    cos, sin = np.cos(t), np.sin(t)
+    for j, origin in ((0, x0), (1, y0)):
+        got = _pixel(centre[:, j], u[:, j], v[:, j], idx, cos, sin, origin, k)
+        np.testing.assert_array_equal(got, want[j])
