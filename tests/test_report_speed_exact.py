@@ -76,3 +76,32 @@ def test_ellipse_pixels_match_reference(seed):
     for j, origin in ((0, x0), (1, y0)):
         got = _pixel(centre[:, j], u[:, j], v[:, j], idx, cos, sin, origin, k)
         np.testing.assert_array_equal(got, want[j])
+
+
+def _hull_reference(xy):
+    """convex_hull before round 5: np.unique first, the extremes filter after."""
+    from photogram.report.shapes import _inside_extremes, _monotone_chain
+
+    pts = np.unique(np.asarray(xy, float).reshape(-1, 2), axis=0)
+    if len(pts) < 3:
+        return pts
+    if len(pts) > 32:
+        pts = pts[~_inside_extremes(pts)]
+    return _monotone_chain(pts)
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_convex_hull_matches_reference(seed):
+    from photogram.report.shapes import convex_hull
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 400))
+    if seed % 3 == 0:            # integer pixels: repeated points, ties at the extremes
+        xy = rng.integers(0, 12, size=(n, 2)).astype(float)
+    elif seed % 3 == 1:          # a few distinct points repeated many times
+        base = rng.normal(size=(int(rng.integers(1, 6)), 2))
+        xy = base[rng.integers(0, len(base), n)]
+        xy = np.vstack([xy, rng.normal(size=(int(rng.integers(0, 4)), 2))])
+    else:
+        xy = rng.normal(size=(n, 2)) * [3000, 2000]
+    np.testing.assert_array_equal(convex_hull(xy), _hull_reference(xy))

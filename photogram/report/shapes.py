@@ -20,11 +20,12 @@ def convex_hull(xy) -> np.ndarray:
     x + y, x - y) cannot be hull vertices and are dropped first, vectorized
     (Akl-Toussaint), so the Python chain only sees the few near the rim.
     """
-    pts = np.unique(np.asarray(xy, float).reshape(-1, 2), axis=0)
+    pts = np.asarray(xy, float).reshape(-1, 2)
+    if len(pts) > 32:       # before np.unique (its sort of rows was most of the time)
+        pts = pts[~_inside_extremes(pts)]
+    pts = np.unique(pts, axis=0)
     if len(pts) < 3:
         return pts
-    if len(pts) > 32:
-        pts = pts[~_inside_extremes(pts)]
     return _monotone_chain(pts)
 
 
@@ -48,8 +49,8 @@ def _monotone_chain(pts) -> np.ndarray:
 
 def _inside_extremes(pts) -> np.ndarray:
     """Mask of the points strictly inside (by a margin far above rounding)
-    the convex polygon of the eight extreme points of ``pts`` (sorted,
-    unique)."""
+    the convex polygon of the eight extreme points of ``pts`` (in any order,
+    repeats allowed: such points are never hull vertices)."""
     x, y = pts[:, 0], pts[:, 1]
     picks = [f(v) for v in (x, y, x + y, x - y) for f in (np.argmin, np.argmax)]
     ext = np.unique(pts[picks], axis=0)
