@@ -105,3 +105,15 @@ def test_convex_hull_matches_reference(seed):
     else:
         xy = rng.normal(size=(n, 2)) * [3000, 2000]
     np.testing.assert_array_equal(convex_hull(xy), _hull_reference(xy))
+
+
+@pytest.mark.parametrize("blank", ["", "   ", "\t", " \r"])
+def test_read_table_skips_blank_lines_without_comments(tmp_path, blank):
+    # no "#" in the file: the blank-line test alone picks the filtering path
+    from photogram.report.table import read_table
+
+    path = tmp_path / "t.csv"
+    path.write_text(f"id,x\nA,1.5\n{blank}\nB,2.5\n", encoding="utf-8", newline="")
+    t = read_table(path, ("id",), key="id")
+    assert t["id"].tolist() == ["A", "B"]
+    assert t["x"].tolist() == [1.5, 2.5]

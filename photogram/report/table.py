@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import csv
 import io
-import re
 from itertools import repeat
 from pathlib import Path
 
@@ -149,7 +148,7 @@ def _rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
         raise InputError(f"the file is not UTF-8 text ({exc.reason})", file=path,
                          hint=_DAMAGED) from None
     lines = text.splitlines()
-    if "#" in text or re.search(r"^[ \t\r\f\v]*$", text.rstrip("\r\n"), re.M):
+    if "#" in text or not all(map(str.strip, lines)):   # a comment or a blank line
         numbers = [n for n, line in enumerate(lines, 1)
                    if line.strip() and not line.lstrip().startswith("#")]
         lines = [lines[n - 1] for n in numbers]
