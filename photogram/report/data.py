@@ -173,6 +173,15 @@ class ReportData:
         return self.results.points
 
     @cached_property
+    def used_point_rows(self) -> np.ndarray:
+        """Row in points.csv of the point of every used observation of
+        residuals.csv (-1 where absent; computed once: ray statistics and
+        the network page, 181,000 lookups for a large network)."""
+        r, pts = self.residuals, self.points
+        used = r["used"]
+        return pts.positions(r["point"][used]) if len(pts) else np.full(int(used.sum()), -1)
+
+    @cached_property
     def ray_stats(self) -> Table:
         """Per observed point (ids sorted), keyed by ``point``: ``rays``
         (used observations) and ``angle`` (largest angle between two of its
@@ -182,7 +191,7 @@ class ReportData:
         r, pts = self.residuals, self.points
         used = r["used"]
         scode, snames = r.groups("station")
-        at = pts.positions(r["point"][used]) if len(pts) else np.full(int(used.sum()), -1)
+        at = self.used_point_rows
         keep = at >= 0
         sc, at = scode[used][keep], at[keep]
         code, ids = sorted_groups(r["point"][used][keep])
