@@ -117,3 +117,20 @@ def test_read_table_skips_blank_lines_without_comments(tmp_path, blank):
     t = read_table(path, ("id",), key="id")
     assert t["id"].tolist() == ["A", "B"]
     assert t["x"].tolist() == [1.5, 2.5]
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_sorted_subgroups_match_sorted_groups(seed):
+    from photogram.report.table import groups, sorted_groups, sorted_subgroups
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(0, 300))
+    pool = np.array([str(k) for k in rng.integers(0, 60, 40)] + ["P10", "P9", "a", "10"],
+                    dtype=object)
+    keys = pool[rng.integers(0, len(pool), n)]
+    rows = rng.random(n) < rng.uniform(0, 1)
+    codes, names = groups(keys)
+    got_codes, got_names = sorted_subgroups(codes[rows], names)
+    want_codes, want_names = sorted_groups(keys[rows])
+    assert got_names.tolist() == want_names.tolist()
+    np.testing.assert_array_equal(got_codes, want_codes)

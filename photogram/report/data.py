@@ -29,7 +29,7 @@ from photogram.project.results import Results
 from photogram.project.results_read import read_covariance, read_results_table
 from photogram.project.results_folder import final_folder
 from photogram.report.table import (PANDAS_BYTES, Table, read_table, read_table_pandas,
-                                    sorted_groups)
+                                    sorted_subgroups)
 
 __all__ = ["ReportData", "load", "REQUIRED", "read_image"]
 
@@ -194,7 +194,8 @@ class ReportData:
         at = self.used_point_rows
         keep = at >= 0
         sc, at = scode[used][keep], at[keep]
-        code, ids = sorted_groups(r["point"][used][keep])
+        pcode, pnames = r.groups("point")
+        code, ids = sorted_subgroups(pcode[used][keep], pnames)
         rays = np.bincount(code, minlength=len(ids))
         centres = self.centres
         known = np.array([n in centres for n in snames], dtype=bool)
