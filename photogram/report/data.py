@@ -29,7 +29,7 @@ from photogram.project.results import Results
 from photogram.project.results_read import read_covariance, read_results_table
 from photogram.project.results_folder import final_folder
 from photogram.report.table import (PANDAS_BYTES, Table, read_table, read_table_pandas,
-                                    sorted_groups)
+                                    sorted_subgroups)
 
 __all__ = ["ReportData", "load", "REQUIRED", "read_image"]
 
@@ -173,6 +173,15 @@ class ReportData:
         return self.results.points
 
     @cached_property
+    def used_point_rows(self) -> np.ndarray:
+        """Row in points.csv of the point of every used observation of
+        residuals.csv (-1 where absent; computed once: ray statistics and
+        the network page, 181,000 lookups for a large network)."""
+        r, pts = self.residuals, self.points
+        used = r["used"]
+        return pts.positions(r["point"][used]) if len(pts) else np.full(int(used.sum()), -1)
+
+    @cached_property
     def ray_stats(self) -> Table:
         """Per observed point (ids sorted), keyed by ``point``: ``rays``
         (used observations) and ``angle`` (largest angle between two of its
@@ -182,10 +191,11 @@ class ReportData:
         r, pts = self.residuals, self.points
         used = r["used"]
         scode, snames = r.groups("station")
-        at = pts.positions(r["point"][used]) if len(pts) else np.full(int(used.sum()), -1)
+        at = self.used_point_rows
         keep = at >= 0
         sc, at = scode[used][keep], at[keep]
-        code, ids = sorted_groups(r["point"][used][keep])
+        pcode, pnames = r.groups("point")
+        code, ids = sorted_subgroups(pcode[used][keep], pnames)
         rays = np.bincount(code, minlength=len(ids))
         centres = self.centres
         known = np.array([n in centres for n in snames], dtype=bool)

@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.jump import definitions as defs
-from photogram.jump.coach import HEIGHT, to_coach, unit_of
 from photogram.report.layout import decorate
 from photogram.report.numbers import decimals_for, finite, num, sig
-from photogram.report.pages_stick import EVERY, draw_figure, landing_profile, tall
 from photogram.report.registry import section
+
+# photogram.jump and pages_stick are imported where a page is built: the
+# reports of calibrate and orient register these sections but never build
+# them, and a fresh command process need not import the ski-jump modules
+# (issue 23, report speed)
 
 
 _SHORT = {"alpha": "legs against the ski axis", "beta": "trunk against the ski axis",
@@ -29,22 +31,31 @@ def _units(data) -> str:
 
 
 def _unit(data, name):
+    from photogram.jump.coach import unit_of
+
     return unit_of(name, data.angle_unit, data.length_unit, _units(data))
 
 
 def _table(data):
     """exposures.csv in the units of the report (project or coach)."""
     if _units(data) == "coach":
+        from photogram.jump.coach import to_coach
+
         return to_coach(data.exposures, data.angle_unit, data.length_unit)
     return data.exposures
 
 
 def _params(data):
+    from photogram.jump import definitions as defs
+    from photogram.jump.coach import HEIGHT
+
     return [p for p in (*defs.PARAMETERS, HEIGHT) if p in data.exposures.columns]
 
 
 @section("stick", "Stick model (Fig. 8)", 80, applies=_has_jump, native=True)
 def build_stick(doc, data):
+    from photogram.report.pages_stick import EVERY, draw_figure, landing_profile, tall
+
     speed = "km/h" if _units(data) == "coach" else f"{data.length_unit}/s"
     doc.start_section("Stick model (Fig. 8)", landscape=not tall(data), intro=(
         f"The jumper's stick model (head P1, hip P2, bindings P3 P4 (dots), O the midpoint of "
@@ -63,6 +74,8 @@ def build_stick(doc, data):
 
 @section("timeseries", "Stick model over time", 81, applies=_has_jump, native=True)
 def build_series(doc, data):
+    from photogram.jump.coach import HEIGHT
+
     e = _table(data)
     names = _params(data)
     doc.start_section("Stick model over time", intro=(

@@ -134,7 +134,7 @@ def build(doc, data):
         code, snames = r.groups("station")
         index = {n: i for i, n in enumerate(names)}
         si = np.array([index.get(n, -1) for n in snames], dtype=int)[code[used]]
-        pi = pts.positions(r["point"][used])
+        pi = data.used_point_rows
         ok = (si >= 0) & (pi >= 0)
         a = C[si[ok], :2]
         b = pts.numbers(["X", "Y"])[pi[ok]]

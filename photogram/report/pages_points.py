@@ -153,17 +153,18 @@ def _control_rows(data):
     p = data.project
     if p is None:
         return []
-    est = data.points
-    at = est.positions(list(p.points.ids)) if len(est) else np.full(len(p.points.ids), -1)
+    est, ids = data.points, p.points.ids
+    # only the control points are looked up (not all 26,000 points of a large network)
+    ctrl = [i for i, kind in enumerate(p.points.kind) if str(kind) == "control"]
+    at = est.positions([ids[i] for i in ctrl]) if len(est) else np.full(len(ctrl), -1)
     xyz = est.numbers(["X", "Y", "Z"]) if len(est) else np.zeros((0, 3))
     rows = []
-    for i, pid in enumerate(p.points.ids):
-        if str(p.points.kind[i]) != "control" or at[i] < 0:
+    for i, row in zip(ctrl, at):
+        if row < 0:
             continue
-        ref = p.points.xyz[i]
-        d = xyz[at[i]] - ref
+        d = xyz[row] - p.points.xyz[i]
         if np.all(np.isfinite(d)):
-            rows.append((pid, d, p.points.sigma[i]))
+            rows.append((ids[i], d, p.points.sigma[i]))
     return rows
 
 

@@ -9,7 +9,7 @@ from photogram.report.layout import decorate
 from photogram.report.numbers import finite, num
 from photogram.report.registry import section
 from photogram.report.shapes import cell_means, dense, nice, segments_path
-from photogram.report.table import sorted_groups
+from photogram.report.table import sorted_subgroups
 
 _INTRO = ("Residuals are the measured minus the adjusted image coordinates. The RMS is "
           "over the used observations; 'RMS' alone is the RMS of the residual vector length "
@@ -35,9 +35,11 @@ def _w(r):
     return np.full(len(r), np.nan)
 
 
-def _per_point(used):
-    """``(ids, rays, rms)`` per point of the used observations, ids sorted."""
-    code, ids = sorted_groups(used["point"])
+def _per_point(r, used):
+    """``(ids, rays, rms)`` per point of the used observations ``used``
+    (the rows ``r["used"]`` of the residuals ``r``), ids sorted."""
+    pcode, pnames = r.groups("point")
+    code, ids = sorted_subgroups(pcode[r["used"]], pnames)
     v2 = used["vx"] ** 2 + used["vy"] ** 2
     size = np.bincount(code, minlength=len(ids))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -117,7 +119,7 @@ def build(doc, data):
     doc.table(["station", "camera", "points", f"RMS x [{iu}]", f"RMS y [{iu}]",
                f"RMS [{iu}]", f"max [{iu}]", "max |w|"], rows, align="llrrrrrr",
               title="Per image")
-    ids, size, rms = _per_point(used)
+    ids, size, rms = _per_point(r, used)
     worst = _largest_first(rms)[:8]
     if len(ids):
         best = int(np.nanargmin(rms)) if np.isfinite(rms).any() else 0

@@ -20,11 +20,12 @@ def convex_hull(xy) -> np.ndarray:
     x + y, x - y) cannot be hull vertices and are dropped first, vectorized
     (Akl-Toussaint), so the Python chain only sees the few near the rim.
     """
-    pts = np.unique(np.asarray(xy, float).reshape(-1, 2), axis=0)
+    pts = np.asarray(xy, float).reshape(-1, 2)
+    if len(pts) > 32:       # before np.unique (its sort of rows was most of the time)
+        pts = pts[~_inside_extremes(pts)]
+    pts = np.unique(pts, axis=0)
     if len(pts) < 3:
         return pts
-    if len(pts) > 32:
-        pts = pts[~_inside_extremes(pts)]
     return _monotone_chain(pts)
 
 
@@ -48,8 +49,8 @@ def _monotone_chain(pts) -> np.ndarray:
 
 def _inside_extremes(pts) -> np.ndarray:
     """Mask of the points strictly inside (by a margin far above rounding)
-    the convex polygon of the eight extreme points of ``pts`` (sorted,
-    unique)."""
+    the convex polygon of the eight extreme points of ``pts`` (in any order,
+    repeats allowed: such points are never hull vertices)."""
     x, y = pts[:, 0], pts[:, 1]
     picks = [f(v) for v in (x, y, x + y, x - y) for f in (np.argmin, np.argmax)]
     ext = np.unique(pts[picks], axis=0)
@@ -267,8 +268,13 @@ def ray_counts(a, b, extent, shape, chunk: int = 1_000_000) -> np.ndarray:
     pb = (b - [x0, y0]) * scale
     ok = np.all(np.isfinite(pa) & np.isfinite(pb), axis=1)
     pa, pb = pa[ok], pb[ok]
-    length = np.abs(pb - pa).max(axis=1)            # along the longer axis, in pixels
+    d = pb - pa
+    length = np.abs(d).max(axis=1)                  # along the longer axis, in pixels
     steps = np.ceil(length).astype(np.int64) + 1
+    # x and y as separate contiguous columns, updated in place (issue 23: a
+    # third of the time of the (n, 2) version; the same numbers bit for bit)
+    ax, ay, dx, dy = (np.ascontiguousarray(v) for v in (pa[:, 0], pa[:, 1], d[:, 0], d[:, 1]))
+    div = np.maximum(length, 1e-300)
     counts = np.zeros(rows * cols, np.int64)
     ends = np.cumsum(steps)
     start = 0
@@ -278,18 +284,25 @@ def ray_counts(a, b, extent, shape, chunk: int = 1_000_000) -> np.ndarray:
         stop = max(stop, start + 1)
         n = steps[start:stop]
         seg = np.repeat(np.arange(start, stop), n)
-        k = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
-        L = length[seg]
-        t = np.minimum(k, L) / np.maximum(L, 1e-300)  # one pixel steps, the last to the end
-        xy = pa[seg] + t[:, None] * (pb[seg] - pa[seg])
-        ij = np.floor(xy).astype(np.int64)
-        last = np.zeros(len(k), bool)
-        last[np.cumsum(n) - 1] = True
-        again = np.zeros(len(k), bool)              # the end in the pixel of the step before
-        again[1:] = last[1:] & (k[1:] > 0) & np.all(ij[1:] == ij[:-1], axis=1)
-        inside = ((ij[:, 0] >= 0) & (ij[:, 0] < cols) & (ij[:, 1] >= 0) & (ij[:, 1] < rows)
-                  & ~again)
-        counts += np.bincount(ij[inside, 1] * cols + ij[inside, 0], minlength=rows * cols)
+        first = np.cumsum(n) - n
+        k = np.arange(int(n.sum()), dtype=np.int64)
+        k -= np.repeat(first, n)
+        t = np.minimum(k, length[seg])              # one pixel steps, the last to the end
+        t /= div[seg]
+        ix = dx[seg]
+        ix *= t
+        ix += ax[seg]
+        ix = np.floor(ix, out=ix).astype(np.int64)
+        iy = dy[seg]
+        iy *= t
+        iy += ay[seg]
+        iy = np.floor(iy, out=iy).astype(np.int64)
+        keep = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
+        last = (first + n - 1)[n > 1]               # the end in the pixel of the step before
+        keep[last[(ix[last] == ix[last - 1]) & (iy[last] == iy[last - 1])]] = False
+        iy *= cols
+        iy += ix
+        counts += np.bincount(iy[keep], minlength=rows * cols)
         start = stop
     return counts.reshape(rows, cols)
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import csv
 import io
-import re
 from itertools import repeat
 from pathlib import Path
 
@@ -136,6 +135,22 @@ def sorted_groups(keys) -> tuple[np.ndarray, np.ndarray]:
     return rank[codes], names[order]
 
 
+def sorted_subgroups(codes, names) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`sorted_groups` of some rows of a column, from that column's
+    :func:`groups` ``(codes, names)`` restricted to the rows (``codes`` of
+    those rows only): the same result, without hashing the rows' text again
+    (a table's groups are cached; issue 23)."""
+    codes = np.asarray(codes, dtype=int)
+    present = np.zeros(len(names), bool)
+    present[codes] = True
+    kept = np.flatnonzero(present)
+    sub = np.array(names, dtype=object)[kept]
+    order = np.argsort(sub.astype(str), kind="stable")
+    rank = np.full(len(names), -1, dtype=int)
+    rank[kept[order]] = np.arange(len(kept))
+    return rank[codes], sub[order]
+
+
 # ------------------------------------------------------------------ reading
 
 
@@ -149,7 +164,7 @@ def _rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
         raise InputError(f"the file is not UTF-8 text ({exc.reason})", file=path,
                          hint=_DAMAGED) from None
     lines = text.splitlines()
-    if "#" in text or re.search(r"^[ \t\r\f\v]*$", text.rstrip("\r\n"), re.M):
+    if "#" in text or not all(map(str.strip, lines)):   # a comment or a blank line
         numbers = [n for n, line in enumerate(lines, 1)
                    if line.strip() and not line.lstrip().startswith("#")]
         lines = [lines[n - 1] for n in numbers]

@@ -137,9 +137,14 @@ def _matplotlib_pdf(figures, meta) -> bytes:
 def report_units(data, units=None) -> str:
     """The units of the stick-model pages: ``units``, else summary.json's
     ``report_units``, else the project's ``[report] units``, else "project"."""
-    from photogram.jump.coach import check_units
+    from photogram.project.model import REPORT_UNITS
+
     project = getattr(getattr(data.project, "report", None), "units", None)
-    return check_units(units or data.summary.get("report_units") or project or "project")
+    value = units or data.summary.get("report_units") or project or "project"
+    if value in REPORT_UNITS:       # photogram.jump only for the error (its import costs)
+        return value
+    from photogram.jump.coach import check_units
+    return check_units(value)
 
 
 def write_report(folder: str | Path, *, output: str | Path | None = None,

@@ -376,15 +376,30 @@ def raster_ellipses(c, tr, centre, u, v, color, dpi: float = 150.0,
     idx = np.repeat(np.arange(len(n)), n)
     step = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
     t = 2 * np.pi * step / np.repeat(np.maximum(n, 1), n)
-    px = (centre[idx] + u[idx] * np.cos(t)[:, None] + v[idx] * np.sin(t)[:, None]
-          - [x0, y0]) * k
-    ix, iy = np.floor(px[:, 0]).astype(np.int64), np.floor(px[:, 1]).astype(np.int64)
+    cos, sin = np.cos(t), np.sin(t)
+    ix, iy = (_pixel(centre[:, j], u[:, j], v[:, j], idx, cos, sin, origin, k)
+              for j, origin in ((0, x0), (1, y0)))
     inside = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
     alpha = np.zeros((rows, cols), np.uint8)
     alpha[rows - 1 - iy[inside], ix[inside]] = 255                      # top row first
     img = np.empty((rows, cols, 3), np.uint8)
     img[...] = np.round(np.array(rgb(color)) * 255).astype(np.uint8)
     c.image(img, x0, y0, w, h, alpha)
+
+
+def _pixel(c, u, v, idx, cos, sin, origin, k):
+    """Pixel index ``floor((c + u cos + v sin - origin) k)`` of one
+    coordinate of every sample, on 1D columns updated in place (the same
+    numbers as the (n, 2) expression, a third of its time; issue 23)."""
+    out = u[idx]
+    out *= cos
+    out += c[idx]
+    part = v[idx]
+    part *= sin
+    out += part
+    out -= origin
+    out *= k
+    return np.floor(out, out=out).astype(np.int64)
 
 
 # ------------------------------------------------------------------ legend

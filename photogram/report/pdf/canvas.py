@@ -61,6 +61,12 @@ def _c(x: float) -> str:
     return f"{x:.3f}".rstrip("0").rstrip(".") or "0"
 
 
+@lru_cache(maxsize=4096)
+def _literal(text: str) -> str:
+    """:func:`pdf_string` of ``text`` as str (cached: tick labels repeat)."""
+    return pdf_string(text).decode("latin-1")
+
+
 @lru_cache(maxsize=64)
 def _font_op(font: str, size: float) -> str:
     return f" BT /{_RESOURCE[font]} {_c(size)} Tf"
@@ -170,8 +176,9 @@ class Canvas:
             pos = f"{c:.4f} {s:.4f} {-s:.4f} {c:.4f} {x0:.2f} {y0:.2f} Tm"
         else:
             pos = f"1 0 0 1 {x - shift:.2f} {y:.2f} Tm"
-        self._ops.append(self._alpha(None) + _font_op(font, size) + f" {fill} {pos} "
-                         + pdf_string(text).decode("latin-1") + " Tj ET\n")
+        self._ops.append((self._alpha(None) if self._opacity[-1] != 1.0 else "")
+                         + _font_op(font, size) + f" {fill} {pos} " + _literal(text)
+                         + " Tj ET\n")
 
     # -------------------------------------------------------------- paths
     def line(self, x0, y0, x1, y1) -> None:
