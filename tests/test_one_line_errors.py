@@ -281,8 +281,12 @@ def test_report_text_in_a_number_column_of_residuals(damaged, capsys):
 def test_report_residuals_that_do_not_parse(damaged, capsys):
     path = damaged / "residuals.csv"
     path.write_text(path.read_text() + "a,b,c,d,e,f,g,h,i,j,k,l,m,n\n")
+    line = len(path.read_text().splitlines())
+    header = len(path.read_text().splitlines()[0].split(","))
     assert main(["report", str(damaged)]) == 2
-    assert _one_line(capsys).startswith(f"{path}: cannot read the table: Error tokenizing data")
+    assert _one_line(capsys).startswith(
+        f"{path}:{line}: cannot read the table: 14 cells, the header has {header} "
+        "(the file is damaged: run the command again)")
 
 
 @pytest.mark.parametrize("content,what", [
