@@ -20,6 +20,20 @@ njit = _numba.njit(cache=True, nogil=True,
                    fastmath={"reassoc", "contract", "nsz", "arcp"})
 
 
+@_numba.njit(inline="always", cache=True, nogil=True,
+             fastmath={"reassoc", "contract", "nsz", "arcp"})
+def _camera_frame(R, X0, s, px, py, pz):
+    """The point (px, py, pz) in station ``s``'s camera frame,
+    ``R_s (X - X0_s)`` (``_numba_kernels.bal_rows``)."""
+    d0 = px - X0[s, 0]
+    d1 = py - X0[s, 1]
+    d2 = pz - X0[s, 2]
+    x0 = R[s, 0, 0] * d0 + R[s, 0, 1] * d1 + R[s, 0, 2] * d2
+    x1 = R[s, 1, 0] * d0 + R[s, 1, 1] * d1 + R[s, 1, 2] * d2
+    x2 = R[s, 2, 0] * d0 + R[s, 2, 1] * d1 + R[s, 2, 2] * d2
+    return x0, x1, x2
+
+
 @njit
 def bal_linearize(xy, points, R, X0, io, ptr, station, camera, group,
                   A, g_e, WT, g_grp, G):
@@ -44,12 +58,7 @@ def bal_linearize(xy, points, R, X0, io, ptr, station, camera, group,
             s = station[k]
             c = camera[k]
             q = group[k]
-            d0 = px - X0[s, 0]
-            d1 = py - X0[s, 1]
-            d2 = pz - X0[s, 2]
-            x0 = R[s, 0, 0] * d0 + R[s, 0, 1] * d1 + R[s, 0, 2] * d2
-            x1 = R[s, 1, 0] * d0 + R[s, 1, 1] * d1 + R[s, 1, 2] * d2
-            x2 = R[s, 2, 0] * d0 + R[s, 2, 1] * d1 + R[s, 2, 2] * d2
+            x0, x1, x2 = _camera_frame(R, X0, s, px, py, pz)
             iz = 1.0 / x2
             tx = -x0 * iz
             ty = x1 * iz
@@ -128,12 +137,7 @@ def bal_cost(xy, points, R, X0, io, ptr, station, camera):
         for k in range(ptr[i], ptr[i + 1]):
             s = station[k]
             c = camera[k]
-            d0 = px - X0[s, 0]
-            d1 = py - X0[s, 1]
-            d2 = pz - X0[s, 2]
-            x0 = R[s, 0, 0] * d0 + R[s, 0, 1] * d1 + R[s, 0, 2] * d2
-            x1 = R[s, 1, 0] * d0 + R[s, 1, 1] * d1 + R[s, 1, 2] * d2
-            x2 = R[s, 2, 0] * d0 + R[s, 2, 1] * d1 + R[s, 2, 2] * d2
+            x0, x1, x2 = _camera_frame(R, X0, s, px, py, pz)
             iz = 1.0 / x2
             tx = -x0 * iz
             ty = x1 * iz
