@@ -212,6 +212,37 @@ def point_cofactors(WT, Ainv, pt_ptr, pt_rows, rcols, Minv, AinvGe, g0, Qee):
                     Qee[p, i, j] += acc
 
 
+_inline = _numba.njit(inline="always", cache=True, nogil=True,
+                      fastmath={"reassoc", "contract", "nsz", "arcp"})
+
+
+@_inline
+def camera_frame(R, X0, s, px, py, pz):
+    """The point (px, py, pz) in station ``s``'s camera frame,
+    ``R_s (X - X0_s)``."""
+    d0 = px - X0[s, 0]
+    d1 = py - X0[s, 1]
+    d2 = pz - X0[s, 2]
+    x0 = R[s, 0, 0] * d0 + R[s, 0, 1] * d1 + R[s, 0, 2] * d2
+    x1 = R[s, 1, 0] * d0 + R[s, 1, 1] * d1 + R[s, 1, 2] * d2
+    x2 = R[s, 2, 0] * d0 + R[s, 2, 1] * d1 + R[s, 2, 2] * d2
+    return x0, x1, x2
+
+
+@_inline
+def bal_frame_jacobian(f, k1, k2, tx, ty, iz, r2, dd):
+    """The ``bal`` residual's Jacobian with respect to the camera-frame
+    point, ``-(M dt/dXc)`` with ``M = d(xy)/dt = f (dd I + dp2 t t^T)`` and
+    ``dt/dXc = [[-iz, 0, -tx iz], [0, iz, -ty iz]]``: rows (j00, j01, j02)
+    and (j10, j11, j12)."""
+    dp2 = 2.0 * (k1 + 2.0 * k2 * r2)
+    m00 = f * (dd + dp2 * tx * tx)
+    m01 = f * dp2 * tx * ty
+    m11 = f * (dd + dp2 * ty * ty)
+    return (m00 * iz, -m01 * iz, (m00 * tx + m01 * ty) * iz,
+            m01 * iz, -m11 * iz, (m01 * tx + m11 * ty) * iz)
+
+
 @njit
 def bal_rows(xy, points, R, X0, io, point, station, camera, r, JX, JS, JI, jac):
     """The ``bal`` camera model (:mod:`photogram.geometry.bal_model`) for
@@ -224,12 +255,7 @@ def bal_rows(xy, points, R, X0, io, point, station, camera, r, JX, JS, JI, jac):
         p = point[o]
         s = station[o]
         c = camera[o]
-        d0 = points[p, 0] - X0[s, 0]
-        d1 = points[p, 1] - X0[s, 1]
-        d2 = points[p, 2] - X0[s, 2]
-        x0 = R[s, 0, 0] * d0 + R[s, 0, 1] * d1 + R[s, 0, 2] * d2
-        x1 = R[s, 1, 0] * d0 + R[s, 1, 1] * d1 + R[s, 1, 2] * d2
-        x2 = R[s, 2, 0] * d0 + R[s, 2, 1] * d1 + R[s, 2, 2] * d2
+        x0, x1, x2 = camera_frame(R, X0, s, points[p, 0], points[p, 1], points[p, 2])
         iz = 1.0 / x2
         tx = -x0 * iz
         ty = x1 * iz
@@ -240,18 +266,7 @@ def bal_rows(xy, points, R, X0, io, point, station, camera, r, JX, JS, JI, jac):
         r[o, 1] = xy[o, 1] - f * dd * ty
         if not jac:
             continue
-        dp2 = 2.0 * (k1 + 2.0 * k2 * r2)
-        # d(xy)/dt = f (dd I + dp2 t t^T); dt/dXc = [[-iz, 0, -tx iz], [0, iz, -ty iz]]
-        m00 = f * (dd + dp2 * tx * tx)
-        m01 = f * dp2 * tx * ty
-        m11 = f * (dd + dp2 * ty * ty)
-        # residual Jacobian wrt Xc: -(M @ dt/dXc)
-        j00 = m00 * iz
-        j01 = -m01 * iz
-        j02 = (m00 * tx + m01 * ty) * iz
-        j10 = m01 * iz
-        j11 = -m11 * iz
-        j12 = (m01 * tx + m11 * ty) * iz
+        j00, j01, j02, j10, j11, j12 = bal_frame_jacobian(f, k1, k2, tx, ty, iz, r2, dd)
         for i in range(3):
             a = j00 * R[s, 0, i] + j01 * R[s, 1, i] + j02 * R[s, 2, i]
             b = j10 * R[s, 0, i] + j11 * R[s, 1, i] + j12 * R[s, 2, i]

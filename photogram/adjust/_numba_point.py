@@ -16,22 +16,10 @@ no Jacobian array is ever stored.
 import numba as _numba
 import numpy as np
 
+from photogram.adjust._numba_kernels import bal_frame_jacobian, camera_frame
+
 njit = _numba.njit(cache=True, nogil=True,
                    fastmath={"reassoc", "contract", "nsz", "arcp"})
-
-
-@_numba.njit(inline="always", cache=True, nogil=True,
-             fastmath={"reassoc", "contract", "nsz", "arcp"})
-def _camera_frame(R, X0, s, px, py, pz):
-    """The point (px, py, pz) in station ``s``'s camera frame,
-    ``R_s (X - X0_s)`` (``_numba_kernels.bal_rows``)."""
-    d0 = px - X0[s, 0]
-    d1 = py - X0[s, 1]
-    d2 = pz - X0[s, 2]
-    x0 = R[s, 0, 0] * d0 + R[s, 0, 1] * d1 + R[s, 0, 2] * d2
-    x1 = R[s, 1, 0] * d0 + R[s, 1, 1] * d1 + R[s, 1, 2] * d2
-    x2 = R[s, 2, 0] * d0 + R[s, 2, 1] * d1 + R[s, 2, 2] * d2
-    return x0, x1, x2
 
 
 @njit
@@ -58,7 +46,7 @@ def bal_linearize(xy, points, R, X0, io, ptr, station, camera, group,
             s = station[k]
             c = camera[k]
             q = group[k]
-            x0, x1, x2 = _camera_frame(R, X0, s, px, py, pz)
+            x0, x1, x2 = camera_frame(R, X0, s, px, py, pz)
             iz = 1.0 / x2
             tx = -x0 * iz
             ty = x1 * iz
@@ -68,16 +56,7 @@ def bal_linearize(xy, points, R, X0, io, ptr, station, camera, group,
             r0 = xy[k, 0] - f * dd * tx
             r1 = xy[k, 1] - f * dd * ty
             part += r0 * r0 + r1 * r1
-            dp2 = 2.0 * (k1 + 2.0 * k2 * r2)
-            m00 = f * (dd + dp2 * tx * tx)
-            m01 = f * dp2 * tx * ty
-            m11 = f * (dd + dp2 * ty * ty)
-            j00 = m00 * iz
-            j01 = -m01 * iz
-            j02 = (m00 * tx + m01 * ty) * iz
-            j10 = m01 * iz
-            j11 = -m11 * iz
-            j12 = (m01 * tx + m11 * ty) * iz
+            j00, j01, j02, j10, j11, j12 = bal_frame_jacobian(f, k1, k2, tx, ty, iz, r2, dd)
             # point Jacobian Je (rows e0., e1.); station columns are -Je
             e00 = j00 * R[s, 0, 0] + j01 * R[s, 1, 0] + j02 * R[s, 2, 0]
             e01 = j00 * R[s, 0, 1] + j01 * R[s, 1, 1] + j02 * R[s, 2, 1]
@@ -137,7 +116,7 @@ def bal_cost(xy, points, R, X0, io, ptr, station, camera):
         for k in range(ptr[i], ptr[i + 1]):
             s = station[k]
             c = camera[k]
-            x0, x1, x2 = _camera_frame(R, X0, s, px, py, pz)
+            x0, x1, x2 = camera_frame(R, X0, s, px, py, pz)
             iz = 1.0 / x2
             tx = -x0 * iz
             ty = x1 * iz
