@@ -5,7 +5,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv test test-fast demo clean montecarlo bench
+.PHONY: venv test test-fast test-numba demo clean montecarlo bench
 
 venv: $(STAMP)
 
@@ -36,11 +36,28 @@ test-fast: $(STAMP)
 	if [ $$lint -ne 0 ]; then echo "make test-fast: the layers contract is broken (lint-imports)"; exit 1; fi; \
 	exit $$rc
 
+# The compiled kernels (numba, the optional extra [fast]) in an environment
+# of their own, .venv-numba, so that .venv keeps the pure-numpy path that
+# `make test` tests: the test files that compare the two paths or test the
+# kernels, which skip where numba is missing. .ci/run runs it after `make test`.
+NUMBA_VENV := .venv-numba
+NUMBA_TESTS := tests/test_adjust_kernels.py tests/test_adjust_rcs_sparse.py tests/test_bal.py \
+	tests/test_bal_point_rows.py tests/test_rcs_cg_criterion.py tests/test_stats_blockwise.py
+$(NUMBA_VENV)/.installed: setup.cfg pyproject.toml
+	$(PYTHON) -m venv $(NUMBA_VENV)
+	$(NUMBA_VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(NUMBA_VENV)/bin/python -m pip install --quiet -e '.[test,fast]'
+	touch $@
+
+test-numba: $(NUMBA_VENV)/.installed
+	$(NUMBA_VENV)/bin/python -c "import numba; print('make test-numba: numba', numba.__version__)"
+	$(NUMBA_VENV)/bin/python -m pytest -q -rs $(NUMBA_TESTS)
+
 demo: $(STAMP)
 	$(VENV)/bin/photogram demo
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) $(NUMBA_VENV) build *.egg-info
 
 # Accuracy by simulation on the demo's results (run `make demo` first).
 montecarlo: $(STAMP)
