@@ -9,6 +9,9 @@ from photogram.jump.synthetic import synthetic_jumper
 pytest.importorskip("matplotlib")
 import photogram.jump.figure as figure  # noqa: E402
 
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.parametrize("steepness", [1.0, 5.0])
 def test_every_y_label_lies_inside_the_figure(tmp_path, monkeypatch, steepness):

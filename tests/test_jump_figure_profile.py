@@ -31,6 +31,7 @@ def model():
     return stick_model(s["P"], s["d1"], s["d2"], c1=s["c1"], c2=s["c2"])
 
 
+@pytest.mark.slow
 def test_the_profile_changes_the_side_view_only_along_world_x(model, tmp_path):
     O = model.O
     x = np.linspace(O[:, 0].min() - 50, O[:, 0].max() + 50, 5)

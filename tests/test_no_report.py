@@ -28,6 +28,7 @@ def test_writers_accept_no_report(command):
     assert build_parser().parse_args([command, "x.prj"]).no_report is False
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data/dbat/camcal is absent")
 def test_calibrate_no_report_then_report_rebuilds_the_same_pdf(tmp_path):
     out = tmp_path / "results"

@@ -197,6 +197,7 @@ def test_calibrate_report_is_native_with_the_matplotlib_layout(lab):
         assert (w, h) == pytest.approx(tuple(fig.get_size_inches()), abs=0.01)
 
 
+@pytest.mark.slow
 def test_report_without_matplotlib_and_fallback_outside_cp1252(lab, tmp_path):
     code = ("import sys; from photogram.report import write_report; "
             f"write_report({str(lab)!r}, output={str(tmp_path)!r}); "

@@ -73,6 +73,7 @@ def test_groups_in_order_of_first_appearance():
     assert names == [] and len(code) == 0
 
 
+@pytest.mark.slow
 def test_report_does_not_import_pandas(tmp_path):
     """A calibrate report of the lab data is built in a process that never
     imports pandas (its import was most of CAMCAL's report time)."""

@@ -2,8 +2,12 @@
 time: the network must be the same, bit for bit, as projecting all at once."""
 
 import numpy as np
+import pytest
 
 import photogram.simulation.network as network
+
+# `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
+pytestmark = pytest.mark.slow
 
 
 def _same(a, b):
