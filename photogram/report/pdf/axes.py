@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.report.pdf import artists
+from photogram.report.pdf import artists, guides
 from photogram.report.pdf.canvas import text_width
 from photogram.report.pdf.colors import CYCLE
 from photogram.report.pdf.ticks import log_ticks, nice_ticks, tick_labels
@@ -267,9 +267,9 @@ class Axes(artists.ArtistsMixin):
                 draw(tr, c)
         self._frame(tr)
         if self.legend_spec is not None and self.handles:
-            artists.draw_legend(self, tr, *self.legend_spec)
+            guides.draw_legend(self, tr, *self.legend_spec)
         for cb in self.colorbars:
-            artists.draw_colorbar(self, tr, cb)
+            guides.draw_colorbar(self, tr, cb)
 
     def _tick_sets(self, tr):
         x0, y0, w, h = tr.box

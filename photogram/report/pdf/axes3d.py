@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.report.pdf.artists import draw_legend
+from photogram.report.pdf.guides import draw_legend
 from photogram.report.pdf.canvas import text_width
 from photogram.report.pdf.ticks import nice_ticks, tick_labels
 
