@@ -7,6 +7,12 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: venv test test-fast test-numba demo clean montecarlo bench
 
+# Some machines set PYTHONDONTWRITEBYTECODE=1; then every run recompiles
+# photogram and pytest rewrites the asserts of all 250 test modules again
+# (about 15 s CPU of collecting, and again in every child process). The
+# caches (__pycache__/, ignored by git) are written inside the clone.
+unexport PYTHONDONTWRITEBYTECODE
+
 venv: $(STAMP)
 
 $(STAMP): setup.cfg pyproject.toml
