@@ -3,8 +3,9 @@ the test suite).
 
 For every test: CPU seconds of this process (``time.process_time``: user +
 system) and of its finished child processes (``getrusage(RUSAGE_CHILDREN)``),
-wall seconds, and ``ru_maxrss`` of this process and of its largest child so
-far; also the CPU of collecting. Written as JSON to ``$PYTEST_CPU_OUT``
+wall seconds, ``ru_maxrss`` of this process and of its largest child so
+far, and the resident size after the test (what the session keeps); also
+the CPU of collecting. Written as JSON to ``$PYTEST_CPU_OUT``
 (default ``pytest_cpu.json``) at the end of the session::
 
     PYTHONPATH=$PWD:$PWD/benchmarks python -m pytest -q -p pytest_cpu tests/test_x.py
@@ -24,6 +25,15 @@ import pytest
 
 _ROWS: list = []
 _SESSION: dict = {}
+
+
+def _rss() -> int:
+    """Resident set size of this process now (bytes; 0 where /proc is missing)."""
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return 0
 
 
 def _now():
@@ -46,7 +56,8 @@ def pytest_runtest_protocol(item, nextitem):
     yield
     b = _now()
     _ROWS.append({"id": item.nodeid, "cpu": b[0] - a[0], "children_cpu": b[1] - a[1],
-                  "wall": time.perf_counter() - wall, "maxrss": b[2], "children_maxrss": b[3]})
+                  "wall": time.perf_counter() - wall, "maxrss": b[2], "children_maxrss": b[3],
+                  "rss": _rss()})
 
 
 def pytest_sessionfinish(session):

@@ -36,3 +36,26 @@ def oriented_projects(tmp_path_factory):
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         assert main(["orient", "--no-report", "-q", str(root / "field" / "field.prj")]) == 0
     return root
+
+
+def _malloc_trim():
+    """``malloc_trim(0)`` of glibc (None elsewhere)."""
+    import ctypes
+    import ctypes.util
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        return libc.malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
+_TRIM = _malloc_trim()
+
+
+def pytest_runtest_teardown(item, nextitem):
+    """After the last test of a module: give the heap that its tests freed
+    back to the system (about 3 ms). glibc keeps it otherwise, and the
+    session's resident size only grows (after tests/test_board_rig_render.py
+    0.48 GB without, 0.35 GB with)."""
+    if _TRIM is not None and (nextitem is None or nextitem.module is not item.module):
+        _TRIM(0)
