@@ -67,11 +67,13 @@ class PlaneCamera:
         for _ in range(10):
             np.multiply(x, x, out=r2)
             r2 += np.multiply(y, y, out=t)
-            np.multiply(r2, r2, out=t)            # r2 ** 2
-            t *= self.k2
+            if self.k2 != 0:                       # else k2 r2^2 = +0.0 adds nothing
+                np.multiply(r2, r2, out=t)        # r2 ** 2
+                t *= self.k2
             r2 *= self.k1
             r2 += 1
-            r2 += t                                # 1 + k1 r2 + k2 r2^2
+            if self.k2 != 0:
+                r2 += t                            # 1 + k1 r2 + k2 r2^2
             np.divide(dx, r2, out=x)
             np.divide(dy, r2, out=y)
         return np.stack([x, y], axis=-1) @ self.K[:2, :2].T + self.K[:2, 2]
