@@ -22,6 +22,7 @@ import pytest
 cv2 = pytest.importorskip("cv2")
 
 from photogram.bundle import adjust                                 # noqa: E402
+from photogram.io import targets                                    # noqa: E402
 from photogram.io.targets import detect_folder, images_project, parse_target  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "pose2sim-demo"
@@ -56,14 +57,33 @@ def qualisys():
     return out
 
 
+_DETECTED: dict = {}
+
+
+def detected(folder):
+    """``detect_folder(folder, TARGET)``, run once per folder (the
+    detection is deterministic; it is most of this module's CPU)."""
+    if folder not in _DETECTED:
+        _DETECTED[folder] = detect_folder(folder, parse_target(TARGET))
+    return _DETECTED[folder]
+
+
 def calibrate(cam):
     folder = CALIB / "intrinsics" / f"int_{cam}_img"
     target = parse_target(TARGET)
-    project = images_project(folder, target)
+    found = detected(folder)
+
+    def same_detection(f, t):        # images_project's own detect_folder call
+        assert (Path(f), t) == (folder, target)
+        return found
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(targets, "detect_folder", same_detection)
+        project = images_project(folder, target)
     project.cameras["camera"].parameters["k3"].value = 0.0
     project.cameras["camera"].parameters["k3"].free = False
     result = adjust(project)
-    names, dets, size, missed = detect_folder(folder, target)
+    names, dets, size, missed = found
     obj = target.object_points()
     crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
     rms, K, D, _, _, sd, _, _ = cv2.calibrateCameraExtended(
@@ -177,8 +197,7 @@ def test_unrefined_corner_is_left_out(results):
     (17.5, 818.8), because cornerSubPix returns the start unchanged when its
     iterate leaves the window; the importer now leaves such corners out, and
     no residual on the real photos exceeds 2 px."""
-    names, dets = results["cam04"][1], detect_folder(
-        CALIB / "intrinsics" / "int_cam04_img", parse_target(TARGET))[1]
+    names, dets = results["cam04"][1], detected(CALIB / "intrinsics" / "int_cam04_img")[1]
     ids, xy = dets[names.index("cam04_07_int")]
     assert 3 not in ids and len(ids) == 27
     for cam in CAMS:

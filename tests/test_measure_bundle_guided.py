@@ -10,6 +10,9 @@ observations are dropped at random (a numbering that failed). The bundle
 lens distortion; the guided ellipse fit measures them.
 """
 
+import copy
+import functools
+
 import numpy as np
 
 from photogram.geometry import camera_model, matrix_to_opk
@@ -31,6 +34,14 @@ FAINT = [3, 10, 14, 20, 25, 33, 38, 41, 47, 50, 57, 60]
 
 
 def _scene():
+    """(network, {station: image}, sigmas) of the rendered sheet: rendered
+    and measured once per session (tests/test_measure_guided_cli.py uses it
+    too), a deep copy for every caller."""
+    return copy.deepcopy(_rendered_scene())
+
+
+@functools.lru_cache(maxsize=1)
+def _rendered_scene():
     gx, gy = np.meshgrid(np.arange(COLS) * SPACING, np.arange(ROWS) * SPACING)
     XY = np.column_stack([gx.ravel(), gy.ravel()])
     strong = np.setdiff1d(np.arange(len(XY)), FAINT)

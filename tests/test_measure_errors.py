@@ -59,7 +59,8 @@ def _run(capsys, args):
 
 def test_a_good_folder_is_measured(tmp_path, folder, capsys):
     out = tmp_path / "out"
-    code, err = _run(capsys, [_field_file(tmp_path, folder), "--output", out])
+    # (the report is test_report_drawings_and_pdf's)
+    code, err = _run(capsys, [_field_file(tmp_path, folder), "--output", out, "--no-report"])
     assert code == 0, err
     rows = (out / "image_points.csv").read_text().splitlines()
     assert rows[1] == "station,point,x,y,sigma"
@@ -125,10 +126,10 @@ def test_bad_field_description(tmp_path, folder, capsys):
 def test_earlier_results_are_not_replaced(tmp_path, folder, capsys):
     out = tmp_path / "out"
     path = _field_file(tmp_path, folder)
-    assert _run(capsys, [path, "--output", out])[0] == 0
+    assert _run(capsys, [path, "--output", out, "--no-report"])[0] == 0
     code, err = _run(capsys, [path, "--output", out])
     assert code == 2 and "--force" in err[0]
-    assert _run(capsys, [path, "--output", out, "--force"])[0] == 0
+    assert _run(capsys, [path, "--output", out, "--force", "--no-report"])[0] == 0
 
 
 def test_gross_detections_are_rejected_and_counted():

@@ -74,7 +74,9 @@ def _write_set(folder, n_cameras=3, n_poses=24, seed=0):
             img = cv2.GaussianBlur(img, (0, 0), 0.6)
             noise = rng.normal(0, 2.0, img.shape)
             img = np.clip(img + noise, 0, 255).astype(np.uint8)
-            cv2.imwrite(str(folder / name / f"{k:04d}.png"), img)
+            # stored uncompressed (the same pixels; every calibrate run below
+            # decodes all 72 images, zlib's inflate was most of imread)
+            cv2.imwrite(str(folder / name / f"{k:04d}.png"), img, [cv2.IMWRITE_PNG_COMPRESSION, 0])
     return cams, poses
 
 

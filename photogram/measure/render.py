@@ -57,13 +57,26 @@ class PlaneCamera:
         """Undistorted pixel coordinates of distorted ones (fixed point)."""
         Ki = np.linalg.inv(self.K)
         xd = uv @ Ki[:2, :2].T + Ki[:2, 2]
-        xn = xd.copy()
         if self.k1 == 0 and self.k2 == 0:
             return uv
+        # x, y as contiguous arrays, operation for operation as
+        # r2 = x^2 + y^2, (x, y) = xd / (1 + k1 r2 + k2 r2^2): the same numbers
+        dx, dy = np.ascontiguousarray(xd[..., 0]), np.ascontiguousarray(xd[..., 1])
+        x, y = dx.copy(), dy.copy()
+        r2, t = np.empty_like(x), np.empty_like(x)
         for _ in range(10):
-            r2 = xn[..., :1] ** 2 + xn[..., 1:] ** 2
-            xn = xd / (1 + self.k1 * r2 + self.k2 * r2 ** 2)
-        return xn @ self.K[:2, :2].T + self.K[:2, 2]
+            np.multiply(x, x, out=r2)
+            r2 += np.multiply(y, y, out=t)
+            if self.k2 != 0:                       # else k2 r2^2 = +0.0 adds nothing
+                np.multiply(r2, r2, out=t)        # r2 ** 2
+                t *= self.k2
+            r2 *= self.k1
+            r2 += 1
+            if self.k2 != 0:
+                r2 += t                            # 1 + k1 r2 + k2 r2^2
+            np.divide(dx, r2, out=x)
+            np.divide(dy, r2, out=y)
+        return np.stack([x, y], axis=-1) @ self.K[:2, :2].T + self.K[:2, 2]
 
 
 def look_at(eye, target, up=(0.0, 0.0, 1.0)):

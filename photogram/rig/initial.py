@@ -17,6 +17,10 @@ All transforms are 4 x 4 homogeneous matrices in OpenCV's convention.
 
 from __future__ import annotations
 
+import collections
+import copy
+import hashlib
+
 import numpy as np
 
 from photogram.errors import InputError
@@ -105,6 +109,25 @@ def camera_intrinsics(frames: dict, board_points: np.ndarray, image_size, *,
 FOCAL_STARTS = (0.5, 0.7, 1.0, 1.4, 2.0)
 
 
+#: The last few :func:`_pinhole_start` results by their exact inputs (the
+#: six OpenCV calibrations are most of a rig calibration's CPU; the same
+#: camera's detections come back unchanged when a calibration is run again
+#: with one camera's views changed, or with other scene points).
+_STARTS: collections.OrderedDict = collections.OrderedDict()
+_STARTS_SIZE = 16
+
+
+def _start_key(obj, img, size, fix_k3) -> tuple:
+    """The exact inputs of :func:`_pinhole_start` as a hashable key (a
+    SHA-1 of every array's dtype, shape and bytes)."""
+    h = hashlib.sha1()
+    for a in (*obj, *img):
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest(), len(obj), tuple(size), bool(fix_k3)
+
+
 def _pinhole_start(obj, img, size, name, fix_k3):
     """``cv2.calibrateCamera`` from OpenCV's own start (``initCameraMatrix2D``
     from the views' homographies) and from the focal lengths
@@ -112,7 +135,22 @@ def _pinhole_start(obj, img, size, name, fix_k3):
     solution of least RMS. OpenCV's start alone can end in a local minimum
     when the views are small and near fronto-parallel (seen on a rendered
     harsh set at 1920 x 1080: a camera at 3.7 m got f 21 % off with 1.7 px
-    RMS, where a start at 0.7 image widths gives 0.13 px and 0.7 %)."""
+    RMS, where a start at 0.7 image widths gives 0.13 px and 0.7 %).
+
+    OpenCV is deterministic: a result is kept for the same inputs
+    (``_STARTS``, the last ``_STARTS_SIZE``) and returned as a copy."""
+    key = _start_key(obj, img, size, fix_k3)
+    if key in _STARTS:
+        _STARTS.move_to_end(key)
+    else:
+        _STARTS[key] = _pinhole_starts(obj, img, size, name, fix_k3)
+        while len(_STARTS) > _STARTS_SIZE:
+            _STARTS.popitem(last=False)
+    return copy.deepcopy(_STARTS[key])
+
+
+def _pinhole_starts(obj, img, size, name, fix_k3):
+    """:func:`_pinhole_start` computed."""
     import cv2
     flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
     w, h = size

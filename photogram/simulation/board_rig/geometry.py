@@ -391,8 +391,13 @@ def _bar(camera, pose, target, settings, key):
 
 
 def _bar_coverage(xy, bar) -> np.ndarray:
-    """Fraction of the pixel at ``xy`` covered by the bar (linear edge ramp)."""
+    """Fraction of the pixel at ``xy`` covered by the bar (linear edge ramp);
+    ``xy`` (..., 2) or a pair (x, y) of arrays that broadcast (a grid)."""
     p, d, hw = bar
-    rel = np.asarray(xy, float) - p
-    dist = np.abs(rel[..., 0] * d[1] - rel[..., 1] * d[0])
+    if isinstance(xy, tuple):
+        rx, ry = xy[0] - p[0], xy[1] - p[1]
+    else:
+        rel = np.asarray(xy, float) - p
+        rx, ry = rel[..., 0], rel[..., 1]
+    dist = np.abs(rx * d[1] - ry * d[0])
     return np.clip(hw - dist + 0.5, 0.0, 1.0)

@@ -133,15 +133,33 @@ def _hit(xn, R_cb, t_cb, margin, W, H):
     ``r3 . (lam d - t_cb) = 0`` with ``d = (x, y, 1)``."""
     x, y = (xn[..., 0], xn[..., 1]) if isinstance(xn, np.ndarray) else xn
     r1, r2, r3 = R_cb.T
+    tmp = np.empty(np.shape(x))
     with np.errstate(divide="ignore", invalid="ignore"):
-        lam = (r3 @ t_cb) / (x * r3[0] + y * r3[1] + r3[2])
-        bx = lam * (x * r1[0] + y * r1[1] + r1[2])
+        # in place, operand for operand as lam = (r3 . t) / (x r3[0] + y r3[1] + r3[2]),
+        # bx = lam (x r1[0] + y r1[1] + r1[2]) + (margin - r1 . t): the same numbers
+        lam = _plane(x, y, r3, tmp)
+        np.divide(r3 @ t_cb, lam, out=lam)
+        bx = _plane(x, y, r1, tmp)
+        bx *= lam
         bx += margin - r1 @ t_cb
-        by = lam * (x * r2[0] + y * r2[1] + r2[2])
+        by = _plane(x, y, r2, tmp)
+        by *= lam
         by += margin - r2 @ t_cb
-    inside = (bx >= 0) & (bx <= W) & (by >= 0) & (by <= H)
+    inside = bx >= 0
+    inside &= bx <= W
+    inside &= by >= 0
+    inside &= by <= H
     inside &= lam > 0
     return bx, by, inside
+
+
+def _plane(x, y, r, tmp) -> np.ndarray:
+    """``x * r[0] + y * r[1] + r[2]`` (a new array), ``tmp`` a scratch
+    array of its shape."""
+    out = np.multiply(x, r[0])
+    out += np.multiply(y, r[1], out=tmp)
+    out += r[2]
+    return out
 
 
 def _look(camera, R_cb, t_cb, target, s, texel0) -> tuple:
@@ -159,6 +177,16 @@ def _box_mean(a: np.ndarray, s: int) -> np.ndarray:
     hs, ws = a.shape
     rows = a.reshape(hs, ws // s, s).sum(-1, dtype=np.float64)
     return rows.reshape(hs // s, s, ws // s).sum(1) / (s * s)
+
+
+def _true_box(mask: np.ndarray):
+    """The smallest (rows, cols) slices holding every True of the 2-D
+    ``mask``, None if it has none."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    if rows.size == 0:
+        return None
+    cols = np.flatnonzero(mask[rows[0]:rows[-1] + 1].any(axis=0))
+    return slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)
 
 
 def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
@@ -198,6 +226,12 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
         nsum = np.zeros((hh * s, ww * s), np.float32)
         for (R_cb, t_cb), (L, _), (g0, dg) in zip(poses, looks, grey):
             bx, by, inside = _hit(xy, R_cb, t_cb, margin, W, H)
+            # the texture only over the samples' box that hits the paper
+            # (remap is per sample; outside it the old full-strip sum added 0)
+            box = _true_box(inside)
+            if box is None:
+                continue
+            inside, bx, by = inside[box], bx[box], by[box]
             texel = texel0 * 2 ** L
             mu = np.where(inside, bx / texel - 0.5, -1).astype(np.float32)
             mv = np.where(inside, by / texel - 0.5, -1).astype(np.float32)
@@ -206,8 +240,8 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
             tex *= np.float32(dg)
             tex += np.float32(g0)
             tex *= inside
-            vsum += tex
-            nsum += inside
+            vsum[box] += tex
+            nsum[box] += inside
         val[r0 - y0:r1 - y0] = _box_mean(vsum, s)
         cov[r0 - y0:r1 - y0] = _box_mean(nsum, s)
     return (x0, y0, x1, y1), val / len(poses), cov / len(poses)
@@ -231,8 +265,9 @@ def render_view(camera: RigCamera, pose, target, settings: RigRenderSettings,
             img[y0:y1, x0:x1] = val + (1 - cov) * img[y0:y1, x0:x1]
         if bar is not None:
             h, w = img.shape
-            jj, ii = np.mgrid[0:h, 0:w]
-            cov = _bar_coverage(np.stack([ii, jj], -1), bar)
+            # _bar_coverage of every pixel (x, y), broadcast: the same numbers
+            cov = _bar_coverage((np.arange(w, dtype=float)[None, :],
+                                 np.arange(h, dtype=float)[:, None]), bar)
             img = cov * 40.0 + (1 - cov) * img
         return _degrade(img, settings, key)
     # blur is linear and the background static: blur(bg + diff) = blur(bg),
@@ -262,8 +297,10 @@ def _degrade(img, settings: RigRenderSettings, key) -> np.ndarray:
         img = cv2.GaussianBlur(img, (0, 0), settings.blur)
     if settings.noise > 0:
         rng = np.random.default_rng([settings.seed, 4, *key])
-        img += settings.noise * rng.standard_normal(img.shape, dtype=np.float32)
-    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+        grain = rng.standard_normal(img.shape, dtype=np.float32)
+        grain *= settings.noise
+        img += grain
+    out = np.clip(np.rint(img, out=img), 0, 255, out=img).astype(np.uint8)
     if settings.jpeg_quality:
         ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(settings.jpeg_quality)])
         out = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
