@@ -36,3 +36,14 @@ def oriented_projects(tmp_path_factory):
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         assert main(["orient", "--no-report", "-q", str(root / "field" / "field.prj")]) == 0
     return root
+
+
+@pytest.fixture(scope="session")
+def example_steps(oriented_projects, tmp_path_factory):
+    """The example projects' steps (tests/examples_run.py), each run once per
+    session on first use, the lab and field steps taken from
+    ``oriented_projects`` (the same command lines): ``.results(step)`` is the
+    results folder (shared: copy it before changing anything),
+    ``.figures(step)`` what tests/test_examples_unchanged.py compares."""
+    from examples_run import ExampleSteps
+    return ExampleSteps(tmp_path_factory.mktemp("examples"), oriented=oriented_projects)
