@@ -47,3 +47,16 @@ def example_steps(oriented_projects, tmp_path_factory):
     ``.figures(step)`` what tests/test_examples_unchanged.py compares."""
     from examples_run import ExampleSteps
     return ExampleSteps(tmp_path_factory.mktemp("examples"), oriented=oriented_projects)
+
+
+@pytest.fixture(scope="session")
+def jumps_report(oriented_projects, tmp_path_factory):
+    """The intersect results of projects/jumps (SIMULATED) with report.pdf,
+    in a fresh folder (``intersect_and_write`` on ``oriented_projects``):
+    shared by the intersect report tests, read only."""
+    from photogram.commands.intersect import intersect_and_write
+    from photogram.project import read_project
+    out = tmp_path_factory.mktemp("jumps-report") / "results"
+    folder, _ = intersect_and_write(read_project(oriented_projects / "jumps" / "jumps.prj"),
+                                    output=out)
+    return folder
