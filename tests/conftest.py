@@ -38,6 +38,30 @@ def oriented_projects(tmp_path_factory):
     return root
 
 
+@pytest.fixture(scope="session")
+def example_steps(oriented_projects, tmp_path_factory):
+    """The example projects' steps (tests/examples_run.py), each run once per
+    session on first use, the lab and field steps taken from
+    ``oriented_projects`` (the same command lines): ``.results(step)`` is the
+    results folder (shared: copy it before changing anything),
+    ``.figures(step)`` what tests/test_examples_unchanged.py compares."""
+    from examples_run import ExampleSteps
+    return ExampleSteps(tmp_path_factory.mktemp("examples"), oriented=oriented_projects)
+
+
+@pytest.fixture(scope="session")
+def jumps_report(oriented_projects, tmp_path_factory):
+    """The intersect results of projects/jumps (SIMULATED) with report.pdf,
+    in a fresh folder (``intersect_and_write`` on ``oriented_projects``):
+    shared by the intersect report tests, read only."""
+    from photogram.commands.intersect import intersect_and_write
+    from photogram.project import read_project
+    out = tmp_path_factory.mktemp("jumps-report") / "results"
+    folder, _ = intersect_and_write(read_project(oriented_projects / "jumps" / "jumps.prj"),
+                                    output=out)
+    return folder
+
+
 def _malloc_trim():
     """``malloc_trim(0)`` of glibc (None elsewhere)."""
     import ctypes

@@ -132,23 +132,95 @@ def run_examples(dest: Path, *, with_shared: bool | None = None,
     for name, argv, folder, shared, tables in STEPS:
         if shared and not with_shared:
             continue
-        # the examples' figures are in summary.json and the tables: no report.pdf
-        # (it costs more CPU than the adjustment; tests/test_report*.py test it)
-        no_report = ["--no-report"] if argv[0] in NO_REPORT else []
-        args = [argv[0], str(projects / argv[1]), *_options(argv[2:], projects), "-q", *no_report]
-        code, err = _run_step(args, dest, in_process)
-        if code != 0:
-            raise RuntimeError(f"photogram {' '.join(args)} exited {code}: {err[-3000:]}")
-        results = projects / folder
-        entry = {"tables": {}}
-        summary_path = results / "summary.json"
-        if summary_path.is_file():
-            summary = json.loads(summary_path.read_text())
-            entry["summary"] = {k: _drop_timings(summary[k]) for k in SUMMARY_KEYS if k in summary}
-        for table in tables:
-            entry["tables"][table] = hashlib.sha256((results / table).read_bytes()).hexdigest()
-        figures[name] = entry
+        _run_example(name, projects, dest, in_process)
+        figures[name] = _figures(projects / folder, tables)
     return figures
+
+
+def _run_example(name: str, projects: Path, cwd: Path, in_process: bool) -> None:
+    """Run the example step ``name`` in the staged ``projects`` folder."""
+    argv = next(s[1] for s in STEPS if s[0] == name)
+    # the examples' figures are in summary.json and the tables: no report.pdf
+    # (it costs more CPU than the adjustment; tests/test_report*.py test it)
+    no_report = ["--no-report"] if argv[0] in NO_REPORT else []
+    args = [argv[0], str(projects / argv[1]), *_options(argv[2:], projects), "-q", *no_report]
+    code, err = _run_step(args, cwd, in_process)
+    if code != 0:
+        raise RuntimeError(f"photogram {' '.join(args)} exited {code}: {err[-3000:]}")
+
+
+def _figures(results: Path, tables: list[str]) -> dict:
+    """The compared figures of one step's results folder (module docstring)."""
+    entry = {"tables": {}}
+    summary_path = results / "summary.json"
+    if summary_path.is_file():
+        summary = json.loads(summary_path.read_text())
+        entry["summary"] = {k: _drop_timings(summary[k]) for k in SUMMARY_KEYS if k in summary}
+    for table in tables:
+        entry["tables"][table] = hashlib.sha256((results / table).read_bytes()).hexdigest()
+    return entry
+
+
+#: steps whose inputs are the results of earlier steps
+NEEDS = {"calibrate lab": "measure lab", "orient field": "calibrate lab",
+         "intersect jumps": "orient field", "calibrate situation-b": "simulate situation-b"}
+#: the steps conftest.py's ``oriented_projects`` has run (the same command lines)
+ORIENTED = {"measure lab": "lab/results-measure", "calibrate lab": "lab/results",
+            "orient field": "field/results"}
+
+
+class ExampleSteps:
+    """The example steps of one test session, each run once on first use
+    (in this process, :func:`_run_step`) in one staged copy of projects/, so
+    that tests of an example's results share its run with
+    tests/test_examples_unchanged.py.
+
+    ``oriented``: a folder as conftest.py's ``oriented_projects`` leaves it
+    (lab measured and calibrated, field oriented by the same command lines
+    as the steps "measure lab", "calibrate lab", "orient field"); its results
+    folders are copied in as those steps' results instead of running them
+    again. The folders returned by :meth:`results` are shared: read them,
+    copy them before changing anything.
+    """
+
+    def __init__(self, dest: Path, oriented: Path | None = None):
+        self.dest = Path(dest)
+        self.projects = stage_projects(self.dest)
+        self.done: set = set()
+        if oriented is not None:
+            for name, folder in ORIENTED.items():
+                shutil.copytree(Path(oriented) / folder, self.projects / folder)
+                self.done.add(name)
+
+    def results(self, name: str) -> Path:
+        """The results folder of step ``name``, the step (and the steps it
+        needs) run first if not yet run."""
+        if name not in self.done:
+            if name in NEEDS:
+                self.results(NEEDS[name])
+            _run_example(name, self.projects, self.dest, in_process=True)
+            self.done.add(name)
+        return self.projects / next(s[2] for s in STEPS if s[0] == name)
+
+    def copy(self, names, dest: Path) -> Path:
+        """Copy the staged project folders ``names`` (with the results of
+        the steps run so far) into ``dest``, the paths of the staged copy
+        in the results' summary.json and log.txt replaced by ``dest``'s, as
+        if the steps had run there; returns ``dest``."""
+        dest = Path(dest)
+        for name in names:
+            shutil.copytree(self.projects / name, dest / name, symlinks=True)
+            for path in (dest / name).glob("results*/*"):
+                if path.name in ("summary.json", "log.txt"):
+                    text = path.read_text(encoding="utf-8")
+                    path.write_text(text.replace(str(self.projects), str(dest)),
+                                    encoding="utf-8")
+        return dest
+
+    def figures(self, name: str) -> dict:
+        """The compared figures of step ``name`` (module docstring)."""
+        tables = next(s[4] for s in STEPS if s[0] == name)
+        return _figures(self.results(name), tables)
 
 
 def load_record() -> dict:

@@ -14,7 +14,7 @@ from photogram.adjust import kernels, rcs_iterative, schur
 from photogram.adjust.build import build_problem
 from photogram.adjust.solver import SolverOptions, rcs_method
 from photogram.bundle.bal import bal_options, build_bal_problem, solve_bal
-from photogram.io.bal import behind_camera, read_bal
+from photogram.io.bal import behind_camera
 from photogram.simulation.bal_sphere import project_bal, sphere_bal
 from photogram.simulation.network import to_project, wall_network
 
@@ -148,12 +148,15 @@ def test_solve_reports_the_method_and_restores_the_problem(kernel_path):
 def test_real_bal_same_final_cost(key):
     """The iterative RCS solve (forced; these problems are below the
     automatic switch) reaches the dense path's final cost on real data."""
+    import bal_real
     path = DATA / f"problem-{key}-pre.txt.bz2"
     if not path.exists():
         pytest.skip(f"{path} not found")
-    bal = read_bal(path)
-    costs = {}
-    for method in ("dense", "iterative"):
-        built = build_bal_problem(bal)
-        costs[method] = solve_bal(built, bal_options(linear_solver=method)).final_cost
-    assert costs["iterative"] == pytest.approx(costs["dense"], rel=1e-5)
+    # the dense solve: solve_bal's default (tests/bal_real.py, shared with
+    # tests/test_bal.py), the automatic choice for these sizes
+    dense = bal_real.solved(f"problem-{key}-pre").summary
+    assert dense.linear_solver == "dense"
+    built = build_bal_problem(bal_real.read(f"problem-{key}-pre"))
+    iterative = solve_bal(built, bal_options(linear_solver="iterative"))
+    assert iterative.linear_solver == "iterative"
+    assert iterative.final_cost == pytest.approx(dense.final_cost, rel=1e-5)

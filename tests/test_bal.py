@@ -264,16 +264,18 @@ REAL = {
 @pytest.mark.skipif(not DATA.is_dir(), reason="BAL data not available")
 @pytest.mark.parametrize("name", sorted(REAL))
 def test_real_bal_problem_reaches_the_ceres_cost(name):
+    """(Read, built and solved once per session by tests/bal_real.py, with
+    solve_bal's defaults, for this test and tests/test_adjust_rcs_sparse.py.)"""
+    import bal_real
     n_c, n_p, n_o, n_behind, cost0, cost0_front, ceres = REAL[name]
-    bal = read_bal(DATA / f"{name}.txt.bz2")
+    bal = bal_real.read(name)
     assert (bal.n_cameras, bal.n_points, bal.n_observations) == (n_c, n_p, n_o)
     assert int(behind_camera(bal).sum()) == n_behind
     assert bal_cost(bal) == pytest.approx(cost0, rel=1e-9)
-    built = build_bal_problem(bal)
-    assert len(built.dropped) == n_behind
-    p = built.problem
-    assert p.cost(p.state) == pytest.approx(cost0_front, rel=1e-9)
-    s = solve_bal(built)
+    run = bal_real.solved(name)
+    built, p, s = run.built, run.built.problem, run.summary
+    assert run.dropped == n_behind
+    assert run.cost_before == pytest.approx(cost0_front, rel=1e-9)
     assert s.status == "converged"
     assert abs(s.final_cost - ceres) <= 1e-4 * ceres
     assert bal_cost(bal_from_state(built.bal, p.state)) == pytest.approx(s.final_cost, rel=1e-9)

@@ -154,16 +154,13 @@ def test_coach_project_against_the_simulation_truth(oriented_projects, tmp_path)
 
 
 @pytest.mark.slow
-def test_default_units_write_no_coach_outputs(oriented_projects, tmp_path):
-    """Without [report] and --units: no coach.csv, no H, no report_units."""
+def test_default_units_write_no_coach_outputs(example_steps):
+    """Without [report] and --units: no coach.csv, no H, no report_units
+    (projects/jumps/jumps.prj's `photogram intersect --no-report -q`, the
+    session's example run: conftest.py ``example_steps``)."""
     import json
-    root = tmp_path / "jumps"
-    shutil.copytree(oriented_projects / "jumps", root)
-    prj = root / "jumps.prj"
-    prj.write_text(prj.read_text().replace('"../', f'"{oriented_projects}/'))
-    out = tmp_path / "results"
-    code, _, err = _run(["intersect", str(prj), "-q", "--output", str(out)])
-    assert code == 0, err
+    out = example_steps.results("intersect jumps")
+    assert "[report]" not in (out.parent / "jumps.prj").read_text()
     assert not (out / "coach.csv").exists()
     header = (out / "exposures.csv").read_text().splitlines()[0]
     assert header.endswith("O_x,O_y,O_z")

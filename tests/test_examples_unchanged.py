@@ -68,7 +68,7 @@ import math
 
 import pytest
 
-from examples_run import STEPS, have_shared_data, load_record, run_examples
+from examples_run import STEPS, have_shared_data, load_record
 
 # `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
 pytestmark = pytest.mark.slow
@@ -77,10 +77,18 @@ RECORD = load_record()
 
 
 @pytest.fixture(scope="module")
-def figures(tmp_path_factory):
-    # in this process with one BLAS thread: the same numbers as a fresh
-    # interpreter per step (compared exactly below); 43 -> 26 s CPU
-    return run_examples(tmp_path_factory.mktemp("examples"), in_process=True)
+def figures(example_steps):
+    """The figures per step, from the session's runs of the example steps
+    (conftest.py ``example_steps``): in this process with one BLAS thread,
+    the same numbers as a fresh interpreter per step (compared exactly
+    below; 43 -> 26 s CPU); the lab and field steps are those of
+    ``oriented_projects`` (the same command lines), the intersect and mocap
+    runs shared with tests/test_issue16_intersect.py and others."""
+    class Lazy(dict):
+        def __missing__(self, step):
+            self[step] = example_steps.figures(step)
+            return self[step]
+    return Lazy()
 
 
 def _differences(before, now, path=""):

@@ -1,10 +1,10 @@
 """Issue 16, items 4, 10 (intersect plausibility), 11, 12 and 15: honest
 intersect results and exports (docs/reliability.md, the issue 16 section).
 
-The chain lab -> field -> jumps runs once per module: a copy of the
-session's calibrated lab and oriented field (conftest.py's
-``oriented_projects``), then intersect jumps; the mocap results of ski-ptz
-once (5 s).
+The chain lab -> field -> jumps and the mocap results of ski-ptz are
+those of the session's example runs (conftest.py's ``example_steps``,
+shared with tests/test_examples_unchanged.py): the chain copied once per
+module.
 """
 
 from __future__ import annotations
@@ -29,22 +29,20 @@ PROJECTS = Path(photogram.__file__).resolve().parents[1] / "projects"
 
 
 @pytest.fixture(scope="module")
-def chain(tmp_path_factory, oriented_projects):
-    """calibrate lab, orient field (a copy of the session's, the same
-    commands on copies of the examples), intersect jumps."""
-    root = tmp_path_factory.mktemp("i16") / "chain"
-    shutil.copytree(oriented_projects, root, symlinks=True)
-    assert main(["intersect", "--no-report", "-q", str(root / "jumps" / "jumps.prj")]) == 0
-    return root
+def chain(tmp_path_factory, example_steps):
+    """calibrate lab, orient field, intersect jumps: a copy of the session's
+    example runs (conftest.py ``example_steps``; `photogram intersect
+    --no-report -q jumps.prj` on the session's calibrated lab and oriented
+    field; the paths in its results those of the copy)."""
+    example_steps.results("intersect jumps")
+    return example_steps.copy(("lab", "field", "jumps"), tmp_path_factory.mktemp("i16") / "chain")
 
 
 @pytest.fixture(scope="module")
-def mocap_results(tmp_path_factory):
-    root = tmp_path_factory.mktemp("i16mocap")
-    shutil.copytree(PROJECTS / "ski-ptz", root / "ski-ptz",
-                    ignore=shutil.ignore_patterns("results*"))
-    assert main(["mocap", "--no-report", "-q", str(root / "ski-ptz" / "ski-ptz.prj")]) == 0
-    return root / "ski-ptz" / "results"
+def mocap_results(example_steps):
+    """ski-ptz's `photogram mocap --no-report -q` results, the session's
+    example run (read only)."""
+    return example_steps.results("mocap ski-ptz")
 
 
 def _variant(chain, name, old, new):

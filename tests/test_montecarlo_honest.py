@@ -239,12 +239,22 @@ def _cli(*args, timeout=120):
     return p.returncode, p.stderr.strip().splitlines(), time.perf_counter() - t0
 
 
-def test_a_billion_runs_or_exposures_are_refused_at_once(net, tmp_path):
+def _in_process(capsys, *args):
+    """The command's entry point in this process: (exit code, stderr lines)."""
+    from photogram_cli.main import main
+    capsys.readouterr()
+    code = main(list(map(str, args)))
+    return code, capsys.readouterr().err.strip().splitlines()
+
+
+def test_a_billion_runs_or_exposures_are_refused_at_once(net, tmp_path, capsys):
+    """The first in a real process (its exit code and its one line on
+    stderr), the other two through the same entry point in this process."""
     path = _chain(net)
     rc, err, seconds = _cli("montecarlo", path, "--runs", 10 ** 9, "--output", tmp_path / "a")
     assert rc == 2 and len(err) == 1 and "--runs must be at most 100000" in err[0], err
     path = _chain(net, runs=10 ** 9)
-    rc, err, _ = _cli("montecarlo", path, "--output", tmp_path / "b")
+    rc, err = _in_process(capsys, "montecarlo", path, "--output", tmp_path / "b")
     assert rc == 2 and len(err) == 1 and err[0].startswith(f"{path}:")
     assert "runs in [montecarlo] must be at most 100000" in err[0]
     design = tmp_path / "big.toml"
@@ -252,7 +262,7 @@ def test_a_billion_runs_or_exposures_are_refused_at_once(net, tmp_path):
     assert "\nexposures = 24" in text
     design.write_text(text.replace("\nexposures = 24", "\nexposures = 1000000000"),
                       encoding="utf-8")
-    rc, err, _ = _cli("simulate", design, "--output", tmp_path / "sim")
+    rc, err = _in_process(capsys, "simulate", design, "--output", tmp_path / "sim")
     assert rc == 2 and len(err) == 1 and err[0].startswith(f"{design}:")
     assert "exposures in [jumper] must be at most 1000" in err[0]
     assert not (tmp_path / "sim").exists()
@@ -262,27 +272,16 @@ def test_a_billion_runs_or_exposures_are_refused_at_once(net, tmp_path):
 # item 3: sigma_cmd is what the commands write now
 
 @pytest.fixture(scope="module")
-def demo_chain(tmp_path_factory):
-    """lab, field and jumps copied, then calibrate, orient, intersect and a
-    short Monte Carlo as a user runs them (report.pdf skipped for speed)."""
-    import photogram.report
+def demo_chain(tmp_path_factory, example_steps):
+    """lab, field and jumps as calibrate, orient and intersect leave them (a
+    copy of the session's example runs, conftest.py ``example_steps``:
+    `photogram calibrate|orient|intersect --no-report -q` on copies of the
+    examples), then a short Monte Carlo as a user runs it."""
     from photogram_cli.main import main
-    root = tmp_path_factory.mktemp("demo")
-    for name in ("field", "jumps"):
-        shutil.copytree(ROOT / "projects" / name, root / name,
-                        ignore=shutil.ignore_patterns("results", "results-*", ".*"))
-    from lab_stage import stage_lab
-    stage_lab(root / "lab")                   # copied and its photographs measured
-    mp = pytest.MonkeyPatch()
-    mp.setattr(photogram.report, "write_report", lambda *a, **k: None)
-    try:
-        assert main(["calibrate", "--no-report", str(root / "lab" / "lab.prj"), "-q"]) == 0
-        assert main(["orient", "--no-report", str(root / "field" / "field.prj"), "-q"]) == 0
-        assert main(["intersect", "--no-report", str(root / "jumps" / "jumps.prj"), "-q"]) == 0
-        assert main(["montecarlo", "--no-report", str(root / "jumps" / "montecarlo.prj"), "-q", "--runs", "20",
-                     "--workers", "1", "--output", str(root / "mc")]) == 0
-    finally:
-        mp.undo()
+    example_steps.results("intersect jumps")
+    root = example_steps.copy(("lab", "field", "jumps"), tmp_path_factory.mktemp("demo"))
+    assert main(["montecarlo", "--no-report", str(root / "jumps" / "montecarlo.prj"), "-q",
+                 "--runs", "20", "--workers", "1", "--output", str(root / "mc")]) == 0
     return root
 
 

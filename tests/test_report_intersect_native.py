@@ -19,14 +19,15 @@ pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
-def jump(oriented_projects, tmp_path_factory):
-    """The intersect results of projects/jumps (SIMULATED), and of the same
-    project with the landing-slope profile of jumps-coach.prj."""
+def jump(oriented_projects, jumps_report, tmp_path_factory):
+    """The intersect results of projects/jumps (SIMULATED; the session's,
+    conftest.py ``jumps_report``), and of the same project with the
+    landing-slope profile of jumps-coach.prj."""
     from photogram.commands.intersect import intersect_and_write
     from photogram.project import read_project
     root = oriented_projects / "jumps"
     out = tmp_path_factory.mktemp("jumps-native")
-    folder, _ = intersect_and_write(read_project(root / "jumps.prj"), output=out / "plain")
+    folder = jumps_report
     text = (root / "jumps.prj").read_text(encoding="utf-8")
     assert "[intersect]" in text
     assert (root / "landing_profile.csv").is_file()

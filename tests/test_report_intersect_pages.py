@@ -34,14 +34,10 @@ def _title(text):
 
 
 @pytest.fixture(scope="module")
-def jump(oriented_projects, tmp_path_factory):
-    """The intersect results of projects/jumps (SIMULATED) in a fresh folder."""
-    from photogram.commands.intersect import intersect_and_write
-    from photogram.project import read_project
-    out = tmp_path_factory.mktemp("jumps-results") / "results"
-    folder, _ = intersect_and_write(read_project(oriented_projects / "jumps" / "jumps.prj"),
-                                    output=out)
-    return folder
+def jump(jumps_report):
+    """The intersect results of projects/jumps (SIMULATED) in a fresh folder
+    (the session's, conftest.py ``jumps_report``)."""
+    return jumps_report
 
 
 def _largest_angles(folder):

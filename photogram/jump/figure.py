@@ -54,9 +54,11 @@ def keep_labels_inside(fig, margin_px: float = 4.0) -> float:
 
     ``tight_layout`` places the axes before ``set_aspect("equal",
     adjustable="box")`` moves them, so a tall side view's y label could end
-    left of the figure (stick.png's "Z" label was clipped)."""
+    left of the figure (stick.png's "Z" label was clipped). The figure is
+    laid out as for drawing (ticks, aspect, text) without rasterising it:
+    the PNG is drawn once, when it is saved."""
     for _ in range(3):
-        fig.canvas.draw()
+        fig.draw_without_rendering()
         renderer = fig.canvas.get_renderer()
         x0 = min(min([ax.yaxis.label.get_window_extent(renderer).x0] +
                      [t.get_window_extent(renderer).x0 for t in ax.get_yticklabels()

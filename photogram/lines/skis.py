@@ -21,7 +21,8 @@ import numpy as np
 from scipy.special import chdtri      # chi-square quantile (scipy.stats is slow to import)
 
 from photogram.errors import GeometryError, InputError
-from photogram.lines.plucker import project_line
+from photogram.lines.batch import intersect_lines_full
+from photogram.lines.plucker import SpaceLine, project_line
 from photogram.lines.space_line import intersect_line
 from photogram.lines.transfer import compare_lines
 from photogram.lines.views import fit_view_line
@@ -112,6 +113,7 @@ def _assignment(fitted, stations, labels, flips, ski):
 
 # scoring needs a few digits of chi2: wrong assignments converge slowly
 _FAST = {"strict": False, "max_iterations": 12, "tol": 1e-7}
+_FAST_BATCH = {"max_iterations": 12, "tol": 1e-7}
 
 
 def _cost(fitted, stations, labels, flips, cameras):
@@ -126,7 +128,70 @@ def _cost(fitted, stations, labels, flips, cameras):
     return total
 
 
+def _batch(groups, cameras):
+    """The 3D lines of several groups of image lines (``[{station: ImageLine}]``,
+    the same number of views each) in one call of the estimator of
+    :func:`intersect_line` with the ski check's settings; each line exactly
+    what :func:`intersect_line` gives for its group alone (the batch
+    evaluates every line by itself). None where the normal equations of
+    any line are singular (the caller then takes one group at a time, which
+    names the failing one)."""
+    R = np.array([[cameras[n].R for n in g] for g in groups])
+    X0 = np.array([[cameras[n].X0 for n in g] for g in groups])
+    c = np.array([[cameras[n].c for n in g] for g in groups], dtype=float)
+    l = np.array([[line.homogeneous for line in g.values()] for g in groups])
+    cov_l = np.array([[line.cov_homogeneous for line in g.values()] for g in groups])
+    ends = np.array([[line.end_points for line in g.values()] for g in groups])
+    try:
+        return intersect_lines_full(l, cov_l, ends, R, X0, c, **_FAST_BATCH)
+    except GeometryError:
+        return None
+
+
+def _costs(fitted, stations, labels, all_flips, cameras):
+    """:func:`_cost` of every assignment in ``all_flips``, all lines in one
+    batch (the same numbers)."""
+    groups = [_assignment(fitted, stations, labels, flips, ski)
+              for flips in all_flips for ski in (0, 1)]
+    out = _batch(groups, cameras)
+    if out is None:
+        return [_cost(fitted, stations, labels, flips, cameras) for flips in all_flips]
+    return [0.0 + float(out.chi2[2 * i]) + float(out.chi2[2 * i + 1])
+            for i in range(len(all_flips))]
+
+
 def _transfers(fitted, stations, labels, flips, cameras):
+    """Per station and ski, the line of the other stations transferred into
+    it (:class:`TransferCheck`): the lines of all stations and skis in one
+    batch (the same numbers as :func:`_transfers_one` by one)."""
+    groups, measured = [], []
+    for n in stations:
+        for ski in (0, 1):
+            lines = _assignment(fitted, stations, labels, flips, ski)
+            measured.append(lines.pop(n))
+            groups.append(lines)
+    out = _batch(groups, cameras)
+    if out is None:
+        return _transfers_one(fitted, stations, labels, flips, cameras)
+    checks = []
+    for j, n in enumerate(stations):
+        others = tuple(m for m in stations if m != n)
+        for ski in (0, 1):
+            i = 2 * j + ski
+            try:
+                line = SpaceLine(out.P[i], out.D[i], covariance=out.cov[i], label=labels[ski])
+                l, G = project_line(line, cameras[n], jacobian=True)
+                cmp = compare_lines(l, measured[i], G @ line.covariance @ G.T)
+                checks.append(TransferCheck(n, labels[ski ^ flips[j]], others,
+                                            float(np.degrees(cmp.angle)), cmp.distances,
+                                            cmp.chi2))
+            except GeometryError:
+                checks.append(TransferCheck(n, labels[ski ^ flips[j]], others,
+                                            float("nan"), np.full(2, np.nan), float("nan")))
+    return checks
+
+
+def _transfers_one(fitted, stations, labels, flips, cameras):
     out = []
     for j, n in enumerate(stations):
         others = [m for m in stations if m != n]
@@ -216,9 +281,9 @@ def check_ski_labels(lines_by_view, cameras, sigma=1.0, *, labels=None, exposure
     margin = threshold if margin is None else float(margin)
 
     by_flips, costs = {}, {}
-    for rest in itertools.product((0, 1), repeat=k - 1):
-        flips = (0,) + rest
-        by_flips[flips] = _cost(fitted, stations, labels, flips, cameras)
+    all_flips = [(0,) + rest for rest in itertools.product((0, 1), repeat=k - 1)]
+    for flips, c in zip(all_flips, _costs(fitted, stations, labels, all_flips, cameras)):
+        by_flips[flips] = c
         sw = [n for n, f in zip(stations, flips) if f]
         if len(sw) > k - len(sw):          # the same assignment, fewer swaps
             sw = [n for n, f in zip(stations, flips) if not f]
