@@ -6,7 +6,8 @@ corners, photogram.rig calibrates. The goal of the issue: camera centres
 within 5 mm and angles within 0.05 deg at 2-6 m; here in the floor frame
 (the board laid on the floor, pose 0: the datum, no alignment), and every
 error within the calibration's own sigmas. A harsher set (noise 4, JPEG
-60, 1/100 s motion blur, occluding bar) is held to its sigmas only."""
+60, 1/100 s motion blur, occluding bar; cameras at 1.5-2.5 m) is held to
+its sigmas only."""
 
 import numpy as np
 import pytest
@@ -69,19 +70,34 @@ def test_rendered_rig_meets_the_goal_in_the_floor_frame(normal):
 
 
 def test_rendered_rig_harsh_within_its_sigmas():
-    cameras, poses, dets = _set(br.harsh_settings(seed=1), 4, 40, 2)
+    """The harsh degradations with the cameras at 1.5-2.5 m. At the usable
+    distance (2-4 m) they leave some camera with fewer than 3 detected views
+    in every draw tried (seeds 1-4, 40 poses; the board's 6 cm markers are
+    3 px per bit there), so this test never reached its assertions before;
+    closer cameras keep the degradations and let the set calibrate (seed 1
+    here; seed 3, not used here, gave 0.5-1.7 sigmas too)."""
+    settings = br.harsh_settings(seed=1)
+    cameras = br.rig_cameras(4, seed=1, distance=(1.5, 2.5))
+    poses = br.board_poses(40, seed=1, cameras=cameras, target=TARGET,
+                           partly_outside=settings.partly_outside)
+    dets = br.detect_rig(cameras, br.render_rig(cameras, poses, TARGET, settings), TARGET)
     sizes = {c.name: c.image_size for c in cameras}
-    few = [c for c, d in dets.items() if len(d) < 3]
-    if few:          # a camera that sees the board in fewer than 3 frames is named
-        with pytest.raises(Exception, match=few[0]):
-            calibrate_rig(dets, sizes, TARGET, fix_k3=False)
-        return
-    floor = 0 if any(0 in d for d in dets.values()) else None
-    res = calibrate_rig(dets, sizes, TARGET, floor_frame=floor, fix_k3=False)
-    if floor is None:
-        pytest.skip("the floor pose is not detected in this harsh draw")
+    assert all(len(d) >= 3 for d in dets.values()), {c: len(d) for c, d in dets.items()}
+    assert any(0 in d for d in dets.values())          # the floor pose is detected
+    res = calibrate_rig(dets, sizes, TARGET, floor_frame=0, fix_k3=False)
     e = _errors(cameras, poses, res)
     print("harsh centre mm", np.round(1000 * e[:, 0], 2), "sigma", np.round(1000 * e[:, 1], 2),
           "angle deg", np.round(e[:, 2], 3), "sigma", np.round(e[:, 3], 3))
     assert np.all(e[:, 0] < 4.5 * e[:, 1]) and np.all(e[:, 2] < 4.5 * e[:, 3])
     assert np.all(e[:, 0] < 0.02)
+
+
+def test_a_camera_with_two_usable_views_is_named(normal):
+    """A camera that sees the board in fewer than 3 frames stops the
+    calibration with one line naming it (the normal set with all but two
+    of cam02's views left out)."""
+    from photogram.errors import InputError
+    cameras, _, dets = normal
+    two = {c: (dict(list(d.items())[:2]) if c == "cam02" else d) for c, d in dets.items()}
+    with pytest.raises(InputError, match=r"camera cam02: the board is seen in 2 frame\(s\)"):
+        calibrate_rig(two, {c.name: c.image_size for c in cameras}, TARGET, fix_k3=False)
