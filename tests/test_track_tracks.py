@@ -247,11 +247,17 @@ def _rendered(kind):
     return rendered_videos(kind)
 
 
-def _run_rendered(v):
-    expo = pd.DataFrame({"exposure": [f"{e + 1:03d}" for e in range(24)],
-                         "frame": [v.exposure_frames["S1"][e] + 0 for e in range(24)]})
-    # the renderer paints in the project's frame (top-left corner at (0, 0))
-    res = track_markers(v.frames, v.cameras, v.seeds, MARKERS, expo)
+def _run_rendered(kind):
+    """track_markers on the ``kind`` set: its frames, cameras and seeds,
+    MARKERS, the 24 exposures as frames of S1 (the first camera), the
+    offsets estimated, default settings (the renderer paints in the
+    project's frame, top-left corner at (0, 0)); computed once per session
+    by tests/jump_videos.py, which test_track_bindings shares."""
+    from jump_videos import MARKERS as SHARED, tracked_markers
+    assert list(SHARED) == MARKERS
+    v = _rendered(kind)
+    assert next(iter(v.frames)) == "S1" and len(v.exposure_frames["S1"]) == 24
+    res = tracked_markers(kind)[1]
     t = v.truth_markers.set_index(["exposure", "station", "marker"])
     m = res.table.join(t[["x", "y", "visible"]], on=["exposure", "station", "marker"],
                        rsuffix="_true")
@@ -262,7 +268,7 @@ def _run_rendered(v):
 
 
 def test_rendered_normal_meets_the_goals():
-    res, m, err, wrong = _run_rendered(_rendered("normal"))
+    res, m, err, wrong = _run_rendered("normal")
     assert wrong.sum() == 0
     assert np.sqrt(np.mean(err ** 2)) <= 0.2
     vis = m.visible.astype(str) == "True"
@@ -283,7 +289,7 @@ def test_rendered_normal_meets_the_goals():
     "section 4."))
 def test_rendered_harsh_reported_with_a_looser_bound():
     """Not tuned on: no wrong label allowed still, the centres to 0.3 px."""
-    res, m, err, wrong = _run_rendered(_rendered("harsh"))
+    res, m, err, wrong = _run_rendered("harsh")
     print("harsh:", res.offsets, m.status.value_counts().to_dict(),
           "rms", float(np.sqrt(np.mean(err[~wrong] ** 2))), "wrong", int(wrong.sum()))
     assert wrong.sum() == 0
