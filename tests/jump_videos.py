@@ -50,3 +50,29 @@ def written_videos(kind: str, tmp_path_factory):
     once; tests that change files copy it first."""
     folder = tmp_path_factory.getbasetemp() / f"jump-videos-{kind}" / "video"
     return _written(kind, str(folder))
+
+
+MARKERS = ("P1", "P2", "P3", "P4")
+
+
+@lru_cache(maxsize=len(SETS))
+def _tracked(kind: str):
+    from photogram.track.background import estimate_background
+    from photogram.track.tracks import track_markers
+    v = rendered_videos(kind)
+    ref = v.exposure_frames[next(iter(v.frames))]            # frames of the first camera
+    ex = {f"{i + 1:03d}": int(f) for i, f in enumerate(ref)}
+    bgs = {s: estimate_background(F) for s, F in v.frames.items()}
+    return bgs, track_markers(v.frames, v.cameras, v.seeds, list(MARKERS), ex, backgrounds=bgs)
+
+
+def tracked_markers(kind: str):
+    """``(backgrounds, TrackResult)``: the ``kind`` set's backgrounds
+    (:func:`~photogram.track.background.estimate_background` per camera)
+    and ``track_markers`` of its frames, cameras and seed clicks, markers
+    P1-P4, the exposures as frames of the first camera, the sync offsets
+    estimated, default settings; computed once per session for
+    tests/test_track_tracks.py and tests/test_track_bindings.py (they ran
+    the same call, 1-2 s CPU a set, and got the same table). Read-only:
+    copy the table before changing it."""
+    return _tracked(kind)

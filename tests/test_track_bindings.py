@@ -167,7 +167,7 @@ def _renderer_pixel_offset(jv) -> float:
 
 def _rendered(kind):
     """The ``kind`` set (tests/jump_videos.py: rendered once per session), tracked and split."""
-    from jump_videos import rendered_videos
+    from jump_videos import rendered_videos, tracked_markers
     jv = pytest.importorskip("photogram.simulation.jump_video")
     from photogram.track.background import estimate_background
     from photogram.track.tracks import track_markers
@@ -175,7 +175,6 @@ def _rendered(kind):
     v = rendered_videos(kind)
     ref = np.asarray(v.exposure_frames[next(iter(v.frames))])   # frames of the first camera
     ex = {f"{i + 1:03d}": int(f) for i, f in enumerate(ref)}
-    bgs = {s: estimate_background(F) for s, F in v.frames.items()}
     # Pixel convention: the tracker's default is the project's (first pixel
     # centre at (0.5, 0.5)); the renderer's truth and cameras used OpenCV's
     # (centre at (0, 0)) before the integrator moved it to the project's.
@@ -183,8 +182,13 @@ def _rendered(kind):
     # tracker and the split run in the renderer's frame, so that cameras,
     # seeds, truth and measurements agree (_score prints the mean offset).
     po = _renderer_pixel_offset(jv)
-    mt = track_markers(v.frames, v.cameras, v.seeds, ["P1", "P2", "P3", "P4"], ex,
-                       backgrounds=bgs, settings=TrackSettings(pixel_offset=po))
+    if po == TrackSettings().pixel_offset:
+        # the same call as test_track_tracks' (tests/jump_videos.py: once per session)
+        bgs, mt = tracked_markers(kind)
+    else:
+        bgs = {s: estimate_background(F) for s, F in v.frames.items()}
+        mt = track_markers(v.frames, v.cameras, v.seeds, ["P1", "P2", "P3", "P4"], ex,
+                           backgrounds=bgs, settings=TrackSettings(pixel_offset=po))
     ef = {s: ref - mt.offsets[s] for s in v.frames}    # frames late against the first
     table, rep = split_merged_bindings(mt.table, v.frames, bgs, v.cameras, ef,
                                        pixel_offset=po)

@@ -71,6 +71,15 @@ def separate(cams):
 
 
 @pytest.fixture(scope="module")
+def separate_backgrounds(separate):
+    """The backgrounds of the ``separate`` frames, as ``track_markers``
+    estimates them when not given (shared by the tests that track those
+    frames unchanged; ~0.2 s CPU per call)."""
+    from photogram.track.background import estimate_background
+    return {n: estimate_background(F) for n, F in separate[1].items()}
+
+
+@pytest.fixture(scope="module")
 def separate_result(cams, separate):
     _, frames, truth = separate
     return track_markers(frames, cams, _seeds(truth, OFFSETS), MARKERS, EXPO)
@@ -155,7 +164,7 @@ def test_a_distractor_in_the_gate_makes_it_ambiguous(cams, separate):
     assert (hit.status == "ambiguous").all()
 
 
-def test_perturbed_orientation_gives_no_wrong_label(cams, separate):
+def test_perturbed_orientation_gives_no_wrong_label(cams, separate, separate_backgrounds):
     """An estimated orientation (angles off by 0.03 gon, centres by 0.5 dm):
     the checks use its tolerance, labels stay right."""
     from photogram.geometry import matrix_to_opk
@@ -164,7 +173,8 @@ def test_perturbed_orientation_gives_no_wrong_label(cams, separate):
                                      c.X0 + rng.normal(0, 0.5, 3), c.io, c.model, n)
            for n, c in cams.items()}
     _, frames, truth = separate
-    res = track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO)
+    res = track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO,
+                        backgrounds=separate_backgrounds)
     assert res.offsets == OFFSETS
     errs, wrong = _evaluate(res.table, truth, OFFSETS)
     assert not wrong
@@ -179,7 +189,8 @@ def _perturbed(cams, gon, dm, seed=2):
             for n, c in cams.items()}
 
 
-def test_poor_orientation_bias_is_compensated_and_sync_refused(cams, separate):
+def test_poor_orientation_bias_is_compensated_and_sync_refused(cams, separate,
+                                                              separate_backgrounds):
     """Angles 0.3 gon off (reprojections several px off): with the offsets
     given, the systematic error is estimated and the labels stay right;
     asked to estimate the offsets, the tracker refuses instead of guessing."""
@@ -189,15 +200,18 @@ def test_poor_orientation_bias_is_compensated_and_sync_refused(cams, separate):
     off = max(np.hypot(*(est[n].project(X[15]) - cams[n].project(X[15])).T).max()
               for n in cams)
     assert off > 3.0                       # the orientation error is real
-    res = track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO, offsets=OFFSETS)
+    res = track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO, offsets=OFFSETS,
+                        backgrounds=separate_backgrounds)
     _, wrong = _evaluate(res.table, truth, OFFSETS)
     assert not wrong
     assert (res.table.status == "ok").mean() > 0.9
     with pytest.raises(InputError, match="sync offset of camera S[23] is not clear"):
-        track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO)
+        track_markers(frames, est, _seeds(truth, OFFSETS), MARKERS, EXPO,
+                      backgrounds=separate_backgrounds)
 
 
-def test_seed_far_from_any_marker_is_named_and_the_rest_goes_on(cams, separate):
+def test_seed_far_from_any_marker_is_named_and_the_rest_goes_on(cams, separate,
+                                                               separate_backgrounds):
     """A click 25 px off its marker is not used: the marker goes without a
     seed in that camera (found again from the other cameras' 3D track, or
     flagged), the reason names station, frame and marker, nothing is
@@ -206,7 +220,8 @@ def test_seed_far_from_any_marker_is_named_and_the_rest_goes_on(cams, separate):
     seeds = _seeds(truth, OFFSETS)
     k = seeds.index[(seeds.station == "S2") & (seeds.marker == "P2")][0]
     seeds.loc[k, "x"] += 25.0
-    res = track_markers(frames, cams, seeds, MARKERS, EXPO, offsets=OFFSETS)
+    res = track_markers(frames, cams, seeds, MARKERS, EXPO, offsets=OFFSETS,
+                        backgrounds=separate_backgrounds)
     assert len(res.notes) == 1 and "seed of P2 in S2 frame 4" in res.notes[0]
     assert "not used" in res.notes[0] and "\n" not in res.notes[0]
     _, wrong = _evaluate(res.table, truth, OFFSETS)
@@ -247,11 +262,17 @@ def _rendered(kind):
     return rendered_videos(kind)
 
 
-def _run_rendered(v):
-    expo = pd.DataFrame({"exposure": [f"{e + 1:03d}" for e in range(24)],
-                         "frame": [v.exposure_frames["S1"][e] + 0 for e in range(24)]})
-    # the renderer paints in the project's frame (top-left corner at (0, 0))
-    res = track_markers(v.frames, v.cameras, v.seeds, MARKERS, expo)
+def _run_rendered(kind):
+    """track_markers on the ``kind`` set: its frames, cameras and seeds,
+    MARKERS, the 24 exposures as frames of S1 (the first camera), the
+    offsets estimated, default settings (the renderer paints in the
+    project's frame, top-left corner at (0, 0)); computed once per session
+    by tests/jump_videos.py, which test_track_bindings shares."""
+    from jump_videos import MARKERS as SHARED, tracked_markers
+    assert list(SHARED) == MARKERS
+    v = _rendered(kind)
+    assert next(iter(v.frames)) == "S1" and len(v.exposure_frames["S1"]) == 24
+    res = tracked_markers(kind)[1]
     t = v.truth_markers.set_index(["exposure", "station", "marker"])
     m = res.table.join(t[["x", "y", "visible"]], on=["exposure", "station", "marker"],
                        rsuffix="_true")
@@ -262,7 +283,7 @@ def _run_rendered(v):
 
 
 def test_rendered_normal_meets_the_goals():
-    res, m, err, wrong = _run_rendered(_rendered("normal"))
+    res, m, err, wrong = _run_rendered("normal")
     assert wrong.sum() == 0
     assert np.sqrt(np.mean(err ** 2)) <= 0.2
     vis = m.visible.astype(str) == "True"
@@ -283,7 +304,7 @@ def test_rendered_normal_meets_the_goals():
     "section 4."))
 def test_rendered_harsh_reported_with_a_looser_bound():
     """Not tuned on: no wrong label allowed still, the centres to 0.3 px."""
-    res, m, err, wrong = _run_rendered(_rendered("harsh"))
+    res, m, err, wrong = _run_rendered("harsh")
     print("harsh:", res.offsets, m.status.value_counts().to_dict(),
           "rms", float(np.sqrt(np.mean(err[~wrong] ** 2))), "wrong", int(wrong.sum()))
     assert wrong.sum() == 0

@@ -42,8 +42,17 @@ def axis_directions(table: pd.DataFrame) -> pd.DataFrame:
     tail to tip), ``sigma_angle`` (rad) and ``length`` (px, between the
     outermost points)."""
     rows = []
-    for (e, s, lab), g in table.groupby(["exposure", "station", "line"], sort=False):
-        xy = g[["x", "y"]].to_numpy(float)
+    # the rows of each group by position (the groups in order of first
+    # appearance, as groupby(sort=False)), the arrays taken once
+    XY = table[["x", "y"]].to_numpy(float)
+    sig = table["sigma"].to_numpy()
+    keys = ["exposure", "station", "line"]
+    K = table[keys].to_numpy(object)
+    for idx in _positions(table.groupby(keys, sort=False)):
+        e, s, lab = K[idx[0]]
+        # column-major, as pandas gives a group's columns: the same
+        # summation order in the mean below, the same bits
+        xy = np.asfortranarray(XY[idx])
         if len(xy) < 2:
             continue
         c = xy.mean(0)
@@ -51,10 +60,22 @@ def axis_directions(table: pd.DataFrame) -> pd.DataFrame:
         u = vt[0] if vt[0] @ (xy[-1] - xy[0]) >= 0 else -vt[0]
         t = (xy - c) @ u
         rows.append((e, s, lab, float(np.arctan2(u[1], u[0])),
-                     float(g["sigma"].iloc[0] / np.sqrt(max((t * t).sum(), 1e-12))),
+                     float(sig[idx[0]] / np.sqrt(max((t * t).sum(), 1e-12))),
                      float(np.ptp(t))))
     return pd.DataFrame(rows, columns=["exposure", "station", "line", "angle", "sigma_angle",
                                        "length"])
+
+
+def _positions(gb) -> list:
+    """Row positions of each group of ``gb`` (a DataFrameGroupBy), in the
+    order its iteration yields the groups (``ngroup``'s numbers; rows of a
+    missing key left out)."""
+    if gb.ngroups == 0:
+        return []
+    ids = gb.ngroup().to_numpy()
+    order = np.argsort(ids, kind="stable")
+    cuts = np.cumsum(np.bincount(ids[ids >= 0], minlength=gb.ngroups))[:-1]
+    return np.split(order[ids[order] >= 0], cuts)
 
 
 def _fit(t, a, s, degree):

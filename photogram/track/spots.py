@@ -278,7 +278,26 @@ def fit_spot_shape(image: np.ndarray, centres: np.ndarray, *, half: int = 4,
         ``qxx, qxy, qyy`` (px^2) of ``Q`` and ``w``; NaN where the fit failed.
     centre : (n, 2)
     """
-    v, x, y = _windows(image, centres, half, pixel_offset)
+    return fit_spot_windows(*spot_windows(image, centres, half=half, pixel_offset=pixel_offset))
+
+
+def spot_windows(image: np.ndarray, centres: np.ndarray, *, half: int = 4,
+                 pixel_offset: float = 0.5):
+    """The windows :func:`fit_spot_shape` fits: grey values (n, 2h+1,
+    2h+1) (NaN outside the image) and the image-frame coordinates x, y of
+    their pixel centres (each (n, 2h+1, 2h+1))."""
+    return _windows(image, np.asarray(centres, float).reshape(-1, 2), half, pixel_offset)
+
+
+def fit_spot_windows(v: np.ndarray, x: np.ndarray, y: np.ndarray):
+    """:func:`fit_spot_shape` on windows (:func:`spot_windows`; windows of
+    several images may be stacked: every window's fit is its own).
+
+    Returns
+    -------
+    shape : (n, 4)
+    centre : (n, 2)
+    """
     c, M, b = _moments(v, x, y)
     M = np.clip(M, [0.05, -np.inf, 0.05], None)
     amp = _nanmax(v) - b

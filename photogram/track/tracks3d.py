@@ -178,12 +178,12 @@ def ballistic(X: np.ndarray, t: int, w: int) -> np.ndarray | None:
     return coef[-1]
 
 
-def fill_3d(cams: dict, tr: dict, cands: dict, offsets: dict, X: np.ndarray,
-            markers: list, s: TrackSettings, sizes: dict, bias: np.ndarray) -> None:
-    """Search the views where a marker is not ok around its 3D prediction
-    (module doc); updates ``tr`` in place."""
-    names = list(cams)
+def _predictions(X: np.ndarray, s: TrackSettings) -> list:
+    """Per frame ``t`` the 3D predictions ``{marker: (X, gate, source)}``
+    of :func:`fill_3d`: the point of the other views where it has one,
+    else the ballistic 3D track (a wider gate)."""
     T, M = X.shape[:2]
+    preds = []
     for t in range(T):
         pred = {}
         for i in range(M):
@@ -193,6 +193,41 @@ def fill_3d(cams: dict, tr: dict, cands: dict, offsets: dict, X: np.ndarray,
                 Xb = ballistic(X[:, i], t, s.ballistic_window)
                 if Xb is not None:
                     pred[i] = (Xb, s.fill_gate + 2.0, "the ballistic 3D track")
+        preds.append(pred)
+    return preds
+
+
+def _project_predictions(cams: dict, tr: dict, offsets: dict, preds: list,
+                         bias: np.ndarray) -> dict:
+    """``{(station index, t): {marker: image point + bias}}`` of the
+    predictions ``preds`` in every view whose video has the frame: one
+    projection (one Newton inversion of the distortion) per station for
+    all its frames instead of one per frame and marker. The points are
+    those a per-point projection gives to the last steps of Newton's
+    method (below 1e-12 of the image scale), which here only gate the
+    candidates."""
+    out = {}
+    for k, (sname, cam) in enumerate(cams.items()):
+        n_frames = len(tr[sname].xy)
+        keys = [(t, i) for t, pred in enumerate(preds) if 0 <= t - offsets[sname] < n_frames
+                for i in pred]
+        if not keys:
+            continue
+        q = cam.project(np.array([preds[t][i][0] for t, i in keys]))
+        for (t, i), qi in zip(keys, q):
+            out.setdefault((k, t), {})[i] = qi + bias[k, t]
+    return out
+
+
+def fill_3d(cams: dict, tr: dict, cands: dict, offsets: dict, X: np.ndarray,
+            markers: list, s: TrackSettings, sizes: dict, bias: np.ndarray) -> None:
+    """Search the views where a marker is not ok around its 3D prediction
+    (module doc); updates ``tr`` in place."""
+    names = list(cams)
+    T, M = X.shape[:2]
+    preds = _predictions(X, s)
+    q_all = _project_predictions(cams, tr, offsets, preds, bias)
+    for t, pred in enumerate(preds):
         if not pred:
             continue
         for k, sname in enumerate(names):
@@ -201,8 +236,7 @@ def fill_3d(cams: dict, tr: dict, cands: dict, offsets: dict, X: np.ndarray,
             if not 0 <= f < len(st.xy):
                 continue
             c = cands[sname][f]
-            cam = cams[sname]
-            q = {i: cam.project(p[0][None])[0] + bias[k, t] for i, p in pred.items()}
+            q = q_all[(k, t)]
             w, h = sizes[sname]
             for i, (_, gate, source) in pred.items():
                 if st.status[f, i] == OK:
