@@ -74,23 +74,29 @@ def skew(v) -> np.ndarray:
 
 
 def _elementary(angles):
-    """Wolf's elementary matrices M_omega, M_phi, M_kappa and derivatives."""
+    """Wolf's elementary matrices M_omega, M_phi, M_kappa and derivatives
+    (each (..., 3, 3), filled in place: the same values as stacking the
+    entries, without 36 nested ``np.stack`` calls over all observations)."""
     a = np.asarray(angles, dtype=float)
     c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros(a.shape[:-1]), np.ones(a.shape[:-1])
-
-    def mat(rows):
-        return np.stack([np.stack(r, -1) for r in rows], -2)
-
+    shape = a.shape[:-1] + (3, 3)
     co, so = c[..., 0], s[..., 0]
     cp, sp = c[..., 1], s[..., 1]
     ck, sk = c[..., 2], s[..., 2]
-    m_o = mat([[o, z, z], [z, co, so], [z, -so, co]])
-    d_o = mat([[z, z, z], [z, -so, co], [z, -co, -so]])
-    m_p = mat([[cp, z, -sp], [z, o, z], [sp, z, cp]])
-    d_p = mat([[-sp, z, -cp], [z, z, z], [cp, z, -sp]])
-    m_k = mat([[ck, sk, z], [-sk, ck, z], [z, z, o]])
-    d_k = mat([[-sk, ck, z], [-ck, -sk, z], [z, z, z]])
+
+    def mat(entries):
+        """A (..., 3, 3) array of zeros with ``{(i, j): value}`` set."""
+        m = np.zeros(shape)
+        for (i, j), v in entries.items():
+            m[..., i, j] = v
+        return m
+
+    m_o = mat({(0, 0): 1.0, (1, 1): co, (1, 2): so, (2, 1): -so, (2, 2): co})
+    d_o = mat({(1, 1): -so, (1, 2): co, (2, 1): -co, (2, 2): -so})
+    m_p = mat({(0, 0): cp, (0, 2): -sp, (1, 1): 1.0, (2, 0): sp, (2, 2): cp})
+    d_p = mat({(0, 0): -sp, (0, 2): -cp, (2, 0): cp, (2, 2): -sp})
+    m_k = mat({(0, 0): ck, (0, 1): sk, (1, 0): -sk, (1, 1): ck, (2, 2): 1.0})
+    d_k = mat({(0, 0): -sk, (0, 1): ck, (1, 0): -ck, (1, 1): -sk})
     return (m_o, m_p, m_k), (d_o, d_p, d_k)
 
 
