@@ -261,26 +261,46 @@ def _plot_trajectory(result, path, unit="m"):
 
 
 def _plot_series(result, path, unit="m"):
+    """Joint angles and speed over time, four panels. The figure is kept
+    for the next call with the same layout (:func:`_reused`): its axes and
+    ticks are built once per process, the lines get the new data and the
+    axes are scaled to it again (the same PNG, bit for bit, as a new
+    figure: tests/test_mocap_figure_reuse.py)."""
     b, tb = result.biomechanics, result.truth_biomechanics
     t = result.times
-    fig = _fig((9, 9))
-    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.06, top=0.98, hspace=0.2)
     panels = [("knee flexion (deg)", ("knee_flexion_r", "knee_flexion_l")),
               ("hip flexion (deg)", ("hip_flexion_r", "hip_flexion_l")),
               ("lean (deg) / fore-aft (deg)", ("lean", "fore_aft_angle")),
               (f"CoM speed ({unit}/s)", ("speed",))]
-    colors = ("tab:red", "tab:blue")
-    for i, (title, keys) in enumerate(panels):
-        ax = fig.add_subplot(len(panels), 1, i + 1)
-        for k, col in zip(keys, colors):
-            ax.plot(t, b[k], color=col, lw=1.2, label=k)
-            if tb is not None:
-                ax.plot(t, tb[k], "--", color=col, lw=0.8, label=k + " (truth)")
-        ax.set_ylabel(title, fontsize=8)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="upper right", ncol=2)
-    ax.set_xlabel("time (s)")
-    return _save(fig, path)
+    series = [(b[k], None if tb is None else tb[k]) for _, keys in panels for k in keys]
+
+    def build():
+        fig = _fig((9, 9))
+        fig.subplots_adjust(left=0.08, right=0.98, bottom=0.06, top=0.98, hspace=0.2)
+        colors = ("tab:red", "tab:blue")
+        lines = []
+        for i, (title, keys) in enumerate(panels):
+            ax = fig.add_subplot(len(panels), 1, i + 1)
+            for k, col in zip(keys, colors):
+                lines.append(ax.plot(t, b[k], color=col, lw=1.2, label=k)[0])
+                if tb is not None:
+                    lines.append(ax.plot(t, tb[k], "--", color=col, lw=0.8,
+                                         label=k + " (truth)")[0])
+            ax.set_ylabel(title, fontsize=8)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7, loc="upper right", ncol=2)
+        ax.set_xlabel("time (s)")
+        return fig, lines
+
+    def update(lines):
+        data = [y for pair in series for y in pair if y is not None]
+        for line, y in zip(lines, data):
+            line.set_data(t, y)
+        for ax in {line.axes for line in lines}:
+            ax.relim()
+            ax.autoscale_view()
+
+    return _reused(("series", unit, tb is None), build, update, path)
 
 
 def _plot_reprojection(result, path):
@@ -307,30 +327,71 @@ def _plot_reprojection(result, path):
 def _plot_skeletons(result, path):
     """Up to 8 skeletons side by side; the limbs of a panel are one line
     collection (184 single lines cost more than the rest of the figure) and
-    the margins are fixed (tight_layout drew the figure twice)."""
+    the margins are fixed (tight_layout drew the figure twice). The figure
+    is kept for the next call with the same panels (:func:`_reused`): the
+    collections get the new limbs and the titles the new frames."""
     from matplotlib.collections import LineCollection
     X = result.reconstruction.joints
     sk = result.skeleton
     F = len(X)
     picks = np.unique(np.linspace(0, F - 1, min(F, 8)).astype(int))
-    fig = _fig((12, 2.8))
-    fig.subplots_adjust(left=0.03, right=0.99, bottom=0.09, top=0.8, wspace=0.3)
     L = np.array(sk.limb_indices()).reshape(-1, 2)
     side = [sk.joints[a][:2] if sk.name == "ski24" else sk.joints[a][:1] for a in L[:, 0]]
     colors = ["tab:red" if s in ("r_", "R") else "tab:blue" if s in ("l_", "L") else "black"
               for s in side]
-    for i, f in enumerate(picks):
-        ax = fig.add_subplot(1, len(picks), i + 1)
+    shown = [bool(np.any(np.isfinite(X[f]))) for f in picks]
+
+    def limbs(f):
         P = X[f]
-        if not np.any(np.isfinite(P)):
-            continue
-        xz = (P - np.nanmean(P, axis=0))[:, [0, 2]]
-        ax.add_collection(LineCollection(xz[L], colors=colors, linewidths=1.2))
-        ax.set_aspect("equal")
-        ax.set_title(f"frame {result.frames[f]}", fontsize=8)
-        ax.tick_params(labelsize=6)
-        ax.set_xlim(-1.1, 1.1)
-        ax.set_ylim(-1.1, 1.1)
-    fig.suptitle("skeletons, side view (X-Z about the mean joint; right red, left blue)",
-                 fontsize=9)
-    return _save(fig, path)
+        return (P - np.nanmean(P, axis=0))[:, [0, 2]][L]
+
+    def build():
+        fig = _fig((12, 2.8))
+        fig.subplots_adjust(left=0.03, right=0.99, bottom=0.09, top=0.8, wspace=0.3)
+        panels = []
+        for i, f in enumerate(picks):
+            ax = fig.add_subplot(1, len(picks), i + 1)
+            if not shown[i]:
+                continue
+            coll = ax.add_collection(LineCollection(limbs(f), colors=colors, linewidths=1.2))
+            ax.set_aspect("equal")
+            title = ax.set_title(f"frame {result.frames[f]}", fontsize=8)
+            ax.tick_params(labelsize=6)
+            ax.set_xlim(-1.1, 1.1)
+            ax.set_ylim(-1.1, 1.1)
+            panels.append((coll, title))
+        fig.suptitle("skeletons, side view (X-Z about the mean joint; right red, left blue)",
+                     fontsize=9)
+        return fig, panels
+
+    def update(panels):
+        for (coll, title), f in zip(panels, picks[np.array(shown, bool)]):
+            coll.set_segments(limbs(f))
+            title.set_text(f"frame {result.frames[f]}")
+
+    return _reused(("skeletons", tuple(shown), tuple(colors), L.tobytes()), build, update,
+                   path)
+
+
+# figures kept for the next call with the same layout, by key; a figure is
+# taken out while it is drawn, so that concurrent callers build their own
+_REUSED: dict = {}
+
+
+def _reused(key, build, update, path: Path) -> Path:
+    """Draw a figure whose layout ``key`` names into ``path``: a new one
+    from ``build() -> (fig, artists)``, or the one kept from an earlier call
+    with the same key, after ``update(artists)`` has given it the data of
+    this call. Building the axes and their ticks costs most of a small
+    figure (matplotlib); a process that writes many results folders (a
+    batch, the tests) builds each layout once."""
+    entry = _REUSED.pop(key, None)
+    if entry is None:
+        entry = build()
+    else:
+        update(entry[1])
+    out = _save(entry[0], path)
+    if len(_REUSED) >= 8:
+        _REUSED.clear()
+    _REUSED[key] = entry
+    return out
