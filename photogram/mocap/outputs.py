@@ -241,23 +241,43 @@ def _plots(result, folder: Path, unit: str = "m") -> list[Path]:
 
 
 def _plot_trajectory(result, path, unit="m"):
+    """The plan view of the centre of mass and the cameras; kept for the
+    next call with the same cameras (:func:`_reused`)."""
     b, tb = result.biomechanics, result.truth_biomechanics
-    fig = _fig((8, 6))
-    ax = fig.add_subplot(111)
     X0 = result.cameras.X0
-    ax.plot(b["com_x"], b["com_y"], "-", color="tab:blue", lw=1.5, label="CoM (reconstructed)")
-    if tb is not None:
-        ax.plot(tb["com_x"], tb["com_y"], "--", color="black", lw=1, label="CoM (truth)")
-    ax.plot(X0[:, 0], X0[:, 1], "^", color="tab:red", label="cameras")
-    for name, p in zip(result.cameras.names, X0):
-        ax.annotate(name, p[:2], textcoords="offset points", xytext=(4, 4), fontsize=8)
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel(f"X ({unit})")
-    ax.set_ylabel(f"Y ({unit})")
-    ax.set_title("plan view")
-    ax.legend(loc="best", fontsize=8)
-    ax.grid(alpha=0.3)
-    return _save(fig, path)
+    names = tuple(result.cameras.names)
+
+    def build():
+        fig = _fig((8, 6))
+        ax = fig.add_subplot(111)
+        lines = [ax.plot(b["com_x"], b["com_y"], "-", color="tab:blue", lw=1.5,
+                         label="CoM (reconstructed)")[0]]
+        if tb is not None:
+            lines.append(ax.plot(tb["com_x"], tb["com_y"], "--", color="black", lw=1,
+                                 label="CoM (truth)")[0])
+        lines.append(ax.plot(X0[:, 0], X0[:, 1], "^", color="tab:red", label="cameras")[0])
+        notes = [ax.annotate(name, p[:2], textcoords="offset points", xytext=(4, 4),
+                             fontsize=8) for name, p in zip(names, X0)]
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel(f"X ({unit})")
+        ax.set_ylabel(f"Y ({unit})")
+        ax.set_title("plan view")
+        ax.legend(loc="best", fontsize=8)
+        ax.grid(alpha=0.3)
+        return fig, (ax, lines, notes)
+
+    def update(artists):
+        ax, lines, notes = artists
+        data = [(b["com_x"], b["com_y"])] + ([(tb["com_x"], tb["com_y"])] if tb is not None
+                                             else []) + [(X0[:, 0], X0[:, 1])]
+        for line, (x, y) in zip(lines, data):
+            line.set_data(x, y)
+        for note, p in zip(notes, X0):
+            note.xy = p[:2]
+        ax.relim()
+        ax.autoscale_view()
+
+    return _reused(("trajectory", unit, tb is None, names), build, update, path)
 
 
 def _plot_series(result, path, unit="m"):
@@ -304,24 +324,44 @@ def _plot_series(result, path, unit="m"):
 
 
 def _plot_reprojection(result, path):
+    """Box plots of the reprojection errors per camera; the axes kept for
+    the next call with the same cameras (:func:`_reused`), the boxes drawn
+    anew."""
     proj = result.cameras.project(result.reconstruction.joints)
     err = np.linalg.norm(proj - result.observations[..., :2], axis=-1)
     use = np.nan_to_num(result.observations[..., 2]) >= 0.3
     data = [err[:, c][use[:, c] & np.isfinite(err[:, c])] for c in range(err.shape[1])]
-    fig = _fig((8, 4))
-    ax = fig.add_subplot(111)
-    ax.boxplot([d if len(d) else [np.nan] for d in data], showfliers=False)
-    ax.set_xticks(range(1, len(data) + 1), result.cameras.names)
-    if result.reference is not None:
-        ref = [result.reference["reprojection"][c]["reference_median_px"]
-               for c in result.cameras.names]
-        ax.plot(range(1, len(data) + 1), [np.nan if r is None else r for r in ref], "kx",
-                label="reference median")
-        ax.legend(fontsize=8)
-    ax.set_ylabel("reprojection error (px)")
-    ax.set_title("per camera (detections with confidence >= 0.3, whiskers 1.5 IQR)")
-    ax.grid(alpha=0.3, axis="y")
-    return _save(fig, path)
+    names = tuple(result.cameras.names)
+
+    def boxes(ax):
+        drawn = ax.boxplot([d if len(d) else [np.nan] for d in data], showfliers=False)
+        artists = [a for group in drawn.values() for a in group]
+        ax.set_xticks(range(1, len(data) + 1), names)
+        if result.reference is not None:
+            ref = [result.reference["reprojection"][c]["reference_median_px"] for c in names]
+            artists += ax.plot(range(1, len(data) + 1),
+                               [np.nan if r is None else r for r in ref], "kx",
+                               label="reference median")
+            artists.append(ax.legend(fontsize=8))
+        return artists
+
+    def build():
+        fig = _fig((8, 4))
+        ax = fig.add_subplot(111)
+        artists = boxes(ax)
+        ax.set_ylabel("reprojection error (px)")
+        ax.set_title("per camera (detections with confidence >= 0.3, whiskers 1.5 IQR)")
+        ax.grid(alpha=0.3, axis="y")
+        return fig, (ax, artists)
+
+    def update(kept):
+        ax, artists = kept
+        for a in artists:
+            a.remove()
+        ax.relim()
+        artists[:] = boxes(ax)
+
+    return _reused(("reprojection", names, result.reference is None), build, update, path)
 
 
 def _plot_skeletons(result, path):
