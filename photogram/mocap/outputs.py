@@ -431,7 +431,7 @@ def _reused(key, build, update, path: Path) -> Path:
     else:
         update(entry[1])
     out = _save(entry[0], path)
-    if len(_REUSED) >= 8:
-        _REUSED.clear()
+    while len(_REUSED) >= 8:                    # at most 8 kept (~2-4 MB each): the oldest go
+        _REUSED.pop(next(iter(_REUSED)))
     _REUSED[key] = entry
     return out
