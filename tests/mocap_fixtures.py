@@ -74,6 +74,18 @@ def ski_images():
     return out
 
 
+_IMAGE_USERS = {"test_mocap_homography", "test_mocap_lagged_differences"}
+_IMAGES_DONE: set = set()
+
+
+def release_images(module: str):
+    """``module`` (one of ``_IMAGE_USERS``) has finished with the frames:
+    when every user has, they are dropped (93 MB; the measurements stay)."""
+    _IMAGES_DONE.add(module)
+    if _IMAGE_USERS <= _IMAGES_DONE:
+        ski_images.cache_clear()
+
+
 @functools.lru_cache(maxsize=None)
 def ski_measured(cam, **settings):
     """``rotation_differences`` of camera ``cam``'s rendered frames with

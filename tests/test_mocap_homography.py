@@ -40,8 +40,9 @@ def boxes(sim):
 
 @pytest.fixture(scope="module")
 def images(sim):
-    from mocap_fixtures import ski_images
-    return ski_images()
+    from mocap_fixtures import release_images, ski_images
+    yield ski_images()
+    release_images("test_mocap_homography")
 
 
 def _estimate(sim, images, boxes, cam, **kw):

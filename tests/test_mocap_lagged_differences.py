@@ -133,8 +133,9 @@ WIDE, ZOOMED = 2, 0
 @pytest.fixture(scope="module")
 def rendered():
     # the frames of test_mocap_homography, rendered once (tests/mocap_fixtures.py)
-    from mocap_fixtures import ski_boxes, ski_images, ski_session
-    return ski_session()[0], ski_boxes(), ski_images()
+    from mocap_fixtures import release_images, ski_boxes, ski_images, ski_session
+    yield ski_session()[0], ski_boxes(), ski_images()
+    release_images("test_mocap_lagged_differences")
 
 
 def _measure(rendered, cam, **kw):
