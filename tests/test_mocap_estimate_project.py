@@ -117,9 +117,10 @@ def test_example_rotation_differences_are_what_photogram_measures():
     from photogram.mocap.motion.rotation_series import rotation_difference_errors
     from photogram.simulation.ski.simimages import detection_boxes
     root = Path(__file__).resolve().parents[1] / "projects" / "ski-ptz"
-    sim = simulate_session(seed=8, n_runs=1)
+    from mocap_fixtures import ski_session      # seed 8 and its scene (texture seed 0), shared
+    sim, scene = ski_session()
     per = read_rotation_differences(root / "rotation_differences.csv", sim.cameras.names, 279)
-    rd = rotation_differences(render_camera(build_scene(sim, seed=0), sim, 0, frames=range(30)),
+    rd = rotation_differences(render_camera(scene, sim, 0, frames=range(30)),
                               "opencv", sim.cameras.io[0][:30], image_scale=0.5,
                               boxes=detection_boxes(sim.observations, 0)[:30])
     a = np.degrees(matrix_to_rodrigues(rd.dR))

@@ -8,8 +8,7 @@ import pytest
 
 from photogram.errors import GeometryError, InputError
 from photogram.geometry import rodrigues_to_matrix
-from photogram.mocap.motion.homography import (HomographySettings, RotationDifferences,
-                                               rotation_differences)
+from photogram.mocap.motion.homography import RotationDifferences, rotation_differences
 from photogram.mocap.motion.rotation_series import (check_rotation_differences,
                                                     filter_rotation_differences,
                                                     read_rotation_differences,
@@ -17,37 +16,38 @@ from photogram.mocap.motion.rotation_series import (check_rotation_differences,
                                                     write_rotation_differences)
 from photogram.mocap.motion.video import count_frames, read_frames
 from photogram.simulation.ski.render import build_scene, render_camera, write_video
-from photogram.simulation.ski.simulate import simulate_session
 
 # `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
 pytestmark = pytest.mark.slow
 
-FRAMES = list(range(100, 130))          # 30 frames
+FRAMES = list(range(100, 130))          # 30 frames (mocap_fixtures.RENDER_FRAMES)
 WIDE, ZOOMED = 2, 0                     # C3 (f ~ 4000 px) and C1 (f ~ 13000 px)
 
 
 @pytest.fixture(scope="module")
 def sim():
-    return simulate_session(seed=8, n_runs=1)
+    # shared with test_mocap_lagged_differences (tests/mocap_fixtures.py): the
+    # same session, scene, frames and measurements, rendered and measured once
+    from mocap_fixtures import ski_session
+    return ski_session()[0]
 
 
 @pytest.fixture(scope="module")
 def boxes(sim):
-    xy = sim.image_truth
-    with np.errstate(invalid="ignore"):
-        return np.stack([np.nanmin(xy[..., 0], 2), np.nanmin(xy[..., 1], 2),
-                         np.nanmax(xy[..., 0], 2), np.nanmax(xy[..., 1], 2)], -1)
+    from mocap_fixtures import ski_boxes
+    return ski_boxes()
 
 
 @pytest.fixture(scope="module")
 def images(sim):
-    scene = build_scene(sim)
-    return {c: list(render_camera(scene, sim, c, FRAMES)) for c in (WIDE, ZOOMED)}
+    from mocap_fixtures import release_images, ski_images
+    yield ski_images()
+    release_images("test_mocap_homography")
 
 
 def _estimate(sim, images, boxes, cam, **kw):
-    return rotation_differences(images[cam], "opencv", sim.cameras.io[cam][FRAMES], 0.5,
-                                boxes[FRAMES, cam], HomographySettings(**kw))
+    from mocap_fixtures import ski_measured
+    return ski_measured(cam, **kw)
 
 
 @pytest.mark.parametrize("cam", [WIDE, ZOOMED])

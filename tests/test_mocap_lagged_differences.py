@@ -132,23 +132,15 @@ WIDE, ZOOMED = 2, 0
 
 @pytest.fixture(scope="module")
 def rendered():
-    from photogram.simulation.ski.render import build_scene, render_camera
-    from photogram.simulation.ski.simulate import simulate_session
-    sim = simulate_session(seed=8, n_runs=1)
-    xy = sim.image_truth
-    with np.errstate(invalid="ignore"):
-        boxes = np.stack([np.nanmin(xy[..., 0], 2), np.nanmin(xy[..., 1], 2),
-                          np.nanmax(xy[..., 0], 2), np.nanmax(xy[..., 1], 2)], -1)
-    scene = build_scene(sim)
-    images = {c: list(render_camera(scene, sim, c, FRAMES)) for c in (WIDE, ZOOMED)}
-    return sim, boxes, images
+    # the frames of test_mocap_homography, rendered once (tests/mocap_fixtures.py)
+    from mocap_fixtures import release_images, ski_boxes, ski_images, ski_session
+    yield ski_session()[0], ski_boxes(), ski_images()
+    release_images("test_mocap_lagged_differences")
 
 
 def _measure(rendered, cam, **kw):
-    from photogram.mocap.motion.homography import HomographySettings, rotation_differences
-    sim, boxes, images = rendered
-    return rotation_differences(images[cam], "opencv", sim.cameras.io[cam][FRAMES], 0.5,
-                                boxes[FRAMES, cam], HomographySettings(**kw))
+    from mocap_fixtures import ski_measured
+    return ski_measured(cam, **kw)          # memoised per camera and settings
 
 
 def _angles(R, first, second):

@@ -241,96 +241,197 @@ def _plots(result, folder: Path, unit: str = "m") -> list[Path]:
 
 
 def _plot_trajectory(result, path, unit="m"):
+    """The plan view of the centre of mass and the cameras; kept for the
+    next call with the same cameras (:func:`_reused`)."""
     b, tb = result.biomechanics, result.truth_biomechanics
-    fig = _fig((8, 6))
-    ax = fig.add_subplot(111)
     X0 = result.cameras.X0
-    ax.plot(b["com_x"], b["com_y"], "-", color="tab:blue", lw=1.5, label="CoM (reconstructed)")
-    if tb is not None:
-        ax.plot(tb["com_x"], tb["com_y"], "--", color="black", lw=1, label="CoM (truth)")
-    ax.plot(X0[:, 0], X0[:, 1], "^", color="tab:red", label="cameras")
-    for name, p in zip(result.cameras.names, X0):
-        ax.annotate(name, p[:2], textcoords="offset points", xytext=(4, 4), fontsize=8)
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel(f"X ({unit})")
-    ax.set_ylabel(f"Y ({unit})")
-    ax.set_title("plan view")
-    ax.legend(loc="best", fontsize=8)
-    ax.grid(alpha=0.3)
-    return _save(fig, path)
+    names = tuple(result.cameras.names)
+
+    def build():
+        fig = _fig((8, 6))
+        ax = fig.add_subplot(111)
+        lines = [ax.plot(b["com_x"], b["com_y"], "-", color="tab:blue", lw=1.5,
+                         label="CoM (reconstructed)")[0]]
+        if tb is not None:
+            lines.append(ax.plot(tb["com_x"], tb["com_y"], "--", color="black", lw=1,
+                                 label="CoM (truth)")[0])
+        lines.append(ax.plot(X0[:, 0], X0[:, 1], "^", color="tab:red", label="cameras")[0])
+        notes = [ax.annotate(name, p[:2], textcoords="offset points", xytext=(4, 4),
+                             fontsize=8) for name, p in zip(names, X0)]
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel(f"X ({unit})")
+        ax.set_ylabel(f"Y ({unit})")
+        ax.set_title("plan view")
+        ax.legend(loc="best", fontsize=8)
+        ax.grid(alpha=0.3)
+        return fig, (ax, lines, notes)
+
+    def update(artists):
+        ax, lines, notes = artists
+        data = [(b["com_x"], b["com_y"])] + ([(tb["com_x"], tb["com_y"])] if tb is not None
+                                             else []) + [(X0[:, 0], X0[:, 1])]
+        for line, (x, y) in zip(lines, data):
+            line.set_data(x, y)
+        for note, p in zip(notes, X0):
+            note.xy = p[:2]
+        ax.relim()
+        ax.autoscale_view()
+
+    return _reused(("trajectory", unit, tb is None, names), build, update, path)
 
 
 def _plot_series(result, path, unit="m"):
+    """Joint angles and speed over time, four panels. The figure is kept
+    for the next call with the same layout (:func:`_reused`): its axes and
+    ticks are built once per process, the lines get the new data and the
+    axes are scaled to it again (the same PNG, bit for bit, as a new
+    figure: tests/test_mocap_figure_reuse.py)."""
     b, tb = result.biomechanics, result.truth_biomechanics
     t = result.times
-    fig = _fig((9, 9))
-    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.06, top=0.98, hspace=0.2)
     panels = [("knee flexion (deg)", ("knee_flexion_r", "knee_flexion_l")),
               ("hip flexion (deg)", ("hip_flexion_r", "hip_flexion_l")),
               ("lean (deg) / fore-aft (deg)", ("lean", "fore_aft_angle")),
               (f"CoM speed ({unit}/s)", ("speed",))]
-    colors = ("tab:red", "tab:blue")
-    for i, (title, keys) in enumerate(panels):
-        ax = fig.add_subplot(len(panels), 1, i + 1)
-        for k, col in zip(keys, colors):
-            ax.plot(t, b[k], color=col, lw=1.2, label=k)
-            if tb is not None:
-                ax.plot(t, tb[k], "--", color=col, lw=0.8, label=k + " (truth)")
-        ax.set_ylabel(title, fontsize=8)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="upper right", ncol=2)
-    ax.set_xlabel("time (s)")
-    return _save(fig, path)
+    series = [(b[k], None if tb is None else tb[k]) for _, keys in panels for k in keys]
+
+    def build():
+        fig = _fig((9, 9))
+        fig.subplots_adjust(left=0.08, right=0.98, bottom=0.06, top=0.98, hspace=0.2)
+        colors = ("tab:red", "tab:blue")
+        lines = []
+        for i, (title, keys) in enumerate(panels):
+            ax = fig.add_subplot(len(panels), 1, i + 1)
+            for k, col in zip(keys, colors):
+                lines.append(ax.plot(t, b[k], color=col, lw=1.2, label=k)[0])
+                if tb is not None:
+                    lines.append(ax.plot(t, tb[k], "--", color=col, lw=0.8,
+                                         label=k + " (truth)")[0])
+            ax.set_ylabel(title, fontsize=8)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7, loc="upper right", ncol=2)
+        ax.set_xlabel("time (s)")
+        return fig, lines
+
+    def update(lines):
+        data = [y for pair in series for y in pair if y is not None]
+        for line, y in zip(lines, data):
+            line.set_data(t, y)
+        for ax in {line.axes for line in lines}:
+            ax.relim()
+            ax.autoscale_view()
+
+    return _reused(("series", unit, tb is None), build, update, path)
 
 
 def _plot_reprojection(result, path):
+    """Box plots of the reprojection errors per camera; the axes kept for
+    the next call with the same cameras (:func:`_reused`), the boxes drawn
+    anew."""
     proj = result.cameras.project(result.reconstruction.joints)
     err = np.linalg.norm(proj - result.observations[..., :2], axis=-1)
     use = np.nan_to_num(result.observations[..., 2]) >= 0.3
     data = [err[:, c][use[:, c] & np.isfinite(err[:, c])] for c in range(err.shape[1])]
-    fig = _fig((8, 4))
-    ax = fig.add_subplot(111)
-    ax.boxplot([d if len(d) else [np.nan] for d in data], showfliers=False)
-    ax.set_xticks(range(1, len(data) + 1), result.cameras.names)
-    if result.reference is not None:
-        ref = [result.reference["reprojection"][c]["reference_median_px"]
-               for c in result.cameras.names]
-        ax.plot(range(1, len(data) + 1), [np.nan if r is None else r for r in ref], "kx",
-                label="reference median")
-        ax.legend(fontsize=8)
-    ax.set_ylabel("reprojection error (px)")
-    ax.set_title("per camera (detections with confidence >= 0.3, whiskers 1.5 IQR)")
-    ax.grid(alpha=0.3, axis="y")
-    return _save(fig, path)
+    names = tuple(result.cameras.names)
+
+    def boxes(ax):
+        drawn = ax.boxplot([d if len(d) else [np.nan] for d in data], showfliers=False)
+        artists = [a for group in drawn.values() for a in group]
+        ax.set_xticks(range(1, len(data) + 1), names)
+        if result.reference is not None:
+            ref = [result.reference["reprojection"][c]["reference_median_px"] for c in names]
+            artists += ax.plot(range(1, len(data) + 1),
+                               [np.nan if r is None else r for r in ref], "kx",
+                               label="reference median")
+            artists.append(ax.legend(fontsize=8))
+        return artists
+
+    def build():
+        fig = _fig((8, 4))
+        ax = fig.add_subplot(111)
+        artists = boxes(ax)
+        ax.set_ylabel("reprojection error (px)")
+        ax.set_title("per camera (detections with confidence >= 0.3, whiskers 1.5 IQR)")
+        ax.grid(alpha=0.3, axis="y")
+        return fig, (ax, artists)
+
+    def update(kept):
+        ax, artists = kept
+        for a in artists:
+            a.remove()
+        ax.relim()
+        artists[:] = boxes(ax)
+
+    return _reused(("reprojection", names, result.reference is None), build, update, path)
 
 
 def _plot_skeletons(result, path):
     """Up to 8 skeletons side by side; the limbs of a panel are one line
     collection (184 single lines cost more than the rest of the figure) and
-    the margins are fixed (tight_layout drew the figure twice)."""
+    the margins are fixed (tight_layout drew the figure twice). The figure
+    is kept for the next call with the same panels (:func:`_reused`): the
+    collections get the new limbs and the titles the new frames."""
     from matplotlib.collections import LineCollection
     X = result.reconstruction.joints
     sk = result.skeleton
     F = len(X)
     picks = np.unique(np.linspace(0, F - 1, min(F, 8)).astype(int))
-    fig = _fig((12, 2.8))
-    fig.subplots_adjust(left=0.03, right=0.99, bottom=0.09, top=0.8, wspace=0.3)
     L = np.array(sk.limb_indices()).reshape(-1, 2)
     side = [sk.joints[a][:2] if sk.name == "ski24" else sk.joints[a][:1] for a in L[:, 0]]
     colors = ["tab:red" if s in ("r_", "R") else "tab:blue" if s in ("l_", "L") else "black"
               for s in side]
-    for i, f in enumerate(picks):
-        ax = fig.add_subplot(1, len(picks), i + 1)
+    shown = [bool(np.any(np.isfinite(X[f]))) for f in picks]
+
+    def limbs(f):
         P = X[f]
-        if not np.any(np.isfinite(P)):
-            continue
-        xz = (P - np.nanmean(P, axis=0))[:, [0, 2]]
-        ax.add_collection(LineCollection(xz[L], colors=colors, linewidths=1.2))
-        ax.set_aspect("equal")
-        ax.set_title(f"frame {result.frames[f]}", fontsize=8)
-        ax.tick_params(labelsize=6)
-        ax.set_xlim(-1.1, 1.1)
-        ax.set_ylim(-1.1, 1.1)
-    fig.suptitle("skeletons, side view (X-Z about the mean joint; right red, left blue)",
-                 fontsize=9)
-    return _save(fig, path)
+        return (P - np.nanmean(P, axis=0))[:, [0, 2]][L]
+
+    def build():
+        fig = _fig((12, 2.8))
+        fig.subplots_adjust(left=0.03, right=0.99, bottom=0.09, top=0.8, wspace=0.3)
+        panels = []
+        for i, f in enumerate(picks):
+            ax = fig.add_subplot(1, len(picks), i + 1)
+            if not shown[i]:
+                continue
+            coll = ax.add_collection(LineCollection(limbs(f), colors=colors, linewidths=1.2))
+            ax.set_aspect("equal")
+            title = ax.set_title(f"frame {result.frames[f]}", fontsize=8)
+            ax.tick_params(labelsize=6)
+            ax.set_xlim(-1.1, 1.1)
+            ax.set_ylim(-1.1, 1.1)
+            panels.append((coll, title))
+        fig.suptitle("skeletons, side view (X-Z about the mean joint; right red, left blue)",
+                     fontsize=9)
+        return fig, panels
+
+    def update(panels):
+        for (coll, title), f in zip(panels, picks[np.array(shown, bool)]):
+            coll.set_segments(limbs(f))
+            title.set_text(f"frame {result.frames[f]}")
+
+    return _reused(("skeletons", tuple(shown), tuple(colors), L.tobytes()), build, update,
+                   path)
+
+
+# figures kept for the next call with the same layout, by key; a figure is
+# taken out while it is drawn, so that concurrent callers build their own
+_REUSED: dict = {}
+
+
+def _reused(key, build, update, path: Path) -> Path:
+    """Draw a figure whose layout ``key`` names into ``path``: a new one
+    from ``build() -> (fig, artists)``, or the one kept from an earlier call
+    with the same key, after ``update(artists)`` has given it the data of
+    this call. Building the axes and their ticks costs most of a small
+    figure (matplotlib); a process that writes many results folders (a
+    batch, the tests) builds each layout once."""
+    entry = _REUSED.pop(key, None)
+    if entry is None:
+        entry = build()
+    else:
+        update(entry[1])
+    out = _save(entry[0], path)
+    while len(_REUSED) >= 8:                    # at most 8 kept (~2-4 MB each): the oldest go
+        _REUSED.pop(next(iter(_REUSED)))
+    _REUSED[key] = entry
+    return out
