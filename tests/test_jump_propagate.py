@@ -176,11 +176,15 @@ def test_propagated_sigmas_match_monte_carlo():
         w, V = np.linalg.eigh(C_dir[:, k])
         Lk = V * np.sqrt(np.clip(w, 0, None))[:, None, :]
         dirs.append(u[None] + np.einsum("nij,dnj->dni", Lk, rng.normal(size=(draws, n, 3))))
-    q, f = defs.parameters(P.reshape(-1, 4, 3), dirs[0].reshape(-1, 3),
-                           dirs[1].reshape(-1, 3))
     names = [p for p in PARAMETERS if p != "v"]
-    vals = np.stack([q[p].v.reshape(draws, n) for p in names], axis=-1)   # (draws, n, 7)
-    O = f["O"].v.reshape(draws, n, 3)
+    vals, O = [], []
+    for d0 in range(0, draws, 500):       # 500 draws a pass: 40 instead of 330 MB
+        q, f = defs.parameters(P[d0:d0 + 500].reshape(-1, 4, 3),
+                               dirs[0][d0:d0 + 500].reshape(-1, 3),
+                               dirs[1][d0:d0 + 500].reshape(-1, 3))
+        vals.append(np.stack([q[p].v.reshape(-1, n) for p in names], axis=-1))
+        O.append(f["O"].v.reshape(-1, n, 3))
+    vals, O = np.concatenate(vals), np.concatenate(O)      # (draws, n, 7), (draws, n, 3)
     a, b = m.speed_pairs
     v = np.stack([prop.speed(O[d], m.times, a, b)[0] for d in range(draws)])
     sample = np.concatenate([vals, v[:, :, None]], axis=-1)            # (draws, n, 8)
