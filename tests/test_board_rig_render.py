@@ -229,3 +229,18 @@ def test_write_rig_set(tmp_path, cameras):
     cap = cv2.VideoCapture(str(video / "cam01.avi"))
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 2
     cap.release()
+
+
+def test_detect_rendered_equals_detecting_all_rendered_views(cameras):
+    """The streaming detect_rendered (one view in memory) gives what
+    detect_rig gives on render_rig's views, array for array."""
+    poses = br.board_poses(3, seed=2, cameras=cameras[:2], target=TARGET)
+    settings = br.harsh_settings(seed=2)
+    a = br.detect_rendered(cameras[:2], poses, TARGET, settings)
+    b = br.detect_rig(cameras[:2], br.render_rig(cameras[:2], poses, TARGET, settings), TARGET)
+    assert a.keys() == b.keys() and any(len(v) for v in a.values())
+    for name in a:
+        assert a[name].keys() == b[name].keys()
+        for k in a[name]:
+            assert np.array_equal(a[name][k][0], b[name][k][0])
+            assert np.array_equal(a[name][k][1], b[name][k][1])

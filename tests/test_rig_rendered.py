@@ -26,8 +26,7 @@ def _set(settings, n_cameras, n_poses, seed):
     cameras = br.rig_cameras(n_cameras, seed=seed, distance=br.USABLE_DISTANCE)
     poses = br.board_poses(n_poses, seed=seed, cameras=cameras, target=TARGET,
                            partly_outside=settings.partly_outside)
-    images = br.render_rig(cameras, poses, TARGET, settings)
-    return cameras, poses, br.detect_rig(cameras, images, TARGET)
+    return cameras, poses, br.detect_rendered(cameras, poses, TARGET, settings)
 
 
 def _errors(cameras, poses, res):
@@ -80,7 +79,7 @@ def test_rendered_rig_harsh_within_its_sigmas():
     cameras = br.rig_cameras(4, seed=1, distance=(1.5, 2.5))
     poses = br.board_poses(40, seed=1, cameras=cameras, target=TARGET,
                            partly_outside=settings.partly_outside)
-    dets = br.detect_rig(cameras, br.render_rig(cameras, poses, TARGET, settings), TARGET)
+    dets = br.detect_rendered(cameras, poses, TARGET, settings)
     sizes = {c.name: c.image_size for c in cameras}
     assert all(len(d) >= 3 for d in dets.values()), {c: len(d) for c, d in dets.items()}
     assert any(0 in d for d in dets.values())          # the floor pose is detected

@@ -60,10 +60,11 @@ from photogram.simulation.board_rig.geometry import (RigCamera, BoardPoses, RigR
                                                      floor_frame, VOLUME_CENTRE, TARGET_SPEC,
                                                      USABLE_DISTANCE)
 from photogram.simulation.board_rig.render import (render_view, render_rig)
-from photogram.simulation.board_rig.files import (write_rig_set, cameras_toml, detect_rig)
+from photogram.simulation.board_rig.files import (write_rig_set, cameras_toml, detect_rig,
+                                                  detect_rendered)
 
 __all__ = ["RigCamera", "BoardPoses", "RigRenderSettings", "normal_settings",
            "harsh_settings", "rig_cameras", "board_poses", "render_view", "render_rig",
            "true_corners", "write_rig_set", "floor_frame", "cameras_toml", "VOLUME_CENTRE",
-           "TARGET_SPEC", "detect_rig",
+           "TARGET_SPEC", "detect_rig", "detect_rendered",
            "USABLE_DISTANCE"]

@@ -10,7 +10,7 @@ import numpy as np
 
 from photogram.simulation.board_rig.geometry import (BoardPoses, RigRenderSettings,
                                                      board_poses, true_corners)
-from photogram.simulation.board_rig.render import (_texture, render_rig)
+from photogram.simulation.board_rig.render import (_texture, render_rig, render_view)
 
 
 def _toml_array(a) -> str:
@@ -94,6 +94,21 @@ def write_rig_set(folder, cameras, poses: BoardPoses, target, settings: RigRende
             "floor_pose": 0}
     (folder / "truth" / "settings.json").write_text(json.dumps(meta, indent=1) + "\n")
     return folder
+
+
+def detect_rendered(cameras, poses: BoardPoses, target, settings: RigRenderSettings) -> dict:
+    """:func:`detect_rig` of :func:`render_rig`'s views, each view rendered,
+    detected and dropped in turn (one image in memory instead of all: 110 MB
+    for 4 cameras and 30 poses at 1280 x 720); the same detections."""
+    from photogram.io.targets import detect
+    out = {}
+    for i, cam in enumerate(cameras):
+        out[cam.name] = {}
+        for k in range(len(poses)):
+            hit = detect(render_view(cam, poses[k], target, settings, key=(i, k)), target)
+            if hit is not None:
+                out[cam.name][k] = hit
+    return out
 
 
 def detect_rig(cameras, images: dict, target) -> dict:
