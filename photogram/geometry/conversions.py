@@ -17,7 +17,6 @@ exact conversions are in :mod:`photogram.geometry.aicon_conversions`).
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from photogram.errors import InputError
 from photogram.geometry import aicon_conversions
@@ -156,6 +155,7 @@ def fit_distortion(source, source_params, target, image_size, target_params=None
         return J["io"][:, :, idx].reshape(-1, len(idx))
 
     if idx:
+        from scipy.optimize import least_squares     # 0.3 s to import: only here
         sol = least_squares(fun, p0[idx], jac=jac, method="lm", x_scale="jac",
                             xtol=1e-15, ftol=1e-15, gtol=1e-15)
         p = full(sol.x)

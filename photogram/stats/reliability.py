@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2, norm
+from scipy.special import chdtrc, ndtri
 
 from photogram.adjust.solver import solve
 from photogram.stats.covariance import cofactors
@@ -182,7 +182,7 @@ def _candidates(problem, w, s, k_crit, blocks, kept, result):
 def _equivalent_w(T, dof):
     """The |w| of one coordinate with the same significance as the
     chi-square statistic ``T`` with ``dof`` degrees of freedom."""
-    return float(norm.isf(chi2.sf(T, dof) / 2.0))
+    return float(0.0 - ndtri(chdtrc(dof, T) / 2.0))     # norm.isf(chi2.sf(T, dof) / 2)
 
 
 def _rays_before_control(problem, w, s, cands):
@@ -278,7 +278,7 @@ def data_snooping(problem, alpha=0.001, max_rejections=None, options=None,
     -------
     SnoopingResult
     """
-    k_crit = float(norm.ppf(1.0 - alpha / 2.0))
+    k_crit = float(ndtri(1.0 - alpha / 2.0))            # norm.ppf
     result = SnoopingResult(alpha, k_crit)
     kept = set()        # above the critical value but not removable
     limit = max_rejections if max_rejections is not None else max(

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import norm
+from scipy.special import ndtri
 
 from photogram.adjust.solver import solve
 from photogram.project.model import ROBUST_FUNCTIONS
@@ -203,7 +203,7 @@ def robust_cleaning(problem, loss="huber", alpha=0.001, options=None, blocks=("i
     """
     from photogram.stats.reliability import (
         _label, _readmit, SnoopingResult, redundancy_numbers, removable, swap_within_points)
-    k_crit = float(norm.ppf(1.0 - alpha / 2.0))
+    k_crit = float(ndtri(1.0 - alpha / 2.0))            # norm.ppf
     res = CleaningResult(loss, alpha, k_crit)
     red = redundancy_numbers(problem)            # least squares, before reweighting
     tune = scale if scale is not None else TUNING[loss]
