@@ -294,7 +294,7 @@ def test_composite_two_spots_find_markers_on_the_edge_of_the_body():
     """Two opaque discs drawn over a dark body whose lower edge meets bright
     snow (the binding markers on the boots): the composite fit recovers
     both centres to 0.05 px, the top-hat fit is pulled towards the body."""
-    from photogram.track import spots as bd
+    from photogram.track import spots, two_spots as bd
     yy, xx = np.mgrid[0:40, 0:40].astype(float) + 0.5
     truth = np.array([[19.3, 20.4], [21.1, 20.9]])
     under = np.where(yy < 20.6, 50.0, 210.0)           # body above, snow below
@@ -308,7 +308,7 @@ def test_composite_two_spots_find_markers_on_the_edge_of_the_body():
     pts = over["points"][0]
     pts = pts if np.linalg.norm(pts[0] - truth[0]) < 1 else pts[::-1]
     assert np.abs(pts - truth).max() < 0.05
-    top = bd.fit_two_spots(bd._tophat(frame, 7), centre, shape, noise=1.0)["points"][0]
+    top = bd.fit_two_spots(spots._tophat(frame, 7), centre, shape, noise=1.0)["points"][0]
     top = top if np.linalg.norm(top[0] - truth[0]) < 1 else top[::-1]
     assert np.abs(top - truth).max() > 0.1
 
@@ -339,7 +339,7 @@ def test_spot_models_have_analytic_jacobians_that_match_finite_differences():
     """The one-spot (soft elliptical disc over a constant) and the two-spot
     (union of two equal discs) models: analytic partials against central
     differences."""
-    from photogram.track import spots as bd
+    from photogram.track import spots as bd, two_spots
     rng = np.random.default_rng(1)
     n = 4
     yy, xx = np.mgrid[0:9, 0:9].astype(float)
@@ -349,9 +349,9 @@ def test_spot_models_have_analytic_jacobians_that_match_finite_differences():
                          np.log(rng.uniform(1.5, 3, n)), rng.normal(0, .3, n),
                          np.log(rng.uniform(1.5, 3, n)), np.log(rng.uniform(.2, .5, n))])
     S = np.column_stack([np.exp(p[:, 4]), np.full(n, 0.3), np.exp(p[:, 6]), np.exp(p[:, 7])])
-    two = bd._two_spots(S)
+    two = two_spots._two_spots(S)
     q = np.column_stack([p[:, :4], rng.normal(0, .6, n), rng.normal(0, .6, n)])
-    over = bd._two_spots_over(S, rng.uniform(40, 210, (n, 9, 9)))
+    over = two_spots._two_spots_over(S, rng.uniform(40, 210, (n, 9, 9)))
     for model, jac, par in ((bd._one_spot, bd._one_spot_jacobian, p),
                             (two, two.jacobian, q), (over, over.jacobian, q)):
         J = jac(par, x, y)

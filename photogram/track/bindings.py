@@ -124,8 +124,8 @@ from photogram.track.binding_labels import _from_neighbours, _locate, label_pair
 from photogram.track.rays import triangulate
 from photogram.track.skis import exposure_labels
 from photogram.track.spots import (  # noqa: F401  (fit_spot_shape etc. re-exported)
-    _behind, _crop_around, _tophat, fit_spot_shape, fit_spot_windows, fit_two_spots,
-    fit_two_spots_over, spot_windows)
+    _behind, _crop_around, _tophat, fit_spot_shape, fit_spot_windows, spot_windows)
+from photogram.track.two_spots import fit_two_spots, fit_two_spots_over
 from photogram.track.tracks2d import scatter_sigma
 
 __all__ = ["SplitReport", "split_merged_bindings", "fit_two_spots", "fit_spot_shape",
@@ -316,9 +316,9 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
         is flagged ambiguous and the view split like the others.
     spot_model : {"tophat", "composite"}
         "tophat": two equal spots over a constant fitted to the white top-hat
-        (:func:`photogram.track.spots.fit_two_spots`). "composite": two
+        (:func:`photogram.track.two_spots.fit_two_spots`). "composite": two
         opaque spots over the scene behind them (:func:`_behind`,
-        :func:`photogram.track.spots.fit_two_spots_over`). Measured on the
+        :func:`photogram.track.two_spots.fit_two_spots_over`). Measured on the
         rendered sets (docs/track.md): the composite model removes the
         top-hat's 0.15 px bias of the normal set (mean error (0.06, -0.15)
         -> (0.03, 0.08) px, 71 pairs both) but on the harsh set it splits
