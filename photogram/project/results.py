@@ -218,12 +218,14 @@ def _residual_table(project: Project, residuals) -> dict:
 class WrittenTable:
     """A CSV table as :func:`write_results` wrote it: the columns it was
     formatted from (name -> values; floats written by repr, so that they
-    read back exactly) and the size of the file in bytes. A command hands
-    these to its report (:func:`photogram.report.write_report`, ``tables=``),
-    which then need not parse the file again."""
+    read back exactly), the size of the file in bytes and its ``(inode,
+    modification time in ns)`` just after writing. A command hands these to
+    its report (:func:`photogram.report.write_report`, ``tables=``), which
+    then need not parse the file again (if it is still that file)."""
 
     columns: dict
     nbytes: int
+    signature: tuple | None = None
 
 
 def write_results(folder: str | Path, project: Project, summary: Mapping, *,
@@ -306,9 +308,10 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
         atomic_write_text(folder / name, content)
     if tables is not None:
         for name, cols in columns.items():
-            text = files[name]
+            text, st = files[name], (folder / name).stat()
             tables[name] = WrittenTable(cols, len(text) if text.isascii()
-                                        else len(text.encode("utf-8")))
+                                        else len(text.encode("utf-8")),
+                                        (st.st_ino, st.st_mtime_ns))
     return folder
 
 

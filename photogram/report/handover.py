@@ -15,8 +15,8 @@ as decimal text, NaN as an empty cell; the report's readers parse them
 correctly rounded (Python's ``float``; pandas' C parser for large tables,
 which in pandas 3.1 has one converter for every precision mode), so the
 float parsed is the float written. Ids are written as the strings they are.
-Where that chain could break, the file is read instead: a file whose size
-is not the one written, a column name with blanks, a text cell holding a
+Where that chain could break, the file is read instead: a file that is no
+longer the one written (its size, inode or modification time changed), a column name with blanks, a text cell holding a
 quote, a comma, a ``#`` (a comment to pandas) or a line break, a text
 column of other than strings, a number column of text that is not a number
 or of booleans, a column the readers keep as text although it is not an id
@@ -51,11 +51,12 @@ def table_from_written(written, path: Path, text=(), key: str | None = None) -> 
         Columns and size of the file as written
         (:func:`photogram.project.results.write_results`, ``tables=``).
     path : Path
-        The file (its size must be ``written.nbytes``).
+        The file (still the one written: size ``written.nbytes``, inode and
+        modification time ``written.signature``).
     text, key
         As :func:`photogram.report.table.read_table`.
     """
-    if written is None or not _same_size(path, written.nbytes):
+    if written is None or not _unchanged(path, written):
         return None
     text = set(text)
     cols = {}
@@ -74,11 +75,16 @@ def table_from_written(written, path: Path, text=(), key: str | None = None) -> 
     return Table(cols, key if key in cols else None)
 
 
-def _same_size(path: Path, nbytes: int) -> bool:
+def _unchanged(path: Path, written) -> bool:
+    """Whether ``path`` is still the file written: its size, and its inode
+    and modification time where the writer noted them."""
     try:
-        return path.stat().st_size == nbytes
+        st = path.stat()
     except OSError:
         return False
+    signature = getattr(written, "signature", None)
+    return st.st_size == written.nbytes and (
+        signature is None or (st.st_ino, st.st_mtime_ns) == tuple(signature))
 
 
 def _text_column(values) -> np.ndarray | None:

@@ -50,7 +50,11 @@ class Transform:
     def __call__(self, xy):
         """Page points (n, 2) of data points (n, 2)."""
         xy = np.asarray(xy, float).reshape(-1, 2)
-        return np.stack([self.x(xy[:, 0]), self.y(xy[:, 1])], axis=1)
+        if self.logy:
+            return np.stack([self.x(xy[:, 0]), self.y(xy[:, 1])], axis=1)
+        out = xy * (self.sx, self.sy)           # the same numbers as x() and y(),
+        out += (self.ox, self.oy)               # without their stack
+        return out
 
 
 class Axes(artists.ArtistsMixin):

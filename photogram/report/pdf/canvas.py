@@ -35,9 +35,15 @@ def font_name(mono: bool = False, bold: bool = False) -> str:
 def text_width(text: str, size: float, font: str = "Helvetica") -> float:
     """Advance width (points) of ``text`` set in ``font`` at ``size`` pt
     (Adobe AFM widths, cp1252 codes; other characters count as a digit)."""
+    return _advance(text, font) * size / 1000.0
+
+
+@lru_cache(maxsize=4096)
+def _advance(text: str, font: str) -> float:
+    """Advance width of ``text`` in thousandths of the font size (cached:
+    tick labels and table cells repeat)."""
     widths = _WIDTH_LISTS[font]
-    return float(sum(map(widths.__getitem__, text.encode("cp1252", errors="replace")))) \
-        * size / 1000.0
+    return float(sum(map(widths.__getitem__, text.encode("cp1252", errors="replace"))))
 
 
 #: layers with more elements than this are written with 0.1 pt instead of
@@ -166,7 +172,7 @@ class Canvas:
         of ``x`` (along the baseline when rotated by ``angle`` degrees)."""
         if not text:
             return
-        shift = 0.0 if ha == "left" else text_width(text, size, font) * (
+        shift = 0.0 if ha == "left" else _advance(text, font) * size / 1000.0 * (
             0.5 if ha == "center" else 1.0)
         fill = _fill_op(color) if isinstance(color, str) else _fill_op(tuple(rgb(color)))
         if angle:
