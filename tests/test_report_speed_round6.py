@@ -90,3 +90,38 @@ def test_text_width_from_the_font_tables():
     assert text_width("10.5", size) == want
     assert text_width("10.5", size) == want            # again, from the cache
     assert text_width("10.5", 2 * size, "Courier") == 4 * 600 * 2 * size / 1000.0
+
+
+def _streams(pdf: bytes) -> list:
+    """The decompressed content of every Flate stream of a PDF, in order."""
+    import re
+    import zlib
+    out = []
+    for m in re.finditer(rb"/Length (\d+) >>\nstream\n", pdf):
+        start = m.end()
+        out.append(zlib.decompress(pdf[start:start + int(m.group(1))]))
+    return out
+
+
+def test_flate_level_changes_the_compression_only(tmp_path, monkeypatch):
+    """The report at FLATE_LEVEL holds the very page content and images of
+    the same report compressed at level 3 (the level before round 6)."""
+    import photogram.report.pdf.file as pdf_file
+    from photogram.report.pdf.canvas import Canvas
+
+    def draw():
+        pdf = pdf_file.PdfFile({"Title": "t"})
+        c = Canvas(pdf, 200, 100)
+        c.text(10, 10, "flate 1.25", 8)
+        c.segments(np.random.default_rng(0).uniform(0, 100, (300, 2)), np.ones((300, 2)))
+        c.image(np.arange(60 * 40 * 3, dtype=np.uint8).reshape(40, 60, 3) % 251, 0, 0, 60, 40)
+        c.finish()
+        return pdf.tobytes()
+
+    assert pdf_file.FLATE_LEVEL == 1
+    fast = draw()
+    monkeypatch.setattr(pdf_file, "FLATE_LEVEL", 3)
+    before = draw()
+    assert fast != before and len(fast) > len(before)
+    assert len(_streams(fast)) == len(_streams(before)) >= 2
+    assert _streams(fast) == _streams(before)
