@@ -125,3 +125,37 @@ def test_flate_level_changes_the_compression_only(tmp_path, monkeypatch):
     assert fast != before and len(fast) > len(before)
     assert len(_streams(fast)) == len(_streams(before)) >= 2
     assert _streams(fast) == _streams(before)
+
+
+def test_tick_labels_cached_are_those_computed():
+    from photogram.report.pdf.ticks import _decimals, tick_labels
+
+    def plain(ticks):
+        d = _decimals(ticks)
+        out = []
+        for t in np.asarray(ticks, float):
+            s = f"{t:.{d}f}"
+            out.append(s.lstrip("-") if s.strip("-0.") == "" else s)
+        return out
+
+    for ticks in ([0.0, 0.5, 1.0], [-0.0, 2.5, 5.0], [1e-4, 2e-4], [-2.0, -1.0, 0.0, 1.0],
+                  [0.0, 1500.0, 3000.0], [0.0, 1500.0, 3000.0]):
+        assert tick_labels(ticks) == plain(ticks)
+    assert tick_labels([-0.0, 1.0]) == ["0", "1"] == tick_labels([0.0, 1.0])
+    labels = tick_labels([0.0, 0.25])
+    labels.append("x")                              # the cached labels stay as they are
+    assert tick_labels([0.0, 0.25]) == ["0.00", "0.25"]
+
+
+def test_stroke_styles_cached_are_those_formatted():
+    from photogram.report.pdf.canvas import Canvas
+    from photogram.report.pdf.file import PdfFile
+
+    c = Canvas(PdfFile(), 100, 100)
+    c.stroke_style("tab:blue", 1.5, [3.7, 1.6])
+    c.stroke_style(np.array([0.1, 0.2, 0.3]), 0.8)        # unhashable: formatted directly
+    c.stroke_style((0.1, 0.2, 0.3), 0.8, cap=1)
+    ops = "".join(c._ops)
+    assert "0.122 0.467 0.706 RG 1.5 w 0 J 1 j [3.7 1.6] 0 d" in ops
+    assert "0.1 0.2 0.3 RG 0.8 w 0 J 1 j [] 0 d" in ops
+    assert "0.1 0.2 0.3 RG 0.8 w 1 J 1 j [] 0 d" in ops

@@ -160,7 +160,9 @@ class Axes(artists.ArtistsMixin):
     def _bound(self, x, y, sticky=False):
         x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
         ok = np.isfinite(x) & np.isfinite(y)
-        if ok.any():
+        if ok.all() and len(ok):                # the usual case: no masked copies
+            self.bounds.append((x.min(), x.max(), y.min(), y.max()))
+        elif ok.any():
             self.bounds.append((x[ok].min(), x[ok].max(), y[ok].min(), y[ok].max()))
         self.sticky_y0 |= sticky
 

@@ -78,6 +78,15 @@ def _font_op(font: str, size: float) -> str:
     return f" BT /{_RESOURCE[font]} {_c(size)} Tf"
 
 
+@lru_cache(maxsize=1024)
+def _stroke_op(color, lw, dash, cap) -> str:
+    """Colour, width, cap, join and dash operators of a stroke (cached: a
+    report strokes in a few styles)."""
+    r, g, b = rgb(color)
+    return (f"{_c(r)} {_c(g)} {_c(b)} RG {_c(lw)} w {cap} J 1 j "
+            + (f"[{' '.join(_c(d) for d in dash)}] 0 d " if dash else "[] 0 d "))
+
+
 @lru_cache(maxsize=256)
 def _fill_op(color) -> str:
     """``r g b rg`` of a colour (cached: a page sets hundreds of texts in a
@@ -141,11 +150,12 @@ class Canvas:
 
     def stroke_style(self, color="black", lw: float = 1.0, dash=None, cap: int = 0,
                      alpha: float | None = None) -> None:
-        r, g, b = rgb(color)
         self._edge = lw
-        self._ops.append(f"{_c(r)} {_c(g)} {_c(b)} RG {_c(lw)} w {cap} J 1 j "
-                         + (f"[{' '.join(_c(d) for d in dash)}] 0 d " if dash else "[] 0 d ")
-                         + self._alpha(alpha) + "\n")
+        try:
+            style = _stroke_op(color, lw, tuple(dash) if dash else None, cap)
+        except TypeError:                   # an unhashable colour (an array)
+            style = _stroke_op(tuple(rgb(color)), lw, tuple(dash) if dash else None, cap)
+        self._ops.append(style + self._alpha(alpha) + "\n")
 
     def fill_style(self, color="black", alpha: float | None = None) -> None:
         r, g, b = rgb(color)
