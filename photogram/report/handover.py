@@ -92,8 +92,11 @@ def _text_column(values) -> np.ndarray | None:
     cells = values.tolist() if isinstance(values, np.ndarray) else list(values)
     if set(map(type, cells)) - {str}:
         return None
-    if _SPECIAL & set("".join(cells)):
+    joined = "".join(cells)
+    if any(c in joined for c in _SPECIAL):
         return None
+    if isinstance(values, np.ndarray) and values.dtype == object and values.ndim == 1:
+        return values.copy()                # the same str objects, a copy of the array
     return np.array(cells, dtype=object).reshape(-1)
 
 
