@@ -150,3 +150,34 @@ def test_a_file_changed_since_it_was_written_is_read(tmp_path):
     path.unlink()
     assert table_from_written(written, path, ("id",), key="id") is None
     assert table_from_written(None, Path("nowhere.csv")) is None
+
+
+def test_handed_residuals_carry_the_groups_of_their_ids(wall):
+    from photogram.report.table import groups
+    _, handed = wall
+    table = handed["residuals.csv"][1]
+    seeded = table.__dict__.get("_groups", {})
+    assert sorted(seeded) == ["point", "station"]
+    for name, (codes, names) in seeded.items():
+        want_codes, want_names = groups(table[name])
+        assert np.array_equal(codes, want_codes) and codes.dtype == want_codes.dtype
+        assert names == want_names
+    # the report's residuals (with their "used" column) keep them
+    assert table.with_column("used", np.ones(len(table), bool)).groups("point") is \
+        seeded["point"]
+
+
+def test_groups_from_indices_equal_groups_of_the_text():
+    from photogram.report.handover import groups_from_index
+    from photogram.report.table import groups
+    rng = np.random.default_rng(4)
+    ids = [f"P{i}" for i in rng.permutation(500)]
+    for n in (0, 1, 7, 2000):
+        index = rng.integers(0, 300, n)            # not every id used, in random order
+        codes, names = groups_from_index(index, ids)
+        want_codes, want_names = groups(np.array(ids, dtype=object)[index])
+        assert np.array_equal(codes, want_codes) and names == want_names
+    assert groups_from_index(np.array([0, 1]), ["a", "a"]) is None       # ids not distinct
+    assert groups_from_index(np.array([0, -1]), ["a", "b"]) is None      # -1 would wrap
+    assert groups_from_index(np.array([0, 2]), ["a", "b"]) is None
+    assert groups_from_index(np.array([0.0, 1.0]), ["a", "b"]) is None

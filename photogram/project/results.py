@@ -201,8 +201,10 @@ def _point_table(project: Project, point_sigma, point_extra=None) -> dict:
     return cols
 
 
-def _residual_table(project: Project, residuals) -> dict:
-    """residuals.csv's columns."""
+def _residual_table(project: Project, residuals, codes: dict | None = None) -> dict:
+    """residuals.csv's columns; ``codes``, if given, receives column ->
+    ``(row indices, ids)`` of the station and point columns given as
+    indices into the project's ids."""
     if residuals is None:
         return {"station": [], "point": [], "x": [], "y": [], "vx": [], "vy": []}
     cols = {str(k): np.asarray(v) for k, v in dict(residuals).items()} \
@@ -210,6 +212,8 @@ def _residual_table(project: Project, residuals) -> dict:
         {str(k): residuals[k].to_numpy() for k in residuals.columns}
     for key, ids in (("station", project.stations.names), ("point", project.points.ids)):
         if key in cols and np.issubdtype(cols[key].dtype, np.integer):
+            if codes is not None:
+                codes[key] = (cols[key], ids)
             cols[key] = np.array(ids, dtype=object)[cols[key]]
     return cols
 
@@ -218,14 +222,17 @@ def _residual_table(project: Project, residuals) -> dict:
 class WrittenTable:
     """A CSV table as :func:`write_results` wrote it: the columns it was
     formatted from (name -> values; floats written by repr, so that they
-    read back exactly), the size of the file in bytes and its ``(inode,
-    modification time in ns)`` just after writing. A command hands these to
+    read back exactly), the size of the file in bytes, its ``(inode,
+    modification time in ns)`` just after writing, and for id columns
+    written from indices into the project's ids ``column -> (indices,
+    ids)``. A command hands these to
     its report (:func:`photogram.report.write_report`, ``tables=``), which
     then need not parse the file again (if it is still that file)."""
 
     columns: dict
     nbytes: int
     signature: tuple | None = None
+    codes: dict = field(default_factory=dict)   # column -> (indices, ids), see _residual_table
 
 
 def write_results(folder: str | Path, project: Project, summary: Mapping, *,
@@ -289,9 +296,10 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
                          hint="check the path and permissions ([output] folder)") from None
     check_targets([folder / f for f in RESULT_FILES], project, overwrite=True)
     text = json.dumps(_summary(project, summary), indent=2, allow_nan=False)
+    codes = {}
     columns = {"stations.csv": _station_table(project, station_sigma, station_covariance),
                "points.csv": _point_table(project, point_sigma, point_extra),
-               "residuals.csv": _residual_table(project, residuals)}
+               "residuals.csv": _residual_table(project, residuals, codes)}
     files = {"summary.json": text + "\n",
              "cameras.toml": _cameras_toml(project, camera_sigma),
              **{name: format_table(cols) for name, cols in columns.items()},
@@ -311,7 +319,8 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
             text, st = files[name], (folder / name).stat()
             tables[name] = WrittenTable(cols, len(text) if text.isascii()
                                         else len(text.encode("utf-8")),
-                                        (st.st_ino, st.st_mtime_ns))
+                                        (st.st_ino, st.st_mtime_ns),
+                                        codes if name == "residuals.csv" else {})
     return folder
 
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from photogram.report.table import Table, _is_text
 
-__all__ = ["table_from_written"]
+__all__ = ["table_from_written", "groups_from_index"]
 
 #: characters that the CSV writer quotes or that a reader treats specially
 _SPECIAL = frozenset('",#\n\r')
@@ -72,7 +72,34 @@ def table_from_written(written, path: Path, text=(), key: str | None = None) -> 
         cols[name] = column
     if len({len(v) for v in cols.values()}) > 1:
         return None
-    return Table(cols, key if key in cols else None)
+    table = Table(cols, key if key in cols else None)
+    for name, (index, ids) in getattr(written, "codes", {}).items():
+        seeded = groups_from_index(index, ids) if name in cols else None
+        if seeded is not None:
+            table.seed_groups(name, *seeded)
+    return table
+
+
+def groups_from_index(index, ids) -> tuple | None:
+    """:func:`photogram.report.table.groups` of the column ``ids[index]``,
+    from the integer indices (no string hashed per row): the distinct values
+    in order of first appearance and each row's position among them. None
+    unless the ids are distinct strings and the indices within them (then
+    distinct indices are distinct texts)."""
+    index = np.asarray(index)
+    ids = list(ids)
+    if (index.dtype.kind not in "iu" or set(map(type, ids)) - {str}
+            or len(set(ids)) != len(ids)):
+        return None
+    if not len(index):
+        return np.zeros(0, dtype=int), []
+    if index.min() < 0 or index.max() >= len(ids):
+        return None
+    distinct, first = np.unique(index, return_index=True)
+    order = distinct[np.argsort(first, kind="stable")]      # by first appearance
+    rank = np.empty(len(ids), dtype=int)
+    rank[order] = np.arange(len(order))
+    return rank[index], [ids[i] for i in order.tolist()]
 
 
 def _unchanged(path: Path, written) -> bool:
