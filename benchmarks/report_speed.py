@@ -33,8 +33,20 @@ matplotlib's import with 15 pages of header and footer and 35 empty axes
 (CAMCAL's report has 15 pages and 35 axes), and for the native writer the
 import of the report's modules and the same 15 pages.
 
+``--repeat N`` runs CAMCAL N more times warm and reports the medians
+(``camcal_med_*``): single runs on the shared machine scatter by +-20 %.
+
+``--process N`` also measures what the issue measured: whole command
+processes. For each network, N alternating pairs of fresh ``photogram
+calibrate -q PRJ --output X`` processes with and without ``--no-report``
+(after one untimed run that writes the byte code), and N fresh ``photogram
+report X``; user + system CPU of each child (:func:`os.wait4`), medians;
+the report's share is ``1 - median(no-report) / median(full)`` (keys
+``*_proc_*`` in the RESULT line, beside the in-process ones). The children
+run this checkout's photogram and cli/ without PYTHONDONTWRITEBYTECODE.
+
 Run: .venv/bin/python benchmarks/report_speed.py [--no-large] [--seed S] [--profile N]
-[--floor] [--matplotlib]
+[--floor] [--matplotlib] [--process N] [--repeat N]
 Ends with one line ``RESULT key=value ...``.
 """
 
@@ -199,6 +211,81 @@ def floor(pages, axes):
     return tuple(float(x) for x in out.stdout.split())
 
 
+# the CLI from this checkout (photogram_cli is installed from cli/, perhaps of another
+# checkout): load cli/ under its installed name, then run it as the console script does
+_CLI = r"""
+import importlib.util, sys
+spec = importlib.util.spec_from_file_location(
+    "photogram_cli", {init!r}, submodule_search_locations=[{folder!r}])
+mod = importlib.util.module_from_spec(spec)
+sys.modules["photogram_cli"] = mod
+spec.loader.exec_module(mod)
+from photogram_cli.main import main
+sys.argv[0] = "photogram"
+sys.exit(main())
+"""
+
+
+def cli_argv(*args):
+    """argv of a fresh ``photogram ARGS`` process running this checkout."""
+    code = _CLI.format(init=str(ROOT / "cli" / "__init__.py"), folder=str(ROOT / "cli"))
+    return [sys.executable, "-c", code, *map(str, args)]
+
+
+def child_cpu(argv):
+    """User + system CPU seconds of the process ``argv`` (its own rusage,
+    from :func:`os.wait4`); raises if it fails."""
+    import subprocess
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPATH"] = str(ROOT)
+    with tempfile.TemporaryFile() as err:
+        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=err, env=env, cwd=ROOT)
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        if proc.returncode != 0:
+            err.seek(0)
+            raise RuntimeError(f"{argv[3:]} failed ({proc.returncode}): "
+                               f"{err.read().decode(errors='replace')[-2000:]}")
+    return usage.ru_utime + usage.ru_stime
+
+
+def process_share(prj_path, pairs):
+    """The report's share of fresh ``photogram calibrate`` processes.
+
+    ``pairs`` alternating runs of ``calibrate -q PRJ --output X`` with and
+    without ``--no-report`` (after one untimed run that writes the byte code),
+    then ``pairs`` runs of ``photogram report X`` alone. Returns the medians
+    ``(full, no_report, report_alone)`` in CPU seconds; the share is
+    ``1 - no_report / full``.
+    """
+    with tempfile.TemporaryDirectory(prefix="report-process-") as tmp:
+        out = Path(tmp) / "results"
+
+        def run(*extra):                    # a new results folder each time
+            shutil.rmtree(out, ignore_errors=True)
+            return child_cpu(cli_argv("calibrate", "-q", prj_path, "--output", out, *extra))
+
+        run()                               # byte code, page cache
+        full, bare, alone = [], [], []
+        for _ in range(pairs):
+            bare.append(run("--no-report"))
+            full.append(run())
+        for _ in range(pairs):
+            alone.append(child_cpu(cli_argv("report", out)))
+    return float(np.median(full)), float(np.median(bare)), float(np.median(alone))
+
+
+def show_process(label, key, prj_path, pairs, fields):
+    """Measure :func:`process_share`, print it and add it to ``fields``."""
+    full, bare, alone = process_share(prj_path, pairs)
+    share = 1.0 - bare / full
+    print(f"{label}, fresh processes (median of {pairs}): calibrate {full:.2f} s CPU, "
+          f"--no-report {bare:.2f} s, report's share {100 * share:.1f} %; "
+          f"`photogram report` alone {alone:.2f} s")
+    fields.update({f"{key}_proc_cmd": f"{full:.2f}", f"{key}_proc_noreport": f"{bare:.2f}",
+                   f"{key}_proc_share": f"{share:.3f}", f"{key}_proc_report_alone": f"{alone:.2f}"})
+
+
 def show(label, total, rep, goal):
     share = rep / total if total > 0 else float("nan")
     print(f"{label}: command {total:.2f} s CPU, report {rep:.2f} s CPU "
@@ -218,6 +305,12 @@ def main():
                          "for CAMCAL's 15 pages and 35 axes")
     ap.add_argument("--matplotlib", action="store_true",
                     help="draw the reports with matplotlib, not the native writer")
+    ap.add_argument("--repeat", type=int, default=0, metavar="N",
+                    help="N more warm CAMCAL runs: medians of command, report and share "
+                         "(the machine's load changes single runs by +-20 %%)")
+    ap.add_argument("--process", type=int, default=0, metavar="N",
+                    help="also measure fresh command processes: N alternating pairs of "
+                         "calibrate with and without --no-report, and N of `photogram report`")
     args = ap.parse_args()
     if args.matplotlib:
         force_matplotlib()
@@ -234,6 +327,16 @@ def main():
         share = show("CAMCAL (real data, 2074 image points), second run (warm)", total, rep, 2)
         fields.update(camcal_cmd=f"{total:.2f}", camcal_report=f"{rep:.2f}",
                       camcal_share=f"{share:.3f}")
+        if args.repeat > 1:
+            runs = np.array([run_command(camcal_project()) for _ in range(args.repeat)])
+            total, rep = np.median(runs, axis=0)
+            share = float(np.median(runs[:, 1] / runs[:, 0]))
+            print(f"CAMCAL, {args.repeat} more warm runs: median command {total:.3f} s CPU, "
+                  f"median report {rep:.3f} s, median share {100 * share:.1f} % "
+                  f"(per run {100 * (runs[:, 1] / runs[:, 0]).min():.1f}-"
+                  f"{100 * (runs[:, 1] / runs[:, 0]).max():.1f} %)")
+            fields.update(camcal_runs=args.repeat, camcal_med_cmd=f"{total:.3f}",
+                          camcal_med_report=f"{rep:.3f}", camcal_med_share=f"{share:.3f}")
         if prof is not None:
             pstats.Stats(prof).sort_stats("cumulative").print_stats(args.profile)
         if args.floor:
@@ -254,19 +357,24 @@ def main():
         # the report reads small results folders without pandas (its import alone
         # was 0.23 s CPU, more than the rest of CAMCAL's report)
         fields["camcal_pandas"] = "yes" if "pandas" in sys.modules else "no"
+        if args.process:
+            show_process("CAMCAL", "camcal", CAMCAL, args.process, fields)
     else:
         print(f"CAMCAL skipped: no data at {DATA} (DBAT's camcal folder beside the repository)")
         fields["camcal"] = "skipped"
     if not args.no_large:
         prj, n_obs, folder = large_project(args.large_points, args.seed)
+        label = f"wall network (SIMULATED, {args.large_points} points, {n_obs} observations)"
         try:
             total, rep = run_command(prj)
+            share = show(label, total, rep, 6)
+            fields.update(seed=args.seed, large_points=args.large_points, large_obs=n_obs,
+                          large_cmd=f"{total:.2f}", large_report=f"{rep:.2f}",
+                          large_share=f"{share:.3f}")
+            if args.process:
+                show_process(label, "large", folder / "wall.prj", args.process, fields)
         finally:
             shutil.rmtree(folder, ignore_errors=True)
-        share = show(f"wall network (SIMULATED, {args.large_points} points, {n_obs} observations)",
-                     total, rep, 6)
-        fields.update(seed=args.seed, large_points=args.large_points, large_obs=n_obs, large_cmd=f"{total:.2f}",
-                      large_report=f"{rep:.2f}", large_share=f"{share:.3f}")
     print("RESULT " + " ".join(f"{k}={v}" for k, v in fields.items()))
 
 

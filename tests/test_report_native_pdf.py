@@ -216,7 +216,7 @@ def test_report_without_matplotlib_and_fallback_outside_cp1252(lab, tmp_path):
     import photogram.report.writer as writer
     orig = writer.load
     try:
-        writer.load = lambda folder, project=None: data
+        writer.load = lambda folder, project=None, tables=None: data
         path = write_report(lab, output=tmp_path / "greek")
     finally:
         writer.load = orig

@@ -39,16 +39,18 @@ def run(project, *, command, output=None, fix_interior=False, report=True):
     result.summary["command"] = command
     check_finite(result)
     # written into a staging folder, moved into place when complete
+    tables = {}                     # what was written, handed to the report
     with staged_results(folder, command=command, inputs=project_inputs(project)) as stage:
         write_results(stage.path, result.project, result.summary,
                       camera_sigma=result.camera_sigma, station_sigma=result.station_sigma,
                       station_covariance=result.covariances.get("stations"),
                       point_sigma=result.point_sigma, residuals=result.residuals,
                       point_extra=result.point_extra,
-                      log_text=_log_text(command, project.path, result.summary))
+                      log_text=_log_text(command, project.path, result.summary),
+                      tables=tables)
         _write_covariance(stage.path / "covariance.npz", result)
         if report:                  # the project as read (adjust works on a copy)
-            write_report(stage.path, project=project)
+            write_report(stage.path, project=project, tables=tables)
     if result.summary["status"] != "converged":
         raise GeometryError(f"{result.summary['message']}; the unconverged results are in {folder}",
                             hint="raise [adjustment] max_iterations or improve the approximate values")

@@ -119,6 +119,9 @@ class BrownModel(CameraModel):
             C, dxy, _ = self._core(xy_obs[:, 0] - io[:, 1], xy_obs[:, 1] - io[:, 2], io,
                                    partials="xy")
             return C, {"xy": dxy}
+        if not jacobians:               # the same C, without the (n, 2, p) partials
+            return self._core(xy_obs[:, 0] - io[:, 1], xy_obs[:, 1] - io[:, 2], io,
+                              partials=False)[0]
         C, dxy, dio = self._correct_full(xy_obs, io)
         return (C, {"xy": dxy, "io": dio}) if jacobians else C
 

@@ -170,7 +170,8 @@ def file_angle_sigmas(project: Project, sigma, covariance=None) -> np.ndarray:
                     out, np.nan)
 
 
-def _station_table(project: Project, station_sigma, station_covariance=None) -> str:
+def _station_table(project: Project, station_sigma, station_covariance=None) -> dict:
+    """stations.csv's columns (name -> values, as :func:`format_table` writes them)."""
     cols = station_columns(project)
     if station_sigma is not None:
         if isinstance(station_sigma, Mapping):
@@ -185,10 +186,11 @@ def _station_table(project: Project, station_sigma, station_covariance=None) -> 
         for j, name in enumerate(_STATION_SIGMAS):
             cols[name] = sig[:, j] if j < 3 else \
                 [format_angle(a, project.units.angle) for a in sig[:, j]]
-    return format_table(cols)
+    return cols
 
 
-def _point_table(project: Project, point_sigma, point_extra=None) -> str:
+def _point_table(project: Project, point_sigma, point_extra=None) -> dict:
+    """points.csv's columns."""
     cols = point_columns(project)
     if point_sigma is not None:
         sig = np.asarray(point_sigma, float).reshape(len(project.points), 3)
@@ -196,25 +198,47 @@ def _point_table(project: Project, point_sigma, point_extra=None) -> str:
             cols[f"est_s{c}"] = sig[:, j]
     for name, values in dict(point_extra or {}).items():
         cols[str(name)] = np.asarray(values).reshape(len(project.points))
-    return format_table(cols)
+    return cols
 
 
-def _residual_table(project: Project, residuals) -> str:
+def _residual_table(project: Project, residuals, codes: dict | None = None) -> dict:
+    """residuals.csv's columns; ``codes``, if given, receives column ->
+    ``(row indices, ids)`` of the station and point columns given as
+    indices into the project's ids."""
     if residuals is None:
-        return format_table({"station": [], "point": [], "x": [], "y": [], "vx": [], "vy": []})
+        return {"station": [], "point": [], "x": [], "y": [], "vx": [], "vy": []}
     cols = {str(k): np.asarray(v) for k, v in dict(residuals).items()} \
         if isinstance(residuals, Mapping) else \
         {str(k): residuals[k].to_numpy() for k in residuals.columns}
     for key, ids in (("station", project.stations.names), ("point", project.points.ids)):
         if key in cols and np.issubdtype(cols[key].dtype, np.integer):
+            if codes is not None:
+                codes[key] = (cols[key], ids)
             cols[key] = np.array(ids, dtype=object)[cols[key]]
-    return format_table(cols)
+    return cols
+
+
+@dataclass
+class WrittenTable:
+    """A CSV table as :func:`write_results` wrote it: the columns it was
+    formatted from (name -> values; floats written by repr, so that they
+    read back exactly), the size of the file in bytes, its ``(inode,
+    modification time in ns)`` just after writing, and for id columns
+    written from indices into the project's ids ``column -> (indices,
+    ids)``. A command hands these to
+    its report (:func:`photogram.report.write_report`, ``tables=``), which
+    then need not parse the file again (if it is still that file)."""
+
+    columns: dict
+    nbytes: int
+    signature: tuple | None = None
+    codes: dict = field(default_factory=dict)   # column -> (indices, ids), see _residual_table
 
 
 def write_results(folder: str | Path, project: Project, summary: Mapping, *,
                   camera_sigma: Mapping | None = None, station_sigma=None, point_sigma=None,
                   residuals=None, log_text: str = "", point_extra: Mapping | None = None,
-                  station_covariance=None) -> Path:
+                  station_covariance=None, tables: dict | None = None) -> Path:
     """Write a results folder.
 
     Parameters
@@ -248,6 +272,10 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
         Covariance of X0, Y0, Z0, omega, phi, kappa per station (angles
         world-to-camera, radians), for the propagation to camera-to-world
         angles with their correlations (default: from the sigmas alone).
+    tables : dict, optional
+        If given, receives file name -> :class:`WrittenTable` of
+        stations.csv, points.csv and residuals.csv (what the command's
+        report is handed instead of parsing those files again).
 
     Returns
     -------
@@ -268,11 +296,13 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
                          hint="check the path and permissions ([output] folder)") from None
     check_targets([folder / f for f in RESULT_FILES], project, overwrite=True)
     text = json.dumps(_summary(project, summary), indent=2, allow_nan=False)
+    codes = {}
+    columns = {"stations.csv": _station_table(project, station_sigma, station_covariance),
+               "points.csv": _point_table(project, point_sigma, point_extra),
+               "residuals.csv": _residual_table(project, residuals, codes)}
     files = {"summary.json": text + "\n",
              "cameras.toml": _cameras_toml(project, camera_sigma),
-             "stations.csv": _station_table(project, station_sigma, station_covariance),
-             "points.csv": _point_table(project, point_sigma, point_extra),
-             "residuals.csv": _residual_table(project, residuals),
+             **{name: format_table(cols) for name, cols in columns.items()},
              "log.txt": log_text}
     if summary.get("interior"):        # cameras that share parameters
         from photogram.project.results_interior import INTERIOR_FILE, interior_table
@@ -284,6 +314,13 @@ def write_results(folder: str | Path, project: Project, summary: Mapping, *,
         files[RIGS_FILE] = rigs_table(project, summary["rigs"], file_angle_sigmas)
     for name, content in files.items():
         atomic_write_text(folder / name, content)
+    if tables is not None:
+        for name, cols in columns.items():
+            text, st = files[name], (folder / name).stat()
+            tables[name] = WrittenTable(cols, len(text) if text.isascii()
+                                        else len(text.encode("utf-8")),
+                                        (st.st_ino, st.st_mtime_ns),
+                                        codes if name == "residuals.csv" else {})
     return folder
 
 

@@ -28,6 +28,7 @@ from photogram.project.camera_schema import load_cameras_file
 from photogram.project.results import Results
 from photogram.project.results_read import read_covariance, read_results_table
 from photogram.project.results_folder import final_folder
+from photogram.report.handover import table_from_written
 from photogram.report.table import (PANDAS_BYTES, Table, read_table, read_table_pandas,
                                     sorted_subgroups)
 
@@ -318,28 +319,42 @@ def _summary_only(folder: Path, summary: dict) -> Results:
                    log="")
 
 
-def _read_results(folder: Path, summary: dict) -> Results:
+def _read_results(folder: Path, summary: dict, tables: dict | None = None) -> Results:
     """A results folder read for the report: the tables as :class:`Table`
-    (numpy columns, no pandas), keyed by station and point id."""
+    (numpy columns, no pandas), keyed by station and point id; a table the
+    command handed over (``tables``, :mod:`photogram.report.handover`) is
+    not parsed again."""
     unit, cameras = load_cameras_file(folder / "cameras.toml")
     log = folder / "log.txt"
-    names = ("stations.csv", "points.csv", "residuals.csv")
-    big = sum((folder / n).stat().st_size for n in names) > PANDAS_BYTES
-    read = read_table_pandas if big else read_table
+    specs = {"stations.csv": (("station", "camera"), "station"),
+             "points.csv": (("id", "kind"), "id"),
+             "residuals.csv": (("station", "point", "line"), None)}
+    tables = tables or {}
+    read = {name: table_from_written(tables.get(name), folder / name, text, key)
+            for name, (text, key) in specs.items()}
+    unread = [name for name, table in read.items() if table is None]
+    big = sum((folder / n).stat().st_size for n in unread) > PANDAS_BYTES
+    reader = read_table_pandas if big else read_table
+    for name in unread:
+        text, key = specs[name]
+        read[name] = reader(folder / name, text, key=key)
     return Results(folder=folder, summary=summary, image_unit=unit, cameras=cameras,
-                   stations=read(folder / "stations.csv", ("station", "camera"), key="station"),
-                   points=read(folder / "points.csv", ("id", "kind"), key="id"),
-                   residuals=read(folder / "residuals.csv", ("station", "point", "line")),
+                   stations=read["stations.csv"], points=read["points.csv"],
+                   residuals=read["residuals.csv"],
                    log=log.read_text(encoding="utf-8") if log.is_file() else "")
 
 
-def load(folder: str | Path, project=None) -> ReportData:
+def load(folder: str | Path, project=None, tables: dict | None = None) -> ReportData:
     """Read a results folder for the report.
 
     ``project``, if given, is the project the results were computed from,
     as read from its file (a command that has it in memory saves reading
     it again: 1.9 s for 181,000 observations); it is used only if its path
     is the project file named in summary.json, otherwise that file is read.
+    ``tables``, if given, are the tables the command has just written
+    (file name -> :class:`~photogram.project.results.WrittenTable`), used
+    instead of parsing those files where they are sure to give the same
+    values (:func:`~photogram.report.handover.table_from_written`).
 
     Raises
     ------
@@ -368,7 +383,7 @@ def load(folder: str | Path, project=None) -> ReportData:
                              file=folder, hint="run the command again")
         results = _summary_only(folder, summary)
     else:
-        results = _read_results(folder, summary)
+        results = _read_results(folder, summary, tables)
     if _is_project_of(project, folder, results.summary):
         note = ""
     else:

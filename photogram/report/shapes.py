@@ -9,7 +9,7 @@ import numpy as np
 
 __all__ = ["convex_hull", "polygon_area", "ellipse", "nice", "coverage_fraction",
            "segments_path", "cell_means", "ray_counts", "ray_layer", "native_ray_layer",
-           "convex_grid_mask"]
+           "convex_grid_mask", "unique_rows"]
 
 
 def convex_hull(xy) -> np.ndarray:
@@ -21,12 +21,28 @@ def convex_hull(xy) -> np.ndarray:
     (Akl-Toussaint), so the Python chain only sees the few near the rim.
     """
     pts = np.asarray(xy, float).reshape(-1, 2)
-    if len(pts) > 32:       # before np.unique (its sort of rows was most of the time)
+    if len(pts) > 32:       # before sorting (the sort of rows was most of the time)
         pts = pts[~_inside_extremes(pts)]
-    pts = np.unique(pts, axis=0)
+    pts = unique_rows(pts)
     if len(pts) < 3:
         return pts
     return _monotone_chain(pts)
+
+
+def unique_rows(pts) -> np.ndarray:
+    """The distinct rows of ``pts`` (n, 2), sorted by x, then y: what
+    ``np.unique(pts, axis=0)`` gives for finite values, through one
+    ``np.lexsort`` (``np.unique`` with an axis sorts a structured view,
+    about three times slower on the report's small hulls; issue 23)."""
+    pts = np.asarray(pts, float).reshape(-1, 2)
+    if len(pts) < 2:
+        return pts.copy()
+    s = pts[np.lexsort((pts[:, 1], pts[:, 0]))]
+    keep = np.empty(len(s), bool)
+    keep[0] = True
+    np.not_equal(s[1:, 0], s[:-1, 0], out=keep[1:])
+    keep[1:] |= s[1:, 1] != s[:-1, 1]
+    return s[keep]
 
 
 def _monotone_chain(pts) -> np.ndarray:
@@ -52,18 +68,20 @@ def _inside_extremes(pts) -> np.ndarray:
     the convex polygon of the eight extreme points of ``pts`` (in any order,
     repeats allowed: such points are never hull vertices)."""
     x, y = pts[:, 0], pts[:, 1]
-    picks = [f(v) for v in (x, y, x + y, x - y) for f in (np.argmin, np.argmax)]
-    ext = np.unique(pts[picks], axis=0)
+    s, d = x + y, x - y
+    picks = [x.argmin(), x.argmax(), y.argmin(), y.argmax(), s.argmin(), s.argmax(),
+             d.argmin(), d.argmax()]
+    ext = unique_rows(pts[picks])
     if len(ext) < 3:
         return np.zeros(len(pts), bool)
     poly = _monotone_chain(ext)
     if len(poly) < 3:
         return np.zeros(len(pts), bool)
-    a, b = poly, np.roll(poly, -1, axis=0)
+    a, b = poly, np.concatenate([poly[1:], poly[:1]])
     cross = ((b[:, 0] - a[:, 0]) * (y[:, None] - a[:, 1])
              - (b[:, 1] - a[:, 1]) * (x[:, None] - a[:, 0]))
-    scale = float(np.ptp(pts, axis=0).max()) ** 2
-    return np.all(cross > 1e-9 * scale, axis=1)
+    scale = float(max(x.max() - x.min(), y.max() - y.min())) ** 2
+    return (cross > 1e-9 * scale).all(axis=1)
 
 
 def polygon_area(poly) -> float:
@@ -75,15 +93,34 @@ def polygon_area(poly) -> float:
 
 
 def coverage_fraction(hulls, fmt, n=200) -> float:
-    """Fraction of the format ``(w, h)`` covered by the union of polygons,
-    on an ``n`` x ``n`` raster."""
+    """Fraction of the format ``(w, h)`` covered by the union of convex
+    polygons, on an ``n`` x ``n`` raster: the grid points inside any of
+    them by the rule of :func:`convex_grid_mask`, for all polygons at once
+    (per grid row and polygon the span of columns between its two edge
+    crossings, the spans added up row by row; issue 23)."""
     w, h = fmt
     xs, ys = (np.arange(n) + 0.5) * w / n, (np.arange(n) + 0.5) * h / n
-    inside = np.zeros((n, n), bool)
-    for poly in hulls:
-        if len(poly) >= 3:
-            inside |= convex_grid_mask(poly, xs, ys)
-    return float(inside.mean())
+    polys = [np.asarray(p, float) for p in hulls if len(p) >= 3]
+    if not polys:
+        return 0.0
+    a = np.concatenate(polys)
+    b = np.concatenate([np.concatenate([p[1:], p[:1]]) for p in polys])
+    starts = np.cumsum([0] + [len(p) for p in polys[:-1]])
+    y = ys[:, None]
+    lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
+    crosses = (y >= lo) & (y < hi)                                # (rows, edges)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = a[:, 0] + (y - a[:, 1]) / (b[:, 1] - a[:, 1]) * (b[:, 0] - a[:, 0])
+    left = np.minimum.reduceat(np.where(crosses, x, np.inf), starts, axis=1)   # (rows, polys)
+    right = np.maximum.reduceat(np.where(crosses, x, -np.inf), starts, axis=1)
+    first = np.searchsorted(xs, left.ravel(), side="right")      # first column with x > left
+    stop = np.searchsorted(xs, right.ravel(), side="left")       # first column with x >= right
+    ok = first < stop
+    row = np.repeat(np.arange(n) * (n + 1), len(polys))[ok]
+    size = n * (n + 1)
+    diff = (np.bincount(row + first[ok], minlength=size)
+            - np.bincount(row + stop[ok], minlength=size)).reshape(n, n + 1)
+    return float((np.cumsum(diff, axis=1)[:, :n] > 0).mean())
 
 
 def convex_grid_mask(poly, xs, ys) -> np.ndarray:

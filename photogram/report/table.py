@@ -77,7 +77,17 @@ class Table:
     def with_column(self, name: str, values) -> "Table":
         cols = dict(self._cols)
         cols[name] = np.asarray(values)
-        return Table(cols, self.key)
+        out = Table(cols, self.key)
+        kept = {k: v for k, v in self.__dict__.get("_groups", {}).items() if k != name}
+        if kept:                            # the groups of the other columns still hold
+            out.__dict__["_groups"] = kept
+        return out
+
+    def seed_groups(self, name: str, codes, names) -> None:
+        """Set what :meth:`groups` returns for column ``name`` (when the
+        caller has it without hashing the column; it must be what
+        :func:`groups` would compute)."""
+        self.__dict__.setdefault("_groups", {})[name] = (codes, names)
 
     def take(self, rows) -> "Table":
         """The rows selected by a boolean mask or an integer index array."""

@@ -150,7 +150,7 @@ def report_units(data, units=None) -> str:
 def write_report(folder: str | Path, *, output: str | Path | None = None,
                  png_folder: str | Path | None = None, dpi: int = 60,
                  outline: list | None = None, units: str | None = None,
-                 project=None) -> Path:
+                 project=None, tables: dict | None = None) -> Path:
     """Write ``report.pdf`` for the results folder ``folder``.
 
     Parameters
@@ -167,6 +167,11 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
         The project the results were computed from, as read from its file
         and not changed since (a command passes the one it has in memory,
         so that it is not read again; see :func:`photogram.report.data.load`).
+    tables : dict, optional
+        The tables the command has just written into ``folder`` (file name
+        -> :class:`~photogram.project.results.WrittenTable`, from
+        :func:`~photogram.project.results.write_results`), so that they are
+        not parsed again; the report is the same as without them.
     outline : list, optional
         If given, ``(section title, number of pages)`` of every section are
         appended to it.
@@ -184,7 +189,7 @@ def write_report(folder: str | Path, *, output: str | Path | None = None,
     InputError
         ``folder`` is not a results folder (one line naming what is missing).
     """
-    data = load(folder, project)
+    data = load(folder, project, tables)
     data.extra["units"] = report_units(data, units)
     target = Path(output) if output is not None else Path(folder)
     try:

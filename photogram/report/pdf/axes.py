@@ -50,7 +50,11 @@ class Transform:
     def __call__(self, xy):
         """Page points (n, 2) of data points (n, 2)."""
         xy = np.asarray(xy, float).reshape(-1, 2)
-        return np.stack([self.x(xy[:, 0]), self.y(xy[:, 1])], axis=1)
+        if self.logy:
+            return np.stack([self.x(xy[:, 0]), self.y(xy[:, 1])], axis=1)
+        out = xy * (self.sx, self.sy)           # the same numbers as x() and y(),
+        out += (self.ox, self.oy)               # without their stack
+        return out
 
 
 class Axes(artists.ArtistsMixin):
@@ -156,7 +160,9 @@ class Axes(artists.ArtistsMixin):
     def _bound(self, x, y, sticky=False):
         x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
         ok = np.isfinite(x) & np.isfinite(y)
-        if ok.any():
+        if ok.all() and len(ok):                # the usual case: no masked copies
+            self.bounds.append((x.min(), x.max(), y.min(), y.max()))
+        elif ok.any():
             self.bounds.append((x[ok].min(), x[ok].max(), y[ok].min(), y[ok].max()))
         self.sticky_y0 |= sticky
 

@@ -35,9 +35,15 @@ def font_name(mono: bool = False, bold: bool = False) -> str:
 def text_width(text: str, size: float, font: str = "Helvetica") -> float:
     """Advance width (points) of ``text`` set in ``font`` at ``size`` pt
     (Adobe AFM widths, cp1252 codes; other characters count as a digit)."""
+    return _advance(text, font) * size / 1000.0
+
+
+@lru_cache(maxsize=4096)
+def _advance(text: str, font: str) -> float:
+    """Advance width of ``text`` in thousandths of the font size (cached:
+    tick labels and table cells repeat)."""
     widths = _WIDTH_LISTS[font]
-    return float(sum(map(widths.__getitem__, text.encode("cp1252", errors="replace")))) \
-        * size / 1000.0
+    return float(sum(map(widths.__getitem__, text.encode("cp1252", errors="replace"))))
 
 
 #: layers with more elements than this are written with 0.1 pt instead of
@@ -70,6 +76,15 @@ def _literal(text: str) -> str:
 @lru_cache(maxsize=64)
 def _font_op(font: str, size: float) -> str:
     return f" BT /{_RESOURCE[font]} {_c(size)} Tf"
+
+
+@lru_cache(maxsize=1024)
+def _stroke_op(color, lw, dash, cap) -> str:
+    """Colour, width, cap, join and dash operators of a stroke (cached: a
+    report strokes in a few styles)."""
+    r, g, b = rgb(color)
+    return (f"{_c(r)} {_c(g)} {_c(b)} RG {_c(lw)} w {cap} J 1 j "
+            + (f"[{' '.join(_c(d) for d in dash)}] 0 d " if dash else "[] 0 d "))
 
 
 @lru_cache(maxsize=256)
@@ -135,11 +150,12 @@ class Canvas:
 
     def stroke_style(self, color="black", lw: float = 1.0, dash=None, cap: int = 0,
                      alpha: float | None = None) -> None:
-        r, g, b = rgb(color)
         self._edge = lw
-        self._ops.append(f"{_c(r)} {_c(g)} {_c(b)} RG {_c(lw)} w {cap} J 1 j "
-                         + (f"[{' '.join(_c(d) for d in dash)}] 0 d " if dash else "[] 0 d ")
-                         + self._alpha(alpha) + "\n")
+        try:
+            style = _stroke_op(color, lw, tuple(dash) if dash else None, cap)
+        except TypeError:                   # an unhashable colour (an array)
+            style = _stroke_op(tuple(rgb(color)), lw, tuple(dash) if dash else None, cap)
+        self._ops.append(style + self._alpha(alpha) + "\n")
 
     def fill_style(self, color="black", alpha: float | None = None) -> None:
         r, g, b = rgb(color)
@@ -166,7 +182,7 @@ class Canvas:
         of ``x`` (along the baseline when rotated by ``angle`` degrees)."""
         if not text:
             return
-        shift = 0.0 if ha == "left" else text_width(text, size, font) * (
+        shift = 0.0 if ha == "left" else _advance(text, font) * size / 1000.0 * (
             0.5 if ha == "center" else 1.0)
         fill = _fill_op(color) if isinstance(color, str) else _fill_op(tuple(rgb(color)))
         if angle:

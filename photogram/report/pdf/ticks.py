@@ -4,6 +4,7 @@ matplotlib's MaxNLocator) and plain decimal labels without offset."""
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -51,12 +52,19 @@ def _decimals(ticks) -> int:
 def tick_labels(ticks) -> list:
     """Plain decimal labels with the fewest decimals that show every tick
     exactly, as matplotlib's (zero without a minus sign)."""
+    return list(_labels(tuple(np.asarray(ticks, float).ravel().tolist())))
+
+
+@lru_cache(maxsize=1024)
+def _labels(ticks: tuple) -> tuple:
+    """:func:`tick_labels` of a tuple of floats (cached: the axes of a
+    report repeat their ticks, e.g. 21 images of one format)."""
     d = _decimals(ticks)
     out = []
-    for t in np.asarray(ticks, float):
+    for t in ticks:
         s = f"{t:.{d}f}"
         out.append(s.lstrip("-") if s.strip("-0.") == "" else s)
-    return out
+    return tuple(out)
 
 
 def log_ticks(lo: float, hi: float) -> np.ndarray:
