@@ -1,7 +1,8 @@
 """Issue 17, "no behaviour change": every example project gives the same
 numbers as before the restructuring (summary.json sigma0, redundancy and the
-motion-capture figures as written; the stick-model tables and the measured
-and simulated tables byte for byte).
+motion-capture figures as written, to floating-point noise: 1e-6 relative,
+see REL_TOL; the stick-model tables and the measured and simulated tables
+byte for byte).
 
 The figures before are tests/data/examples_before_issue17.json, written by
 ``python tests/examples_run.py --record`` on commit def3da7 (before any
@@ -80,8 +81,8 @@ RECORD = load_record()
 def figures(example_steps):
     """The figures per step, from the session's runs of the example steps
     (conftest.py ``example_steps``): in this process with one BLAS thread,
-    the same numbers as a fresh interpreter per step (compared exactly
-    below; 43 -> 26 s CPU); the lab and field steps are those of
+    the same numbers as a fresh interpreter per step (compared to
+    REL_TOL below; 43 -> 26 s CPU); the lab and field steps are those of
     ``oriented_projects`` (the same command lines), the intersect and mocap
     runs shared with tests/test_issue16_intersect.py and others."""
     class Lazy(dict):
@@ -102,7 +103,34 @@ def _differences(before, now, path=""):
     if isinstance(before, list) and isinstance(now, list) and len(before) == len(now):
         return [d for k, (a, b) in enumerate(zip(before, now))
                 for d in _differences(a, b, f"{path}[{k}]")]
+    if _floats(before, now) and _close(before, now):
+        return []
     return [] if before == now else [f"{path}: {before!r} before, {now!r} now"]
+
+
+# Figures are equal when they agree to REL_TOL (relative) or ABS_TOL (in the
+# figure's unit: px, m, m/s, deg). Not bit for bit: the same code on another
+# processor or BLAS build (OpenBLAS picks AVX-512 kernels where the CPU has
+# them, AVX2 where not) sums the normal equations in another order, which
+# changes their last bits (about 1e-16 relative); iterations that stop at a
+# tolerance, robust medians and percentiles carry that further (seen on
+# 2026-12-04, an AMD EPYC with AVX-512, against the record written on
+# another machine: sigma0 of calibrate lab 2.8e-13 relative, mocap median
+# residual components up to 7.6e-10, ski-ptz's median seam disagreement
+# 1.4e-7, 0.6 nm). Every deliberate change recorded above moved a figure by
+# 1e-4 relative or more.
+REL_TOL, ABS_TOL = 1e-6, 1e-9
+
+
+def _floats(a, b):
+    return (isinstance(a, float) and isinstance(b, (int, float))
+            or isinstance(b, float) and isinstance(a, (int, float))) \
+        and not isinstance(a, bool) and not isinstance(b, bool)
+
+
+def _close(a, b):
+    return math.isfinite(a) and math.isfinite(b) and \
+        abs(a - b) <= REL_TOL * max(abs(a), abs(b)) + ABS_TOL
 
 
 @pytest.mark.parametrize("step", [s[0] for s in STEPS])
@@ -128,14 +156,22 @@ def test_the_record_covers_every_step_and_the_key_figures():
 
 
 def test_a_changed_digit_is_caught():
-    """The comparison is exact: one changed last digit of sigma0 or one
-    changed table byte is a difference."""
+    """A figure that moves by more than floating-point noise (here 1e-5
+    relative, the sixth significant digit of sigma0) or one changed table
+    byte is a difference; a change of the last bits alone (another BLAS
+    kernel's summation order) is not."""
     before = RECORD["orient field"]
     changed = {"summary": dict(before["summary"]), "tables": dict(before["tables"])}
-    changed["summary"]["sigma0"] = math.nextafter(before["summary"]["sigma0"], 2.0)
+    s0 = before["summary"]["sigma0"]
+    changed["summary"]["sigma0"] = s0 * (1 + 1e-5)
     assert _differences(before, changed) == [
-        f"/summary/sigma0: {before['summary']['sigma0']!r} before, "
-        f"{changed['summary']['sigma0']!r} now"]
+        f"/summary/sigma0: {s0!r} before, {changed['summary']['sigma0']!r} now"]
+    changed["summary"]["sigma0"] = math.nextafter(s0, 2.0) * (1 + 1e-12)
+    assert _differences(before, changed) == []
+    changed["summary"]["sigma0"] = float("nan")
+    assert len(_differences(before, changed)) == 1
+    changed["summary"]["redundancy"] = before["summary"]["redundancy"] + 1
+    assert len(_differences(before, changed)) == 2
     jumps = RECORD["intersect jumps"]
     tables = dict(jumps["tables"], **{"exposures.csv": "0" * 64})
     assert len(_differences(jumps, {"summary": jumps["summary"], "tables": tables})) == 1

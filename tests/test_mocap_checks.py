@@ -132,9 +132,15 @@ def test_radians_declared_as_degrees_are_warned_and_the_misfit_named(project, ca
     _edit_rows(project.parent / "camera_frames.csv", _to_radians)
     assert main(["mocap", "--no-report", str(project)]) == 0
     out = capsys.readouterr().out
-    assert "7 warning(s) in summary.json" in out
     w = json.loads((project.parent / "results" / "summary.json").read_text())["warnings"]
-    assert len(w) == 7
+    # the seventh, "camera residuals stand out" (check_outliers), compares
+    # the cameras with each other: here every camera is wrong (median errors
+    # 48-244 px), so whether C1 stands out among them is not decided by the
+    # wrong unit; it did on one machine and not on another (2026-12-04, an
+    # AVX-512 BLAS). The six warnings about the unit and the misfit are the
+    # point of this test, and are always there.
+    assert len(w) in (6, 7)
+    assert f"{len(w)} warning(s) in summary.json" in out
     assert w[0].startswith("every angle of the stations table is within 2 pi") and \
         "look like radians" in w[0]
     assert w[1].startswith("every angle of camera_frames.csv (omega, phi, kappa) is within 2 pi")
@@ -145,7 +151,8 @@ def test_radians_declared_as_degrees_are_warned_and_the_misfit_named(project, ca
     assert w[4].startswith(f"median reprojection error above {100 * POOR_FIT:g} % of the image "
                            f"width: C1 ")
     assert w[5].startswith("static bias")
-    assert w[6].startswith("camera residuals stand out") and "C1 " in w[6]   # check_outliers
+    if len(w) == 7:
+        assert w[6].startswith("camera residuals stand out") and "C1 " in w[6]   # check_outliers
 
 
 def test_coverage_counts_a_pair_of_cameras_above_min_confidence():
