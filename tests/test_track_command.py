@@ -92,8 +92,8 @@ def test_track_writes_the_tables_intersect_reads(tmp_path, rendered, oriented_pr
 def test_track_on_the_harsh_set_guesses_no_label(tmp_path, oriented_projects, capfd,
                                                   tmp_path_factory):
     """The harsh set (not tuned on; its lag estimated): every marker and ski
-    label right or flagged (measured: 213 of 288 markers, 0.26 px RMS; 107
-    of 144 skis, 0.55 deg RMS; S3's lag of one frame found)."""
+    label right or flagged (measured: 213 of 288 markers, 0.26 px RMS; 106
+    of 144 skis, 0.56 deg RMS; S3's lag of one frame found)."""
     from jump_videos import written_videos
     video = written_videos("harsh", tmp_path_factory)      # rendered and written once
     prj = _project(tmp_path, video, oriented_projects,
