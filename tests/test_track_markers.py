@@ -58,6 +58,18 @@ def test_background_median_and_noise_level():
     assert fg.sum() < 60
 
 
+def test_background_lower_median_is_exact():
+    """The background's per-pixel lower median (a sorting network of
+    minima and maxima up to 32 images, np.partition beyond) is element
+    (n - 1) // 2 of the sorted samples, ties included."""
+    from photogram.track.background import _lower_median
+    rng = np.random.default_rng(0)
+    for n in (*range(1, 34), 40):
+        for top in (256, 4):                                 # many ties with 4 levels
+            s = rng.integers(0, top, (n, 9, 11)).astype(np.uint8)
+            np.testing.assert_array_equal(_lower_median(s), np.sort(s, axis=0)[(n - 1) // 2])
+
+
 def test_candidates_centres_and_sigmas_against_truth():
     frames, balls = _video(n=20, centres=_moving)
     bg = estimate_background(frames)

@@ -9,7 +9,7 @@ import pandas as pd
 
 from photogram.track.ski_edges import BarLine
 from photogram.track.ski_sequence import axis_directions, sequence_check
-from photogram.track.ski_views import _oriented_flips, _separation
+from photogram.track.ski_views import _oriented_flips, _Seen, _separation, coincide_confirmed
 
 
 def _axes(angles, lengths, sigma, station="S1", line="L1", n=15):
@@ -114,3 +114,93 @@ def test_pending_views_are_decided_by_the_two_sequences_or_flagged():
     assert not decided and {f[0] for f in flags} == {"009"}
     assert "do not tell them apart" in flags[0][3]
     assert "009" not in set(out.exposure)
+
+
+def test_an_axis_its_own_direction_does_not_identify_is_flagged():
+    """A pending view whose pair assignment is clear from one axis alone:
+    its other axis runs between the two skis' directions (a fit from one
+    ski onto the other) and is flagged, not labelled by its partner; the
+    clear axis keeps its label (harsh set, exposure 011 in S2)."""
+    rng = np.random.default_rng(3)
+    n = 20
+    tc = np.linspace(-30, 30, 15)
+    s_angle = 0.2 / np.sqrt((tc ** 2).sum())
+    names = [f"{i + 1:03d}" for i in range(n)]
+    a1 = 0.3 + 0.004 * np.arange(n)
+    a2 = a1 + np.radians(4.0)
+    a2_bad = a2.copy()
+    a2_bad[10] = 0.5 * (a1[10] + a2[10])          # exposure 011: halfway between
+    t1 = _axes(a1 + rng.normal(0, s_angle, n), np.full(n, 60.0), 0.2, line="L1")
+    t2 = _axes(a2_bad + rng.normal(0, s_angle, n), np.full(n, 60.0), 0.2, line="L2")
+    # its sigma that of a poor fit: 2 deg, each sequence 1 sigma away
+    t2.loc[t2.exposure == "011", "sigma"] = 0.2 * np.radians(2.0) / s_angle
+    t = pd.concat([t1, t2], ignore_index=True)
+    out, flags, factors, decided = sequence_check(t, names, pending={("011", "S1"): "test"})
+    assert decided == {("011", "S1"): "as labelled"}
+    assert [(f[0], f[1], f[2]) for f in flags] == [("011", "S1", "L2")]
+    assert "not this axis on its own" in flags[0][3]
+    kept = out[out.exposure == "011"]
+    assert set(kept.line) == {"L1"}
+    d = axis_directions(kept)
+    assert abs(d.angle.iloc[0] - a1[10]) < 5 * s_angle
+
+
+def _ski_views(shift, sigma=0.1):
+    """Three views (opencv model, 6 m away) of two parallel skis 0.5 m long,
+    the second ``shift`` from the first; S2's measured pair is the first ski
+    twice (a pair fit on one ski). Returns (views, cameras, how far the
+    second ski's true image in S2 is from the first's chord, px)."""
+    from photogram.lines.views import ViewCamera
+    from photogram.simulation.network import look_at
+    X0 = np.array([[6.0, 0.0, 2.0], [0.0, 6.0, 2.5], [-6.0, 1.0, 1.5]])
+    R = look_at(X0, np.zeros(3))
+    io = np.array([1400.0, 1410.0, 320.0, 240.0, -0.12, 0.03, 5e-4, -3e-4, 0.0])
+    cams = {f"S{i + 1}": ViewCamera(R[i], X0[i], io, "opencv", f"S{i + 1}") for i in range(3)}
+    d = np.array([0.3, 0.8, -0.5]) / np.linalg.norm([0.3, 0.8, -0.5])
+    t = np.linspace(-0.25, 0.25, 15)[:, None]
+    skis = {"L1": t * d, "L2": t * d + shift}
+    views, gap = {}, 0.0
+    for s, cam in cams.items():
+        pts = {lab: cam.project(X) for lab, X in skis.items()}
+        if s == "S2":
+            a, b = pts["L1"], pts["L2"]
+            u = (a[-1] - a[0]) / np.linalg.norm(a[-1] - a[0])
+            gap = float(np.abs((b - a[0]) @ np.array([u[1], -u[0]])).max())
+            pts["L2"] = pts["L1"].copy()
+        views[s] = _Seen(pts=pts, sig={"L1": sigma, "L2": sigma})
+    return views, cams, gap
+
+
+def test_coincidence_needs_the_decided_views():
+    """An undecided view whose fitted skis coincide (one ski fitted twice)
+    keeps its labels only where the views the check decided show the skis
+    coincide there too (harsh set, exposures 015-017 in S2)."""
+    res = SimpleNamespace(stations=["S1", "S2", "S3"], undecided=["S2"],
+                          costs={"as measured": 1.0, "swap S2": 1.2, "swap S1": 900.0,
+                                 "swap S3": 800.0})
+    labels = ["L1", "L2"]
+    # the second ski 3 cm away across S2's view: about 7 px apart in S2
+    across = np.cross([0.3, 0.8, -0.5], [0.0, 6.0, 2.5])
+    views, cams, gap = _ski_views(0.03 * across / np.linalg.norm(across))
+    assert 5 < gap < 10
+    assert not coincide_confirmed(res, views, "S2", cams, labels, coincide_px=1.0)
+    # the second ski 3 cm along S2's line of sight: one image line in S2
+    along = np.array([0.0, 6.0, 2.5]) / np.linalg.norm([0.0, 6.0, 2.5])
+    views, cams, gap = _ski_views(0.03 * along)
+    assert gap < 0.1
+    assert coincide_confirmed(res, views, "S2", cams, labels, coincide_px=1.0)
+    # with 0.2 px points the gap transferred from two views has a sigma of
+    # 0.33 px: 0 + 3.09 sigma is above 1 px, coincidence not shown
+    assert not coincide_confirmed(res, _ski_views(0.03 * along, sigma=0.2)[0], "S2", cams,
+                                  labels, coincide_px=1.0)
+    # the same labels interchanged in S3 by the check: still the two skis
+    swapped = {"S1": views["S1"], "S2": views["S2"],
+               "S3": _Seen(pts={"L1": views["S3"].pts["L2"], "L2": views["S3"].pts["L1"]},
+                           sig=views["S3"].sig)}
+    res_s3 = SimpleNamespace(**{**vars(res), "costs": {"as measured": 900.0, "swap S3": 1.0,
+                                                       "swap S2": 800.0, "swap S1": 1.2}})
+    assert coincide_confirmed(res_s3, swapped, "S2", cams, labels, coincide_px=1.0)
+    # one decided view besides it is no evidence
+    res_one = SimpleNamespace(**{**vars(res), "undecided": ["S2", "S3"]})
+    assert not coincide_confirmed(res_one, views, "S2", cams, labels, coincide_px=1.0)
+

@@ -52,8 +52,17 @@ def finish(img, rng, noise=2.0):
 
 
 def median_background(frames):
-    """Temporal median of frames (F, H, W) as float."""
-    return np.median(frames, axis=0).astype(float)
+    """Temporal median of frames (F, H, W) as float: ``np.median(frames,
+    axis=0)`` exactly (the mean of the two middle uint8 values is exact in
+    float64), by the background's sorting network (0.13 s CPU for 24
+    frames with np.median, 0.02 s so)."""
+    from photogram.track.background import sorted_images
+    frames = np.asarray(frames)
+    if frames.dtype != np.uint8 or not 1 <= len(frames) <= 32:
+        return np.median(frames, axis=0).astype(float)
+    s = sorted_images(frames)
+    k = (len(s) - 1) // 2
+    return s[k].astype(float) if len(s) % 2 else (s[k].astype(float) + s[k + 1]) / 2
 
 
 def axis_errors(xy, tail, tip):

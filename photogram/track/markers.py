@@ -186,13 +186,6 @@ def detect_markers(frame: np.ndarray, background: Background, *, k: float = 5.0,
     if thr is None:
         thr = background.cache[key] = (k * band_pass_gain(scales)) * noise
     peak = (dog > thr) & (dog >= cv2.dilate(dog, np.ones((3, 3), np.uint8)))
-    # new spots only: the band-pass of the frame minus that of the background
-    # (the band-pass of the difference image) above the threshold as well
-    bkey = ("band_pass", tuple(scales))
-    dog_bg = background.cache.get(bkey)
-    if dog_bg is None:
-        dog_bg = background.cache[bkey] = band_pass(background.median, scales)
-    peak &= (dog - dog_bg) > thr
     peak[[0, -1], :] = False
     peak[:, [0, -1]] = False
     nz = cv2.findNonZero(peak.view(np.uint8))
@@ -200,6 +193,18 @@ def detect_markers(frame: np.ndarray, background: Background, *, k: float = 5.0,
         return Candidates.empty()
     nz = nz.reshape(-1, 2)
     cols, rows = nz[:, 0].astype(np.intp), nz[:, 1].astype(np.intp)
+    # new spots only: the band-pass of the frame minus that of the background
+    # (the band-pass of the difference image) above the threshold as well;
+    # tested at the maxima only (the same float32 values as over the frame)
+    bkey = ("band_pass", tuple(scales))
+    dog_bg = background.cache.get(bkey)
+    if dog_bg is None:
+        dog_bg = background.cache[bkey] = band_pass(background.median, scales)
+    new = (dog[rows, cols] - dog_bg[rows, cols]) > np.broadcast_to(thr, dog.shape)[rows, cols]
+    if not new.all():
+        rows, cols = rows[new], cols[new]
+        if len(rows) == 0:
+            return Candidates.empty()
     # principal curvatures of the DoG at the maxima (Lowe 2004, eq. 4-5)
     dxx = dog[rows, cols + 1] + dog[rows, cols - 1] - 2 * dog[rows, cols]
     dyy = dog[rows + 1, cols] + dog[rows - 1, cols] - 2 * dog[rows, cols]

@@ -148,6 +148,19 @@ def _screen(dirs, order, *, degree, k_out, min_length_fraction, min_redundancy):
     return drop, flags, factors, fit_of
 
 
+def _axis_cost(r, fit, t) -> float:
+    """Chi-square (1 dof) of one axis' direction (a row of
+    :func:`axis_directions`) against a ski's sequence ``fit`` (coef, cov,
+    scale, reference angle) at time ``t``: sigmas of the measurement
+    (scaled as the sequence's) and of the prediction."""
+    coef, cov, scale, ref = fit
+    pred, sp = _predict((coef, cov, scale), t)
+    # the measured angle on the branch of the sequence
+    ang = ref + np.angle(np.exp(1j * (r.angle - ref)))
+    sm = r.sigma_angle * scale
+    return float((ang - pred) ** 2 / (sm ** 2 + sp ** 2))
+
+
 def sequence_check(table: pd.DataFrame, exposures, *, degree: int = 3, k_out: float = 4.0,
                    min_length_fraction: float = 0.5, min_redundancy: int = 3,
                    pending: dict | None = None, alpha: float = 0.001):
@@ -178,7 +191,9 @@ def sequence_check(table: pd.DataFrame, exposures, *, degree: int = 3, k_out: fl
         time, sigmas of the measurement and of the prediction): the
         assignment whose chi-square is within its ``1 - alpha`` quantile
         and beats the other by that quantile is taken (labels interchanged
-        where needed), otherwise the view's skis are flagged.
+        where needed), otherwise the view's skis are flagged; of a view so
+        decided, an axis that its own direction does not tell apart (the
+        1-dof quantile, both ways) is flagged too.
     alpha : float
         Test level of the pending views' decision.
 
@@ -215,24 +230,32 @@ def sequence_check(table: pd.DataFrame, exposures, *, degree: int = 3, k_out: fl
         else:
             fits = {lab: fit_of[(s, lab)] for lab in all_labs}
             other = dict(zip(all_labs, all_labs[::-1]))
-            costs = []
-            for swap in (False, True):
-                c = 0.0
-                for r in view.itertuples():
-                    lab = other[r.line] if swap else r.line
-                    coef, cov, scale, ref = fits[lab]
-                    pred, sp = _predict((coef, cov, scale), order[e])
-                    # the measured angle on the branch of the sequence
-                    ang = ref + np.angle(np.exp(1j * (r.angle - ref)))
-                    sm = r.sigma_angle * scale
-                    c += (ang - pred) ** 2 / (sm ** 2 + sp ** 2)
-                costs.append(c)
+            # per axis its chi-square as labelled and as the other ski
+            per = np.array([[_axis_cost(r, fits[lab], order[e])
+                             for lab in (r.line, other[r.line])] for r in view.itertuples()])
+            costs = per.sum(0)
             q = float(chi2.ppf(1 - alpha, max(len(view), 1)))
             best = int(np.argmin(costs))
             if costs[best] <= q and costs[1 - best] - costs[best] >= q:
+                # the pair's assignment is clear; each axis must be told apart
+                # by its own direction too: a pair fit may lie on one ski twice
+                # or run from one ski onto the other, and the clear axis then
+                # decides the pair alone
+                q1 = float(chi2.ppf(1 - alpha, 1))
+                own, alt = per[:, best], per[:, 1 - best]
+                unclear = ~((own <= q1) & (alt - own >= q1))
                 decided[(e, s)] = "interchanged" if best else "as labelled"
                 if best:
                     relabel[(e, s)] = other
+                for r, u, c_own, c_alt in zip(view.itertuples(), unclear, own, alt):
+                    if not u:
+                        continue
+                    lab = other[r.line] if best else r.line
+                    drop.add((e, s, lab))             # its label after the relabelling
+                    flags.append((e, s, lab, f"labels not decided: {why}; the sequences tell "
+                                             "the view's labels apart but not this axis on its "
+                                             f"own (chi2 {c_own:.3g} as {lab}, {c_alt:.3g} as "
+                                             f"{other[lab]}, 1 dof)"))
                 continue
             reason = (f"labels not decided: {why}; the sequences of the two skis in this "
                       f"view do not tell them apart (chi2 {costs[0]:.3g} as labelled, "
@@ -244,7 +267,7 @@ def sequence_check(table: pd.DataFrame, exposures, *, degree: int = 3, k_out: fl
     if relabel:
         out["line"] = [relabel[(e, s)][lab] if (e, s) in relabel else lab
                        for e, s, lab in zip(out["exposure"], out["station"], out["line"])]
-    # (no relabelled view is in drop: its labels were decided)
+    # (drop holds the labels after the relabelling)
     key = list(zip(out["exposure"], out["station"], out["line"]))
     out = out.loc[np.array([k not in drop for k in key], bool)].copy()
     # then every axis kept, the decided pending views with them: outliers,

@@ -9,8 +9,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from scipy.special import ndtri       # normal quantile (scipy.stats is slow to import)
+
 from photogram.errors import GeometryError, InputError
+from photogram.lines.plucker import project_line
 from photogram.lines.skis import SkiCheck, check_ski_labels
+from photogram.lines.space_line import intersect_line
+from photogram.lines.views import fit_view_line
 
 __all__ = []
 
@@ -40,6 +45,59 @@ def _separation(lines) -> float:
     a, b = lines
     return float(max(np.abs(a.distance(np.array([b.tail, b.tip]))).max(),
                      np.abs(b.distance(np.array([a.tail, a.tip]))).max()))
+
+
+def _best_interchanged(res) -> set:
+    """The stations the best assignment of the three-view check ``res``
+    interchanges (relative to the others; its cost names, "as measured"
+    or "swap S1+S3")."""
+    best = min(res.costs, key=res.costs.get)
+    return set() if best == "as measured" else set(best[len("swap "):].split("+"))
+
+
+def coincide_confirmed(res, views, station, cameras, labels, coincide_px,
+                       alpha=0.001) -> bool:
+    """Whether the views the three-view check ``res`` decided show that the
+    two skis coincide within ``coincide_px`` in ``station`` (a view the
+    check could not decide), so that its labels do not matter.
+
+    The two skis' 3D lines from the decided views (two at least, labelled
+    as the check's best assignment; which ski is which does not matter
+    here) are projected into ``station``; their separation at the ends of
+    its measured axes, plus ``ndtri(1 - alpha)`` times its sigma
+    (propagated from the lines' covariances), must stay within
+    ``coincide_px``. The view's own fit is no evidence of this: a pair fit
+    whose two bars both lie on one ski (the other a stub of it) is
+    coincident in the image while the skis are apart. Without such
+    evidence (fewer than two decided views, a degenerate geometry) False.
+    """
+    others = [n for n in res.stations if n not in res.undecided and n != station]
+    pts = views[station].pts
+    if len(others) < 2 or any(lab not in pts for lab in labels):
+        return False
+    flips = _best_interchanged(res)
+    cam = {n: cameras[n] for n in others}
+    projected = []
+    try:
+        for ski in (0, 1):
+            img = {}
+            for n in others:
+                lab = labels[ski ^ (n in flips)]
+                img[n] = fit_view_line(views[n].pts[lab], cameras[n], views[n].sig[lab],
+                                       label=lab)
+            X = intersect_line(img, cam, label=labels[ski])
+            l, G = project_line(X.line, cameras[station], jacobian=True)
+            projected.append((l, G @ X.line.covariance @ G.T))
+    except GeometryError:
+        return False
+    (l1, C1), (l2, C2) = projected
+    if l1[:2] @ l2[:2] < 0:                 # the same orientation: d1 - d2 is the gap
+        l2 = -l2
+    ends = np.vstack([pts[lab][[0, -1]] for lab in labels])
+    E = np.column_stack([cameras[station].ideal(ends), np.ones(len(ends))])
+    gap = np.abs(E @ (l1 - l2))
+    sigma = np.sqrt(np.einsum("ij,jk,ik->i", E, C1 + C2, E))
+    return bool(np.all(gap + ndtri(1 - alpha) * sigma <= coincide_px))
 
 
 def _oriented_flips(res, views) -> list:

@@ -36,7 +36,7 @@ from photogram.track.ski_edges import (BarLine, best_split, extent_along, fit_sk
                                        noise_sigma, sample_axis, search_direction)
 from photogram.track.ski_sequence import sequence_check
 from photogram.track.ski_views import (_Seen, _check, _oriented_flips, _same, _separation,
-                                       res_stations)
+                                       coincide_confirmed, res_stations)
 
 __all__ = ["SkiTracking", "track_skis", "exposure_labels"]
 
@@ -441,14 +441,23 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
         for st, v in by_view.items():
             sep = _separation(views[st].lines)
             in_check = st in res_stations(res)
-            if (in_check and st not in checked or not views[st].labelled and not confirmed) \
-                    and sep > coincide_px:
-                # the skis are apart in this view, the check saw it and did not
-                # decide which is which (or nothing labelled them): the
-                # sequences decide, or the view is flagged
+            undecided = in_check and st not in checked
+            # an undecided view's labels do not matter only where the skis
+            # coincide in it: its own fit may be one ski twice, so the
+            # decided views must show it (ski_views.coincide_confirmed)
+            coincide = sep <= coincide_px and not (undecided and not coincide_confirmed(
+                res, views, st, cameras, labels, coincide_px))
+            if (undecided or not views[st].labelled and not confirmed) and not coincide:
+                # the skis are apart in this view (or not shown to coincide),
+                # the check saw it and did not decide which is which (or
+                # nothing labelled them): the sequences decide, or the view
+                # is flagged
                 why = ("not decided by the three-view check" if in_check
                        else "binding markers not split, no three-view check")
-                pending[(e, st)] = f"{why} (the skis {sep:.2g} px apart in this view)"
+                apart = (f"the skis {sep:.2g} px apart in this view" if sep > coincide_px else
+                         f"the skis {sep:.2g} px apart in this view's fit, not shown to "
+                         f"coincide by the other views")
+                pending[(e, st)] = f"{why} ({apart})"
             elif not views[st].labelled and not confirmed:
                 # skis found where the bindings' blob is, nearly coincident,
                 # but no view of the exposure has labelled skis
