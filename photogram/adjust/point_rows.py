@@ -3,8 +3,8 @@ cameras; the iterative reduced-camera-system solve).
 
 For a problem of one image-point block of the ``bal`` camera model (the
 model names its compiled rows, ``row_kernel = "bal_rows"``), every point
-eliminated, every parameter free and unit weights, with the compiled
-kernels active and the reduced camera system solved iteratively, the
+eliminated, every parameter free and unit weights, with the reduced
+camera system solved iteratively, the
 generic path (:meth:`Problem.evaluate`, then
 :func:`photogram.adjust.normal.assemble`, then a copy of ``W_o^T`` into
 point order for the Schur products) stores the residuals, three Jacobian
@@ -16,6 +16,13 @@ observations point by point and sums the normal equations directly:
 into a buffer reused between iterations, ``N_cc`` and ``g_c`` summed per
 camera (a few hundred kB that stay in cache). The cost of a trial step is
 a second kernel that stores nothing.
+
+Without the compiled kernels (numba missing or switched off, or fewer
+E-rows than their threshold) the same system comes from the numpy twin
+(:mod:`photogram.adjust._numpy_point`): the same formulas vectorised over
+chunks of observations, ``N_cc`` and ``g_c`` as one BLAS Gram matrix per
+camera, ``W_o`` also kept in camera order so that the CG products are
+scipy's block-sparse (BSR) products in both directions.
 
 The result is a :class:`PointSystem`, a
 :class:`~photogram.adjust.normal.NormalSystem` whose ``W_o^T`` are kept in
@@ -203,7 +210,7 @@ def linearize(problem, state):
     else:
         _numpy_order(pl, st)
         k, (WTp, Wg, Qp) = pl.buffers_for([(st.n_e_rows, 3, s), (st.n_e_rows, s, 3),
-                                           (st.n_e_rows, 9)])
+                                           (9, st.n_e_rows)])
         Gr = np.zeros((n_g, s + 1, s + 1))
         A_o, g_o = _numpy_point.linearize(xy, pts, R, X0, io, pl, WTp, Wg, Qp, Gr)
         G, g_grp, ssq = Gr[:, :s, :s], Gr[:, :s, s], float(Gr[:, s, s].sum())
