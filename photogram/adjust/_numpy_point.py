@@ -35,6 +35,7 @@ __all__ = ["Order", "linearize", "cost", "bsr_pair", "jacobi_blocks", "CHUNK"]
 
 #: rows per vectorised chunk (temporaries of about 100 floats per row)
 CHUNK = 1 << 15
+_SUB = 4096                              # rows of a transposed copy (stays in L2)
 
 _IU = np.triu_indices(3)                 # (0,0) (0,1) (0,2) (1,1) (1,2) (2,2)
 
@@ -233,12 +234,15 @@ def jacobi_blocks(Wg, Ainv_o, pl, n_g):
     for lo, hi in od.chunks:
         m = hi - lo
         Lr = np.take(LT, od.seg_g[lo:hi], axis=1)              # (9, m): L[a, b] at 3 a + b
-        W = Wg[lo:hi].transpose(2, 1, 0)                       # (3, s, m): W_k^T
         V = np.empty((3, s, m))                                # L^T W^T
-        for i in range(3):
-            np.multiply(Lr[3 * i + i], W[i], out=V[i])
-            for k in range(i + 1, 3):
-                V[i] += Lr[3 * k + i] * W[k]
+        for c in range(0, m, _SUB):                            # transposed in cache-sized parts
+            W = np.ascontiguousarray(Wg[lo + c:lo + c + _SUB].transpose(2, 1, 0))   # W_k^T
+            Lc = Lr[:, c:c + _SUB]
+            for i in range(3):
+                Vi = V[i, :, c:c + _SUB]
+                np.multiply(Lc[3 * i + i], W[i], out=Vi)
+                for k in range(i + 1, 3):
+                    Vi += Lc[3 * k + i] * W[k]
         g_lo = np.searchsorted(gptr, lo, side="right") - 1
         g_hi = np.searchsorted(gptr, hi, side="left")
         for g in range(g_lo, g_hi):
