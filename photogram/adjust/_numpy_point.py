@@ -236,7 +236,7 @@ def jacobi_blocks(Wg, Ainv_o, pl, n_g):
         Lr = np.take(LT, od.seg_g[lo:hi], axis=1)              # (9, m): L[a, b] at 3 a + b
         V = np.empty((3, s, m))                                # L^T W^T
         for c in range(0, m, _SUB):                            # transposed in cache-sized parts
-            W = np.ascontiguousarray(Wg[lo + c:lo + c + _SUB].transpose(2, 1, 0))   # W_k^T
+            W = np.ascontiguousarray(Wg[lo + c:min(lo + c + _SUB, hi)].transpose(2, 1, 0))
             Lc = Lr[:, c:c + _SUB]
             for i in range(3):
                 Vi = V[i, :, c:c + _SUB]
