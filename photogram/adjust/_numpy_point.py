@@ -31,7 +31,7 @@ import scipy.sparse as sp
 
 from photogram.adjust.rcs_iterative import _cholesky3
 
-__all__ = ["Order", "linearize", "cost", "bsr_pair", "jacobi_blocks", "CHUNK"]
+__all__ = ["Order", "linearize", "cost", "apply_blocks", "bsr_pair", "jacobi_blocks", "CHUNK"]
 
 #: rows per vectorised chunk (temporaries of about 100 floats per row)
 CHUNK = 1 << 15
@@ -205,6 +205,11 @@ def linearize(xy, pts, R, X0, io, pl, WTp, Wg, Qp, G):
     A_o[:, _IU[0], _IU[1]] = S[:6].T
     A_o[:, _IU[1], _IU[0]] = S[:6].T
     return A_o, np.ascontiguousarray(S[6:].T)
+
+
+def apply_blocks(M, v):
+    """``M[i] @ v[i]`` for 3x3 blocks ``M`` (n, 3, 3) and ``v`` (n, 3)."""
+    return M[:, :, 0] * v[:, :1] + M[:, :, 1] * v[:, 1:2] + M[:, :, 2] * v[:, 2:]
 
 
 def bsr_pair(WTp, Wg, pl):

@@ -338,8 +338,7 @@ class PointSystem(NormalSystem):
         if self.Wg is not None:
             WT, W = self.bsr()
             y = (WT @ self._to_groups(x_c)).reshape(-1, 3)
-            z = Ainv_o[:, :, 0] * y[:, :1] + Ainv_o[:, :, 1] * y[:, 1:2] + Ainv_o[:, :, 2] * y[:, 2:]
-            return self._from_groups(W @ z.ravel())
+            return self._from_groups(W @ _numpy_point.apply_blocks(Ainv_o, y).ravel())
         out = np.zeros(self.structure.n_r + 1)
         _compiled().matvec(self.WTp, pl.group, pl.gcols, pl.ptr, Ainv_o, np.append(x_c, 0.0), out)
         return out[:-1]
@@ -357,8 +356,7 @@ class PointSystem(NormalSystem):
         n_g, s = st.group_cols.shape
         if self.Wg is not None:
             blocks = -_numpy_point.jacobi_blocks(self.Wg, Ainv_o, pl, n_g)
-            z = Ainv_o[:, :, 0] * self.g_o[:, :1] + Ainv_o[:, :, 1] * self.g_o[:, 1:2] \
-                + Ainv_o[:, :, 2] * self.g_o[:, 2:]
+            z = _numpy_point.apply_blocks(Ainv_o, self.g_o)
             return blocks, self._from_groups(self.bsr()[1] @ z.ravel())
         blocks = np.zeros((n_g, s, s))
         rhs_g = np.zeros((n_g, s))
