@@ -205,3 +205,22 @@ def test_twin_equals_the_generic_path_on_real_bal(numpy_path):
     dx_t, _ = schur.solve(twin, lay, 1e-2, **kw)
     dx_g, _ = schur.solve(ref, lay, 1e-2, **kw)
     assert np.max(np.abs(dx_t - dx_g)) <= 1e-6 * np.max(np.abs(dx_g))
+
+
+def test_twin_point_seen_twice_by_one_camera(numpy_path, small_chunks):
+    """Two rows of one (point, camera): the generic Schur-Jacobi pass
+    merges them; the twin's step is still the dense one."""
+    from photogram.io.bal import BALProblem
+    bal = sphere_bal(12, obs_per_camera=150, seed=3).problem
+    extra = np.arange(0, bal.n_observations, 97)
+    twice = BALProblem(bal.cameras, bal.points, np.r_[bal.camera, bal.camera[extra]],
+                       np.r_[bal.point, bal.point[extra]], np.r_[bal.xy, bal.xy[extra] + 0.3])
+    problem = _iterative(twice)
+    twin = problem.linearize(problem.state)
+    assert twin.Wg is not None and not twin.plan.unique
+    _assert_same_system(twin, _generic(problem, problem.state), problem, problem.state)
+    problem.rcs["method"] = "dense"
+    dx_d, _ = schur.solve(problem.linearize(problem.state), problem.layout, 1e-3)
+    dx_t, _ = schur.solve(twin, problem.layout, 1e-3, method="iterative", cg_tolerance=1e-12,
+                          cg_max_iterations=5000)
+    assert np.max(np.abs(dx_t - dx_d)) <= 1e-7 * np.max(np.abs(dx_d))
