@@ -188,7 +188,6 @@ def test_twin_full_solve_reaches_the_generic_final_cost(numpy_path, monkeypatch)
     assert abs(2 * twin.final_cost / 0.5 ** 2 - r) < 5 * np.sqrt(2 * r)
 
 
-@pytest.mark.slow
 def test_twin_equals_the_generic_path_on_real_bal(numpy_path):
     """problem-49-7776 (Ladybug; 31 observations behind their camera kept
     so that every observation is active, as the fused path requires)."""
