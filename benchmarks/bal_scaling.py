@@ -8,7 +8,9 @@ observations per camera, 0.5 px noise, perturbed start; SIMULATED).
 Every solver starts from the same values and runs ``--iterations``
 iterations of Levenberg-Marquardt (Ceres' trust region; photogram's
 ``solve_bal`` with ``linear_solver="auto"``, which switches to the
-iterative reduced-camera-system solve from 1500 reduced columns on).
+iterative reduced-camera-system solve from 500 reduced columns on with
+the fused BAL path of ``photogram/adjust/point_rows.py``, numba or its
+numpy twin).
 
 Timing: CPU seconds (``time.process_time``, all threads of the process)
 and wall seconds of the solve call, divided by the iterations done

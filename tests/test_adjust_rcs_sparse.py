@@ -118,7 +118,11 @@ def test_automatic_choice(kernel_path):
     assert rcs_method(small, SolverOptions(iterative_min_columns=100)) == "iterative"
     assert rcs_method(small, SolverOptions(linear_solver="iterative")) == "iterative"
     mid = _sphere(n=170, obs=30)                   # 1530 reduced columns
-    # the default switch: 1500 columns with the numba kernels, 4000 without
+    # the fused BAL path (numba or its numpy twin, point_rows): from 500 on
+    assert rcs_method(mid, opt) == "iterative"
+    # the generic paths (weights other than 1 leave the fused one): 1500
+    # columns with the numba kernels, 4000 without
+    mid.variance["image"] = 4.0
     assert rcs_method(mid, opt) == ("iterative" if kernel_path == "numba" else "dense")
     big = _sphere(n=450, obs=12)                   # 4050 reduced columns
     assert rcs_method(big, opt) == "iterative"

@@ -110,9 +110,11 @@ def test_fused_path_steps_aside(numba_small):
     assert point_rows.plan(problem) is None
     problem.variance["image"] = 1.0
     kernels.use_numba(False)
-    assert point_rows.plan(problem) is None            # pure-numpy path
+    assert point_rows.plan(problem) is not None        # pure-numpy path: the numpy twin
+    assert problem.linearize(problem.state).Wg is not None
     kernels.use_numba(True)
     assert point_rows.plan(problem) is not None
+    assert problem.linearize(problem.state).Wg is None  # the compiled kernels
 
 
 def test_buffer_reused_only_when_free(numba_small):
@@ -138,10 +140,15 @@ def test_fused_solve_matches_dense_solve_and_auto_switch(numba_small):
         assert s.status == "converged"
         costs[method] = s.final_cost
     assert costs["iterative"] == pytest.approx(costs["dense"], rel=1e-6)
-    # "auto": 500 reduced columns with the fused path, 1500 without it
+    # "auto": 500 reduced columns with the fused path (numba or its numpy
+    # twin), 1500 without it (numba; 4000 on the generic numpy path)
     mid = _problem(n=60, obs=30)                       # 540 reduced columns
     assert rcs_method(mid, SolverOptions()) == "iterative"
     kernels.use_numba(False)
+    assert rcs_method(mid, SolverOptions()) == "iterative"
+    mid.variance["image"] = 4.0                        # weights other than 1: no fused path
+    assert rcs_method(mid, SolverOptions()) == "dense"
+    kernels.use_numba(True)
     assert rcs_method(mid, SolverOptions()) == "dense"
 
 

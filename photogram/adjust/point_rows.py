@@ -3,8 +3,8 @@ cameras; the iterative reduced-camera-system solve).
 
 For a problem of one image-point block of the ``bal`` camera model (the
 model names its compiled rows, ``row_kernel = "bal_rows"``), every point
-eliminated, every parameter free and unit weights, with the compiled
-kernels active and the reduced camera system solved iteratively, the
+eliminated, every parameter free and unit weights, with the reduced
+camera system solved iteratively, the
 generic path (:meth:`Problem.evaluate`, then
 :func:`photogram.adjust.normal.assemble`, then a copy of ``W_o^T`` into
 point order for the Schur products) stores the residuals, three Jacobian
@@ -16,6 +16,13 @@ observations point by point and sums the normal equations directly:
 into a buffer reused between iterations, ``N_cc`` and ``g_c`` summed per
 camera (a few hundred kB that stay in cache). The cost of a trial step is
 a second kernel that stores nothing.
+
+Without the compiled kernels (numba missing or switched off, or fewer
+E-rows than their threshold) the same system comes from the numpy twin
+(:mod:`photogram.adjust._numpy_point`): the same formulas vectorised over
+chunks of observations, ``N_cc`` and ``g_c`` as one BLAS Gram matrix per
+camera, ``W_o`` also kept in camera order so that the CG products are
+scipy's block-sparse (BSR) products in both directions.
 
 The result is a :class:`PointSystem`, a
 :class:`~photogram.adjust.normal.NormalSystem` whose ``W_o^T`` are kept in
@@ -31,7 +38,7 @@ import weakref
 import numpy as np
 import scipy.sparse as sp
 
-from photogram.adjust import kernels
+from photogram.adjust import _numpy_point, kernels
 from photogram.adjust.normal import NormalSystem, _NccSum
 
 __all__ = ["PointSystem", "plan", "linearize", "cost"]
@@ -139,12 +146,13 @@ def _eligible(problem):
 def plan(problem, method=None):
     """The fused path's plan of ``problem``, or None when it does not
     apply (then the generic path runs). ``method``: the RCS solve to
-    assume (default: the problem's current one; only "iterative" fuses)."""
+    assume (default: the problem's current one; only "iterative" fuses).
+    The compiled kernels run it when they are active for the problem's
+    size (:func:`compiled_for`), the numpy twin
+    (:mod:`photogram.adjust._numpy_point`) otherwise."""
     if (method or problem.rcs.get("method")) != "iterative":
         return None
     st = problem.structure
-    if not kernels.active(st.n_e_rows):
-        return None
     cached = getattr(st, "_point_plan", False)
     if cached is False:
         cached = _eligible(problem)
@@ -175,6 +183,9 @@ def cost(problem, state):
     if pl is None:
         return None
     xy, pts, R, X0, io = _model_arrays(pl, state)
+    if not compiled_for(problem):
+        _numpy_order(pl, problem.structure)
+        return 0.5 * _numpy_point.cost(xy, pts, R, X0, io, pl)
     return 0.5 * _compiled().bal_cost(xy, pts, R, X0, io, pl.ptr, pl.station, pl.camera)
 
 
@@ -187,13 +198,22 @@ def linearize(problem, state):
     st = problem.structure
     n_r, n_e, s, n_g = st.n_r, st.layout.n_eliminated, st.s, st.n_groups
     xy, pts, R, X0, io = _model_arrays(pl, state)
-    k, (WTp, A_o, g_o) = pl.buffers_for([(st.n_e_rows, 3, s), (n_e, 3, 3), (n_e, 3)])
-    g_grp = np.zeros((n_g, s))
-    G = np.zeros((n_g, s, s))
-    ssq = _compiled().bal_linearize(xy, pts, R, X0, io, pl.ptr, pl.station, pl.camera,
-                                    pl.group, A_o, g_o, WTp, g_grp, G)
-    iu = np.triu_indices(s, 1)
-    G[:, iu[1], iu[0]] = G[:, iu[0], iu[1]]
+    if compiled_for(problem):
+        k, (WTp, A_o, g_o) = pl.buffers_for([(st.n_e_rows, 3, s), (n_e, 3, 3), (n_e, 3)])
+        g_grp = np.zeros((n_g, s))
+        G = np.zeros((n_g, s, s))
+        ssq = _compiled().bal_linearize(xy, pts, R, X0, io, pl.ptr, pl.station, pl.camera,
+                                        pl.group, A_o, g_o, WTp, g_grp, G)
+        iu = np.triu_indices(s, 1)
+        G[:, iu[1], iu[0]] = G[:, iu[0], iu[1]]
+        Wg = None
+    else:
+        _numpy_order(pl, st)
+        k, (WTp, Wg, Qp) = pl.buffers_for([(st.n_e_rows, 3, s), (st.n_e_rows, s, 3),
+                                           (9, st.n_e_rows)])
+        Gr = np.zeros((n_g, s + 1, s + 1))
+        A_o, g_o = _numpy_point.linearize(xy, pts, R, X0, io, pl, WTp, Wg, Qp, Gr)
+        G, g_grp, ssq = Gr[:, :s, :s], Gr[:, :s, s], float(Gr[:, s, s].sum())
     m = n_r + 1
     Ncc = _NccSum(m, True)
     Ncc.add(st._g_scatter, G.ravel())
@@ -201,9 +221,21 @@ def linearize(problem, state):
     g = np.empty(n_r + 3 * n_e)
     g[:n_r] = g_c[:n_r]
     g[n_r:].reshape(n_e, 3)[pl.point] = g_o
-    system = PointSystem(Ncc.matrix(), A_o, g_o, g, 0.5 * ssq, WTp, st, pl)
+    system = PointSystem(Ncc.matrix(), A_o, g_o, g, 0.5 * ssq, WTp, st, pl, Wg)
     pl.own(k, system)
     return system
+
+
+def compiled_for(problem):
+    """Run the fused path with the compiled kernels (else the numpy twin)?"""
+    return kernels.active(problem.structure.n_e_rows)
+
+
+def _numpy_order(pl, st):
+    """The numpy twin's group order of the plan (computed once)."""
+    if getattr(pl, "numpy_order", None) is None:
+        pl.numpy_order = _numpy_point.Order(pl, st.n_groups)
+    return pl.numpy_order
 
 
 class PointSystem(NormalSystem):
@@ -211,15 +243,38 @@ class PointSystem(NormalSystem):
     point in the plan's order (``WTp[k]`` is E-row ``plan.erows[k]``),
     with the point blocks and gradients in the plan's point order too
     (``A_o[i]``, ``g_o[i]`` of point ``plan.point[i]``); ``A`` and ``WT``
-    in the engine's order are built on request."""
+    in the engine's order are built on request.
 
-    def __init__(self, Ncc, A_o, g_o, g, cost, WTp, structure, point_plan):
+    ``Wg``: None for the compiled kernels; for the numpy twin the same
+    ``W_o`` (9 x 3 each) in the twin's group order, and every product is
+    a block-sparse product of scipy (:func:`_numpy_point.bsr_pair`)."""
+
+    def __init__(self, Ncc, A_o, g_o, g, cost, WTp, structure, point_plan, Wg=None):
         self.Ncc, self.A_o, self.g_o, self.g, self.cost = Ncc, A_o, g_o, g, cost
         self.WTp = WTp
+        self.Wg = Wg
         self.structure = structure
         self.plan = point_plan
         self._W = self._WT = self._A = None
         self._last_back = None
+        self._bsr = None
+
+    def bsr(self):
+        """``(W^T, W)`` as block-sparse matrices (numpy twin only)."""
+        if self._bsr is None:
+            self._bsr = _numpy_point.bsr_pair(self.WTp, self.Wg, self.plan)
+        return self._bsr
+
+    def _to_groups(self, x_c):
+        """Reduced-column vector ``x_c`` in the numpy twin's group-block
+        order (s per group; padding columns 0)."""
+        return np.append(x_c, 0.0)[self.plan.gcols].ravel()
+
+    def _from_groups(self, v):
+        """Group-block vector to reduced columns (summed where groups
+        share a column)."""
+        n_r = self.structure.n_r
+        return np.bincount(self.plan.gcols.ravel(), weights=v, minlength=n_r + 1)[:n_r]
 
     @property
     def A(self):
@@ -246,8 +301,11 @@ class PointSystem(NormalSystem):
         if last is not None and np.array_equal(last[0], x_c):
             return last[1]
         pl = self.plan
-        out = np.empty((len(pl.point), 3))
-        _compiled().back(self.WTp, pl.group, pl.gcols, pl.ptr, np.append(x_c, 0.0), out)
+        if self.Wg is not None:
+            out = (self.bsr()[0] @ self._to_groups(x_c)).reshape(-1, 3)
+        else:
+            out = np.empty((len(pl.point), 3))
+            _compiled().back(self.WTp, pl.group, pl.gcols, pl.ptr, np.append(x_c, 0.0), out)
         self._last_back = (np.array(x_c, dtype=float), out)
         return out
 
@@ -268,9 +326,22 @@ class PointSystem(NormalSystem):
     def w_times_e(self, x_e):
         """``W x_e`` (n_r,) for x_e (n_e, 3)."""
         pl, n_r = self.plan, self.structure.n_r
+        if self.Wg is not None:
+            return self._from_groups(self.bsr()[1] @ np.ravel(x_e[pl.point]))
         v = np.einsum("nis,ni->ns", self.WTp, x_e[pl.row_points()])
         cols = pl.gcols[pl.group]
         return np.bincount(cols.ravel(), weights=v.ravel(), minlength=n_r + 1)[:n_r]
+
+    def schur_matvec(self, Ainv_o, x_c):
+        """``W A^-1 W^T x_c`` (n_r,) with ``Ainv_o`` in the plan's order."""
+        pl = self.plan
+        if self.Wg is not None:
+            WT, W = self.bsr()
+            y = (WT @ self._to_groups(x_c)).reshape(-1, 3)
+            return self._from_groups(W @ _numpy_point.apply_blocks(Ainv_o, y).ravel())
+        out = np.zeros(self.structure.n_r + 1)
+        _compiled().matvec(self.WTp, pl.group, pl.gcols, pl.ptr, Ainv_o, np.append(x_c, 0.0), out)
+        return out[:-1]
 
     def schur_parts(self, Ncc, Ainv, ordered=False):
         """The Schur-Jacobi blocks before the ``N_cc`` part is added and
@@ -283,6 +354,10 @@ class PointSystem(NormalSystem):
             return None
         Ainv_o = Ainv if ordered else Ainv[pl.point]
         n_g, s = st.group_cols.shape
+        if self.Wg is not None:
+            blocks = -_numpy_point.jacobi_blocks(self.Wg, Ainv_o, pl, n_g)
+            z = _numpy_point.apply_blocks(Ainv_o, self.g_o)
+            return blocks, self._from_groups(self.bsr()[1] @ z.ravel())
         blocks = np.zeros((n_g, s, s))
         rhs_g = np.zeros((n_g, s))
         _compiled().jacobi_rhs(self.WTp, pl.group, pl.ptr, Ainv_o, self.g_o, blocks, rhs_g)
@@ -299,8 +374,15 @@ class PointSystem(NormalSystem):
         fixed = ~layout.free
         d = self.Ncc.diagonal()
         Ncc = (self.Ncc + sp.diags(d * damping + fixed[:n_r])).tocsr()
-        Ainv = np.empty_like(self.A_o)
         fix_e = np.ascontiguousarray(fixed[n_r:].reshape(-1, 3)[self.plan.point], dtype=float)
+        if self.Wg is not None:
+            from photogram.adjust.schur import invert_point_blocks
+            Ad = self.A_o.copy()
+            i3 = np.arange(3)
+            Ad[:, i3, i3] = Ad[:, i3, i3] * (1.0 + damping) + fix_e
+            labels = None if point_labels is None else np.asarray(point_labels)[self.plan.point]
+            return Ncc, invert_point_blocks(Ad, labels)
+        Ainv = np.empty_like(self.A_o)
         if _compiled().damped_inverse(self.A_o, float(damping), fix_e, Ainv):
             from photogram.adjust.schur import damped, invert_point_blocks
             invert_point_blocks(damped(self, layout, damping)[1], point_labels)   # raises

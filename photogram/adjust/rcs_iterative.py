@@ -100,11 +100,7 @@ class SchurOperator:
     def __call__(self, x):
         x_ext = np.append(x, 0.0)
         if self.point is not None:
-            from photogram.adjust import _numba_point
-            out = np.zeros(self.n_r + 1)
-            pl = self.point
-            _numba_point.matvec(self.WTp, pl.group, pl.gcols, pl.ptr, self.Ainv_o, x_ext, out)
-            return self.Ncc @ x - out[:self.n_r]
+            return self.Ncc @ x - self.system.schur_matvec(self.Ainv_o, x)
         if self.fast:
             out = np.zeros(self.n_r + 1)
             kernels.compiled().schur_matvec(self.WTp, self.rcp, self.ptr, self.Ainv, x_ext, out)

@@ -31,7 +31,7 @@ from photogram.errors import GeometryError
 
 DAMPINGS = ("none", "lm", "armijo", "trust_region")
 # reduced columns from which "auto" solves the RCS iteratively: {numba: n;
-# "fused": numba with point_rows' fused BAL linearization}
+# "fused": point_rows' fused BAL linearization, numba or its numpy twin}
 ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000, "fused": 500}
 
 
@@ -57,9 +57,10 @@ class SolverOptions:
     ITERATIVE_SCHUR; :mod:`photogram.adjust.rcs_iterative`) or ``"auto"``
     (default): iterative when the problem has no datum conditions (inner
     constraints) and at least ``iterative_min_columns`` reduced columns
-    (None: 1500 when the numba kernels run, 500 when they run the fused
-    BAL linearization of :mod:`photogram.adjust.point_rows`, 4000 on the
-    pure-numpy path, the crossovers measured on SIMULATED BAL problems),
+    (None: 500 when the fused BAL linearization of
+    :mod:`photogram.adjust.point_rows` applies, with numba or its numpy
+    twin; otherwise 1500 when the numba kernels run, 4000 on the generic
+    pure-numpy path; the crossovers measured on SIMULATED BAL problems),
     dense otherwise. CG stops when the preconditioned residual has
     fallen by ``cg_tolerance`` (``cg_criterion="residual"``) or, with
     ``"model"``, by Ceres' test for Levenberg-Marquardt steps (the last
