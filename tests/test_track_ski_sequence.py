@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
-from photogram.track.ski_edges import BarLine
+from photogram.track.ski_axes import BarLine
 from photogram.track.ski_sequence import axis_directions, sequence_check
 from photogram.track.ski_views import _oriented_flips, _Seen, _separation, coincide_confirmed
 

@@ -11,7 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from photogram.track.ski_edges import BarLine, fit_ski_pair, noise_sigma, sample_axis
+from photogram.track.ski_axes import BarLine, noise_sigma, sample_axis
+from photogram.track.ski_edges import fit_ski_pair
 from photogram.track.skis import track_skis
 
 # `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).

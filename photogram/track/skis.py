@@ -32,8 +32,9 @@ import pandas as pd
 from photogram.errors import InputError
 from photogram.lines.skis import SkiCheck
 from photogram.track.background import frame_gain
-from photogram.track.ski_edges import (BarLine, best_split, extent_along, fit_ski_pair,
-                                       noise_sigma, sample_axis, search_direction)
+from photogram.track.ski_axes import (BarLine, extent_along, noise_sigma, sample_axis,
+                                      search_direction)
+from photogram.track.ski_edges import best_split, fit_ski_pair
 from photogram.track.ski_sequence import sequence_check
 from photogram.track.ski_views import (_Seen, _check, _oriented_flips, _same, _separation,
                                        coincide_confirmed, res_stations)
