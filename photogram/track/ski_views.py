@@ -1,10 +1,13 @@
 """The per-image results of the ski tracker's passes and the label
 decisions over the three views (:mod:`photogram.track.skis`): which pass to
 take, the three-view check with its own variance factor, the orientation
-of its swaps by the labelled views, and how far apart two skis are."""
+of its swaps by the labelled views, and how far apart two skis are; and
+:func:`choose_views`, which makes these decisions per exposure and keeps
+the points (the rows of ``ski_lines.csv`` before the sequence check)."""
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -159,3 +162,145 @@ def _check(views, cameras, labels, exposure, max_s0=10.0, rescale=True, first=No
         return res
     except (GeometryError, InputError) as exc:
         return str(exc)
+
+
+def choose_views(names, stations, forward, backward, cameras, labels, bind_names, lookup, *,
+                 check=True, trust_bindings=False, coincide_px=1.0):
+    """Per exposure, the views' results of the tracker's passes taken, their
+    labels checked and the points kept (:func:`photogram.track.skis.track_skis`,
+    whose parameters these are).
+
+    Among the combinations of the passes' results (forward or backward in
+    each view where they differ), those with the most views with both skis
+    (then the most skis found) are checked; the one whose best assignment
+    fits best is taken. The three-view check's swaps are applied (oriented
+    by the labelled views); a view the check saw and did not decide, whose
+    skis are apart (or not shown to coincide by the decided views), is left
+    to the sequences.
+
+    Parameters
+    ----------
+    names : list
+        The exposure names, in exposure order.
+    stations : list
+    forward, backward : dict {(exposure index, station): _Seen}
+        The two passes' results (``backward`` empty with one pass).
+    cameras : dict {station: ViewCamera}
+    labels, bind_names : list
+        The two skis' labels and their binding markers.
+    lookup : dict {(exposure, station, marker): ndarray (2,)}
+        The ok markers (raster positions; only which are there is used).
+    check, trust_bindings, coincide_px
+        As :func:`photogram.track.skis.track_skis`.
+
+    Returns
+    -------
+    rows : list of (exposure, station, line, x, y, sigma)
+    checks : list of (exposure, status, swapped, detail, check)
+    flags : list of (exposure, station, line, reason)
+    fitted : dict {(exposure, station): {label: BarLine}}
+    pending : dict {(exposure, station): why its labels are open}
+    """
+    rows, checks, flags, fitted = [], [], [], {}
+    pending = {}                      # (exposure, station) -> why its labels are open
+    for i, e in enumerate(names):
+        options = []
+        for st in stations:
+            f, b = forward[(i, st)], backward.get((i, st))
+            options.append([f] if b is None or _same(f, b) else [f, b])
+        # the combinations with the most complete views (then found skis)
+        # are checked; the one whose best assignment fits best is taken
+        combos = [dict(zip(stations, combo)) for combo in itertools.product(*options)]
+        counts = [(sum(len(v.pts) == 2 for v in vw.values()), sum(len(v.pts) for v in vw.values()))
+                  for vw in combos]
+        top = max(counts)
+        best = None
+        for views, n in zip(combos, counts):
+            if n != top:
+                continue
+            res = _check(views, cameras, labels, e, rescale=False) if check else None
+            cost = res.best_cost if isinstance(res, SkiCheck) else np.inf
+            if best is None or cost < best[0]:
+                best = (cost, views, res)
+        _, views, res = best
+        if isinstance(res, SkiCheck) and res.status == "inconsistent":
+            res = _check(views, cameras, labels, e, first=res)
+        by_view = {st: dict(v.pts) for st, v in views.items() if v.pts}
+        sig_view = {st: dict(v.sig) for st, v in views.items() if v.pts}
+        for st, v in views.items():
+            for lab, reason in v.flags:
+                for la in ([lab] if lab else labels):
+                    flags.append((e, st, la, reason))
+            if v.lines is not None:
+                fitted[(e, st)] = dict(zip(labels, v.lines))
+        status, swapped, detail, raw = "flagged", [], "", ""
+        if isinstance(res, SkiCheck):
+            raw, detail = res.status, res.message
+            # the binding markers were labelled in 3D (three views and the
+            # jumper's right): a swap against both of them in a view is
+            # conflicting evidence, flagged, not applied
+            against = [st for st in (res.swapped if res.status == "swapped" else ())
+                       if trust_bindings and all((e, st, b) in lookup for b in bind_names)]
+            if against:
+                raw, detail = res.status, (res.message + "; not applied: the binding markers "
+                                           f"of {', '.join(against)} say otherwise")
+            elif res.status in ("ok", "swapped") and not any(
+                    views[st].labelled for st in res.stations):
+                raw, detail = "unlabelled", (res.message + "; no view has labelled skis "
+                                             "(binding markers not split)")
+            elif res.status in ("ok", "swapped"):
+                flip = _oriented_flips(res, views)
+                status = "swapped" if flip else "ok"
+                swapped = flip
+                for st in swapped:
+                    pts = by_view[st]
+                    by_view[st] = {labels[0]: pts[labels[1]], labels[1]: pts[labels[0]]}
+                    sig_view[st] = dict(zip(labels, [sig_view[st][labels[1]],
+                                                     sig_view[st][labels[0]]]))
+                    fitted[(e, st)] = dict(zip(labels, views[st].lines[::-1]))
+            elif res.status == "ok" or (
+                    res.status == "ambiguous" and res.costs["as measured"] <= res.threshold
+                    and res.costs["as measured"] - min(res.costs.values()) < res.margin):
+                # ambiguous only where a view cannot separate the skis (e.g.
+                # they coincide in it): the labels as measured fit as well as any
+                status = "ok"
+        elif isinstance(res, str):
+            raw, detail = "error", res
+        elif check:
+            n = sum(len(v) == 2 for v in by_view.values())
+            detail = f"both skis found in {n} view(s); the check needs 3"
+        confirmed = raw in ("ok", "swapped") and status in ("ok", "swapped")
+        checked = set(res.stations) - set(res.undecided) \
+            if isinstance(res, SkiCheck) and confirmed else set()
+        for st, v in by_view.items():
+            sep = _separation(views[st].lines)
+            in_check = st in res_stations(res)
+            undecided = in_check and st not in checked
+            # an undecided view's labels do not matter only where the skis
+            # coincide in it: its own fit may be one ski twice, so the
+            # decided views must show it (ski_views.coincide_confirmed)
+            coincide = sep <= coincide_px and not (undecided and not coincide_confirmed(
+                res, views, st, cameras, labels, coincide_px))
+            if (undecided or not views[st].labelled and not confirmed) and not coincide:
+                # the skis are apart in this view (or not shown to coincide),
+                # the check saw it and did not decide which is which (or
+                # nothing labelled them): the sequences decide, or the view
+                # is flagged
+                why = ("not decided by the three-view check" if in_check
+                       else "binding markers not split, no three-view check")
+                apart = (f"the skis {sep:.2g} px apart in this view" if sep > coincide_px else
+                         f"the skis {sep:.2g} px apart in this view's fit, not shown to "
+                         f"coincide by the other views")
+                pending[(e, st)] = f"{why} ({apart})"
+            elif not views[st].labelled and not confirmed:
+                # skis found where the bindings' blob is, nearly coincident,
+                # but no view of the exposure has labelled skis
+                for lab in v:
+                    flags.append((e, st, lab, "labels unknown (binding markers not split, "
+                                              "not confirmed by the three-view check)"))
+                continue
+            for lab, pts in v.items():
+                for x, y in pts:
+                    rows.append((e, st, lab, x, y, sig_view[st][lab]))
+        checks.append((e, status, ",".join(swapped), detail, raw))
+    return rows, checks, flags, fitted, pending

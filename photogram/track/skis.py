@@ -23,21 +23,18 @@ outside the image) is flagged, never guessed.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from photogram.errors import InputError
-from photogram.lines.skis import SkiCheck
 from photogram.track.background import frame_gain
 from photogram.track.ski_axes import (BarLine, extent_along, noise_sigma, sample_axis,
                                       search_direction)
 from photogram.track.ski_edges import best_split, fit_ski_pair
 from photogram.track.ski_sequence import sequence_check
-from photogram.track.ski_views import (_Seen, _check, _oriented_flips, _same, _separation,
-                                       coincide_confirmed, res_stations)
+from photogram.track.ski_views import _Seen, choose_views
 
 __all__ = ["SkiTracking", "track_skis", "exposure_labels"]
 
@@ -368,108 +365,9 @@ def track_skis(frames, backgrounds, cameras, markers, exposure_frames, *,
             for st in stations:
                 backward[(i, st)] = one_image(i, st, prev)
 
-    rows, checks, flags, fitted = [], [], [], {}
-    pending = {}                      # (exposure, station) -> why its labels are open
-    for i, e in enumerate(names):
-        options = []
-        for st in stations:
-            f, b = forward[(i, st)], backward.get((i, st))
-            options.append([f] if b is None or _same(f, b) else [f, b])
-        # the combinations with the most complete views (then found skis)
-        # are checked; the one whose best assignment fits best is taken
-        combos = [dict(zip(stations, combo)) for combo in itertools.product(*options)]
-        counts = [(sum(len(v.pts) == 2 for v in vw.values()), sum(len(v.pts) for v in vw.values()))
-                  for vw in combos]
-        top = max(counts)
-        best = None
-        for views, n in zip(combos, counts):
-            if n != top:
-                continue
-            res = _check(views, cameras, labels, e, rescale=False) if check else None
-            cost = res.best_cost if isinstance(res, SkiCheck) else np.inf
-            if best is None or cost < best[0]:
-                best = (cost, views, res)
-        _, views, res = best
-        if isinstance(res, SkiCheck) and res.status == "inconsistent":
-            res = _check(views, cameras, labels, e, first=res)
-        by_view = {st: dict(v.pts) for st, v in views.items() if v.pts}
-        sig_view = {st: dict(v.sig) for st, v in views.items() if v.pts}
-        for st, v in views.items():
-            for lab, reason in v.flags:
-                for la in ([lab] if lab else labels):
-                    flags.append((e, st, la, reason))
-            if v.lines is not None:
-                fitted[(e, st)] = dict(zip(labels, v.lines))
-        status, swapped, detail, raw = "flagged", [], "", ""
-        if isinstance(res, SkiCheck):
-            raw, detail = res.status, res.message
-            # the binding markers were labelled in 3D (three views and the
-            # jumper's right): a swap against both of them in a view is
-            # conflicting evidence, flagged, not applied
-            against = [st for st in (res.swapped if res.status == "swapped" else ())
-                       if trust_bindings and all((e, st, b) in lookup for b in bind_names)]
-            if against:
-                raw, detail = res.status, (res.message + "; not applied: the binding markers "
-                                           f"of {', '.join(against)} say otherwise")
-            elif res.status in ("ok", "swapped") and not any(
-                    views[st].labelled for st in res.stations):
-                raw, detail = "unlabelled", (res.message + "; no view has labelled skis "
-                                             "(binding markers not split)")
-            elif res.status in ("ok", "swapped"):
-                flip = _oriented_flips(res, views)
-                status = "swapped" if flip else "ok"
-                swapped = flip
-                for st in swapped:
-                    pts = by_view[st]
-                    by_view[st] = {labels[0]: pts[labels[1]], labels[1]: pts[labels[0]]}
-                    sig_view[st] = dict(zip(labels, [sig_view[st][labels[1]],
-                                                     sig_view[st][labels[0]]]))
-                    fitted[(e, st)] = dict(zip(labels, views[st].lines[::-1]))
-            elif res.status == "ok" or (
-                    res.status == "ambiguous" and res.costs["as measured"] <= res.threshold
-                    and res.costs["as measured"] - min(res.costs.values()) < res.margin):
-                # ambiguous only where a view cannot separate the skis (e.g.
-                # they coincide in it): the labels as measured fit as well as any
-                status = "ok"
-        elif isinstance(res, str):
-            raw, detail = "error", res
-        elif check:
-            n = sum(len(v) == 2 for v in by_view.values())
-            detail = f"both skis found in {n} view(s); the check needs 3"
-        confirmed = raw in ("ok", "swapped") and status in ("ok", "swapped")
-        checked = set(res.stations) - set(res.undecided) \
-            if isinstance(res, SkiCheck) and confirmed else set()
-        for st, v in by_view.items():
-            sep = _separation(views[st].lines)
-            in_check = st in res_stations(res)
-            undecided = in_check and st not in checked
-            # an undecided view's labels do not matter only where the skis
-            # coincide in it: its own fit may be one ski twice, so the
-            # decided views must show it (ski_views.coincide_confirmed)
-            coincide = sep <= coincide_px and not (undecided and not coincide_confirmed(
-                res, views, st, cameras, labels, coincide_px))
-            if (undecided or not views[st].labelled and not confirmed) and not coincide:
-                # the skis are apart in this view (or not shown to coincide),
-                # the check saw it and did not decide which is which (or
-                # nothing labelled them): the sequences decide, or the view
-                # is flagged
-                why = ("not decided by the three-view check" if in_check
-                       else "binding markers not split, no three-view check")
-                apart = (f"the skis {sep:.2g} px apart in this view" if sep > coincide_px else
-                         f"the skis {sep:.2g} px apart in this view's fit, not shown to "
-                         f"coincide by the other views")
-                pending[(e, st)] = f"{why} ({apart})"
-            elif not views[st].labelled and not confirmed:
-                # skis found where the bindings' blob is, nearly coincident,
-                # but no view of the exposure has labelled skis
-                for lab in v:
-                    flags.append((e, st, lab, "labels unknown (binding markers not split, "
-                                              "not confirmed by the three-view check)"))
-                continue
-            for lab, pts in v.items():
-                for x, y in pts:
-                    rows.append((e, st, lab, x, y, sig_view[st][lab]))
-        checks.append((e, status, ",".join(swapped), detail, raw))
+    rows, checks, flags, fitted, pending = choose_views(
+        names, stations, forward, backward, cameras, labels, bind_names, lookup,
+        check=check, trust_bindings=trust_bindings, coincide_px=coincide_px)
 
     table = pd.DataFrame(rows, columns=TABLE_COLUMNS)
     factors = None
