@@ -15,8 +15,9 @@ from scipy.special import erfc
 import pandas as pd
 import pytest
 
-from photogram.track.bindings import (MIDPOINT_COLUMNS, _tophat, fit_spot_shape, fit_two_spots,
-                                      label_pairs, split_merged_bindings)
+from photogram.track.bindings import (MIDPOINT_COLUMNS, fit_spot_shape, fit_two_spots, label_pairs,
+                                      split_merged_bindings)
+from photogram.track.spots import _tophat
 
 # `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
 pytestmark = pytest.mark.slow

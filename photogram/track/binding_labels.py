@@ -1,8 +1,9 @@
 """Where the merged binding blob is and which split point is which (the
 geometry of :mod:`photogram.track.bindings`, module doc steps 1 and 4):
-the blob located in 3D from the candidates of every view, the labels of the
-split points from the three views and the jumper's right, and labels taken
-from neighbouring exposures."""
+the views' biases and the hip's 3D track (the flight direction), the blob
+located in 3D from the candidates of every view, a lone ok binding checked
+against it, the labels of the split points from the three views and the
+jumper's right, and labels taken from neighbouring exposures."""
 
 from __future__ import annotations
 
@@ -116,6 +117,38 @@ def label_pairs(cameras: list, points: np.ndarray, sigma: np.ndarray, *,
 
 # ------------------------------------------------------------------ the table
 
+def _hip_track(cams, ok, stations, names, singles, hip):
+    """The views' biases (k, 2) (median reprojection residual of the single
+    markers seen in three views), the hip in 3D per exposure (E, 3) and its
+    velocity (E, 3) (NaN where unknown) from the ok rows ``ok`` of the
+    single markers."""
+    sidx = {s: i for i, s in enumerate(stations)}
+    eidx = {e: i for i, e in enumerate(names)}
+    midx = {m: i for i, m in enumerate(singles)}
+    xy_single = np.full((len(stations), len(names), len(singles), 2), np.nan)
+    for r in ok[ok.marker.isin(singles) & ok.station.isin(stations)].itertuples():
+        if r.exposure in eidx:
+            xy_single[sidx[r.station], eidx[r.exposure], midx[r.marker]] = (r.x, r.y)
+    flat = xy_single.reshape(len(stations), -1, 2)
+    Xs, nv = triangulate(cams, flat)
+    bias = np.zeros((len(stations), 2))
+    full = nv >= 3
+    if full.any():
+        for i, cam in enumerate(cams):
+            q = cam.project(Xs[full])
+            bias[i] = np.nanmedian(flat[i, full] - q, axis=0)
+    bias = np.nan_to_num(bias)
+    Xs = Xs.reshape(len(names), len(singles), 3)
+    X_hip = Xs[:, midx[hip]] if hip in midx else np.full((len(names), 3), np.nan)
+    vel = np.full_like(X_hip, np.nan)
+    good = np.isfinite(X_hip).all(1)
+    if good.sum() >= 2:
+        t = np.arange(len(names))
+        for j in range(3):
+            vel[:, j] = np.gradient(np.interp(t, t[good], X_hip[good, j]), t)
+    return bias, X_hip, vel
+
+
 def _locate(cams, per_view, bias, X_hip, vel, tol, hip_distance, length_unit,
             merge_distance=0.4, merge_px=4.0):
     """The binding midpoint's image in every view (k, 2) (NaN where not
@@ -160,6 +193,36 @@ def _locate(cams, per_view, bias, X_hip, vel, tol, hip_distance, length_unit,
             # the two markers may be two candidates here: their mean
             near = np.hypot(*(c - c[combos[best, i]]).T) <= merge_px
             out[i] = c[near].mean(0)
+    return out
+
+
+def _lone_offsets(found, cams, bias, stations, pair_rows):
+    """Where one binding of a view is ok and the other not, how far (px)
+    the ok one is from the blob located in 3D (``found``, from
+    :func:`_locate`; where not located in that view, the projection of its
+    3D point triangulated from the views that saw it): a list of
+    (station, marker, distance). ``pair_rows`` per station: {marker: table
+    row (or None)} of the two bindings, or None to leave the view out."""
+    out = []
+    seen = np.isfinite(found).all(1)
+    X_blob = None
+    if seen.sum() >= 2:
+        X_blob, _ = triangulate([c for c, k in zip(cams, seen) if k],
+                                (found - bias)[seen][:, None])
+    for i, s in enumerate(stations):
+        rs = pair_rows[i]
+        if rs is None or any(r is None for r in rs.values()) or \
+                sum(r.status == "ok" for r in rs.values()) != 1:
+            continue
+        where = found[i]
+        if not np.all(np.isfinite(where)) and X_blob is not None:
+            # not located in this view: the blob's 3D point projected
+            where = cams[i].project(X_blob)[0] + bias[i]
+        if not np.all(np.isfinite(where)):
+            continue
+        m, r = next((m, r) for m, r in rs.items() if r.status == "ok")
+        off = float(np.hypot(r.x - where[0], r.y - where[1]))
+        out.append((s, m, off))
     return out
 
 

@@ -113,128 +113,22 @@ for OpenCV's frame. The table, the cameras and this must agree.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 import pandas as pd
 
 from photogram.errors import InputError
-from photogram.track.markers import detect_markers
-from photogram.track.binding_labels import _from_neighbours, _locate, label_pairs
-from photogram.track.rays import triangulate
-from photogram.track.skis import exposure_labels
-from photogram.track.spots import (  # noqa: F401  (fit_spot_shape etc. re-exported)
-    _behind, _crop_around, _tophat, fit_spot_shape, fit_spot_windows, spot_windows)
-from photogram.track.two_spots import fit_two_spots, fit_two_spots_over
-from photogram.track.tracks2d import scatter_sigma
+from photogram.track.binding_blobs import shape_near, split_blob, spot_shapes, view_candidates
+from photogram.track.binding_labels import (_from_neighbours, _hip_track, _locate, _lone_offsets,
+                                            label_pairs)
+from photogram.track.binding_table import (  # noqa: F401  (re-exported)
+    MIDPOINT_COLUMNS, SPLIT_REASON, SplitReport, _frame_of, finish_table, make_report)
+from photogram.track.spots import fit_spot_shape  # noqa: F401  (re-exported)
+from photogram.track.two_spots import fit_two_spots  # noqa: F401  (re-exported)
 
 __all__ = ["SplitReport", "split_merged_bindings", "fit_two_spots", "fit_spot_shape",
            "label_pairs", "MIDPOINT_COLUMNS"]
 
-#: columns of ``SplitReport.midpoints``
-MIDPOINT_COLUMNS = ["exposure", "station", "x", "y", "sigma", "split"]
-SPLIT_REASON = "split from a merged blob (separation {:.2f} px)"
 CONTINUITY_NOTE = "; labels from the neighbouring exposures"
-
-
-@dataclass
-class SplitReport:
-    """What :func:`split_merged_bindings` did.
-
-    Attributes
-    ----------
-    midpoints : DataFrame
-        :data:`MIDPOINT_COLUMNS`: per exposure and station where the pair's
-        blob was located, its centre: the image of the binding midpoint
-        (module doc), ``split`` True where the blob was split into two.
-    blobs : DataFrame
-        Per located blob: exposure, station, x, y (centre), dx, dy (half
-        separation vector ``d``), separation (px), sep_sigma, sigma (of
-        each split point), outcome (``"split"``, or why not).
-    labels : DataFrame
-        Per exposure with split views: exposure, views, chi2, chi2_second,
-        distance (|P3 - P4|, m), across_deg, outcome (``"ok"`` or why
-        not); an exposure handed to the continuity step has a second row
-        (outcome ``"ok (continuity)"`` or why not).
-    counts : dict
-        flagged (station-exposures where the pair was merged/ambiguous),
-        located, split (separation measured), resolved (labelled ok),
-        ambiguous (left ambiguous).
-    """
-
-    midpoints: pd.DataFrame
-    blobs: pd.DataFrame
-    labels: pd.DataFrame
-    counts: dict = field(default_factory=dict)
-
-
-# ------------------------------------------------------------------ labels
-
-def _as_background(b, frame):
-    """(median (H, W) float, noise (H, W) float, Background or None)."""
-    from photogram.track.background import Background
-    if isinstance(b, Background):
-        return b.median, b.noise, b
-    med = np.asarray(b, np.float32)
-    d = np.asarray(frame, np.float32) - med
-    level = max(1.4826 * float(np.median(np.abs(d - np.median(d)))), 0.5)
-    noise = np.full(med.shape, level, np.float32)
-    return med, noise, Background(med, noise, level, 1)
-
-
-def _hip_track(cams, ok, stations, names, singles, hip):
-    """The views' biases (k, 2) (median reprojection residual of the single
-    markers seen in three views), the hip in 3D per exposure (E, 3) and its
-    velocity (E, 3) (NaN where unknown) from the ok rows ``ok`` of the
-    single markers."""
-    sidx = {s: i for i, s in enumerate(stations)}
-    eidx = {e: i for i, e in enumerate(names)}
-    midx = {m: i for i, m in enumerate(singles)}
-    xy_single = np.full((len(stations), len(names), len(singles), 2), np.nan)
-    for r in ok[ok.marker.isin(singles) & ok.station.isin(stations)].itertuples():
-        if r.exposure in eidx:
-            xy_single[sidx[r.station], eidx[r.exposure], midx[r.marker]] = (r.x, r.y)
-    flat = xy_single.reshape(len(stations), -1, 2)
-    Xs, nv = triangulate(cams, flat)
-    bias = np.zeros((len(stations), 2))
-    full = nv >= 3
-    if full.any():
-        for i, cam in enumerate(cams):
-            q = cam.project(Xs[full])
-            bias[i] = np.nanmedian(flat[i, full] - q, axis=0)
-    bias = np.nan_to_num(bias)
-    Xs = Xs.reshape(len(names), len(singles), 3)
-    X_hip = Xs[:, midx[hip]] if hip in midx else np.full((len(names), 3), np.nan)
-    vel = np.full_like(X_hip, np.nan)
-    good = np.isfinite(X_hip).all(1)
-    if good.sum() >= 2:
-        t = np.arange(len(names))
-        for j in range(3):
-            vel[:, j] = np.gradient(np.interp(t, t[good], X_hip[good, j]), t)
-    return bias, X_hip, vel
-
-
-def _frame_of(table, exposure_frames, stations, offsets):
-    offsets = offsets or {}
-    if isinstance(exposure_frames, dict):
-        fo = {s: np.asarray(exposure_frames[s], int) + offsets.get(s, 0) for s in stations}
-    else:
-        ef = np.asarray(exposure_frames, int)
-        fo = {s: ef + offsets.get(s, 0) for s in stations}
-    names = exposure_labels(table, len(next(iter(fo.values()))))
-    return {e: {s: int(fo[s][i]) for s in stations} for i, e in enumerate(names)}, names
-
-
-def _apply(out: pd.DataFrame, updates: list) -> None:
-    """Apply ``updates`` ``[(row label, {column: value})]`` to ``out`` in
-    order (a later value of a cell replaces an earlier one), one assignment
-    per column."""
-    cols: dict = {}
-    for i, values in updates:
-        for c, v in values.items():
-            cols.setdefault(c, {})[i] = v
-    for c, vals in cols.items():
-        out.loc[list(vals), c] = list(vals.values())
 
 
 def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, cameras: dict,
@@ -317,7 +211,7 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
     spot_model : {"tophat", "composite"}
         "tophat": two equal spots over a constant fitted to the white top-hat
         (:func:`photogram.track.two_spots.fit_two_spots`). "composite": two
-        opaque spots over the scene behind them (:func:`_behind`,
+        opaque spots over the scene behind them (:func:`photogram.track.spots._behind`,
         :func:`photogram.track.two_spots.fit_two_spots_over`). Measured on the
         rendered sets (docs/track.md): the composite model removes the
         top-hat's 0.15 px bias of the normal set (mean error (0.06, -0.15)
@@ -373,25 +267,9 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
 
     # the spot of a single marker per station and exposure (module doc,
     # step 2): fitted to the ok single markers of every exposure frame
-    shape_at = {}
     sing_ok = ok[ok.marker.isin(singles) & ok.station.isin(stations) & ok.exposure.isin(names)]
-    for s in stations:
-        pos, wins = [], []
-        for e, g in sing_ok[sing_ok.station == s].groupby("exposure"):
-            f = when[e][s]
-            if not 0 <= f < len(frames[s]):
-                continue
-            xy = g[["x", "y"]].to_numpy(float)
-            crop, origin = _crop_around(frames[s][f], xy, half + tophat + 1, pixel_offset)
-            wins.append(spot_windows(_tophat(crop, tophat), xy - origin, half=half,
-                                     pixel_offset=pixel_offset))
-            pos += [eidx[e]] * len(xy)
-        # all windows of the station in one batched fit (each window's fit
-        # is its own: the same shapes as one fit per exposure)
-        sh = fit_spot_windows(*(np.concatenate(a) for a in zip(*wins)))[0] if wins \
-            else np.zeros((0, 4))
-        good = np.isfinite(sh).all(1)
-        shape_at[s] = (np.asarray(pos, int)[good], sh[good].reshape(-1, 4))
+    shape_at = spot_shapes(frames, sing_ok, stations, when, eidx, half=half, tophat=tophat,
+                           pixel_offset=pixel_offset)
 
     blobs, labels, mids = [], [], []
     pending = {}                                   # exposure -> (split views, located)
@@ -420,34 +298,10 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             continue
         counts["flagged"] += len(flagged)
         # 1. locate the blob in 3D from candidates of every view
-        per_view, imgs = [], {}
-        for s in stations:
-            f = when[e][s]
-            if not 0 <= f < len(frames[s]):
-                per_view.append(np.zeros((0, 2)))
-                continue
-            fr = frames[s][f]
-            med, noise, bg = _as_background(backgrounds[s], fr)
-            imgs[s] = (fr, noise, med)
-            a, b = row(e, s, right_m), row(e, s, left_m)
-            if a is not None and b is not None and a.status == "ok" and b.status == "ok":
-                per_view.append(np.array([[(a.x + b.x) / 2, (a.y + b.y) / 2]]))
-                continue
-            cand = candidates[s][f] if candidates is not None else \
-                detect_markers(fr, bg, k=k_sigma, pixel_offset=pixel_offset)
-            c = cand.xy
-            taken = singles_at.get((e, s))
-            if taken is not None and len(c):
-                dd = np.hypot(c[:, None, 0] - taken[None, :, 0], c[:, None, 1] - taken[None, :, 1])
-                # as bright as a single marker of this image (the pair's blob
-                # is one or two markers; gaps of snow and edges are fainter)
-                mine = dd.min(1) <= 1.0
-                keep = (dd > 2.0).all(1)
-                if mine.any():
-                    keep &= (cand.flux >= min_flux * np.median(cand.flux[mine])) \
-                        & (cand.peak >= min_flux * np.median(cand.peak[mine]))
-                c = c[keep]
-            per_view.append(c)
+        per_view, imgs = view_candidates(e, stations, when, frames, backgrounds, row,
+                                         (right_m, left_m), singles_at, candidates,
+                                         k_sigma=k_sigma, pixel_offset=pixel_offset,
+                                         min_flux=min_flux)
         found = _locate(cams, per_view, bias, X_hip[eidx[e]], vel[eidx[e]],
                         locate_tol, hip_distance, length_unit)
         if not isinstance(found, str):
@@ -455,24 +309,9 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             # must be on the blob located in 3D from every view (a seed that
             # snapped to the wrong blob is not seen by the 3D check, the
             # other views' bindings being merged)
-            seen = np.isfinite(found).all(1)
-            X_blob = None
-            if seen.sum() >= 2:
-                X_blob, _ = triangulate([c for c, k in zip(cams, seen) if k],
-                                        (found - bias)[seen][:, None])
-            for i, s in enumerate(stations):
-                rs = {m: row(e, s, m) for m in (right_m, left_m)}
-                if s in flagged or any(r is None for r in rs.values()) or \
-                        sum(r.status == "ok" for r in rs.values()) != 1:
-                    continue
-                where = found[i]
-                if not np.all(np.isfinite(where)) and X_blob is not None:
-                    # not located in this view: the blob's 3D point projected
-                    where = cams[i].project(X_blob)[0] + bias[i]
-                if not np.all(np.isfinite(where)):
-                    continue
-                m, r = next((m, r) for m, r in rs.items() if r.status == "ok")
-                off = float(np.hypot(r.x - where[0], r.y - where[1]))
+            pair_rows = [None if s in flagged else {m: row(e, s, m) for m in (right_m, left_m)}
+                         for s in stations]
+            for s, m, off in _lone_offsets(found, cams, bias, stations, pair_rows):
                 if off > lone_tol:
                     _set(e, s, m, status="ambiguous",
                          reason=f"{off:.1f} px from the bindings' blob located in 3D from "
@@ -493,38 +332,15 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
                 continue
             counts["located"] += 1
             fr, noise, med = imgs[s]
-            near = np.abs(shape_at[s][0] - eidx[e]) <= shape_window
-            shape = np.median(shape_at[s][1][near], axis=0) if near.any() \
-                else np.full(4, np.nan)
+            shape = shape_near(shape_at[s], eidx[e], shape_window)
             if not np.isfinite(shape).all():
                 notes[(e, s)] = "no single marker to take the spot's shape from"
                 mids.append((e, s, centre[0], centre[1], np.nan, False))
                 continue
-            ij = np.clip(np.rint(centre - pixel_offset).astype(int), 0,
-                         [fr.shape[1] - 1, fr.shape[0] - 1])
-            sn = float(noise[ij[1], ij[0]])
-            if spot_model == "composite":
-                fit = fit_two_spots_over(fr, _behind(fr, med, tophat, sn), centre[None], shape,
-                                         noise=sn, half=half,
-                                         pixel_offset=pixel_offset, sigma_floor=sigma_floor)
-            else:
-                crop, origin = _crop_around(fr, centre[None], half + tophat + 1, pixel_offset)
-                fit = fit_two_spots(_tophat(crop, tophat), (centre - origin)[None], shape,
-                                    noise=sn, half=half, pixel_offset=pixel_offset,
-                                    sigma_floor=sigma_floor)
-                for k in ("centre", "points"):
-                    fit[k] = fit[k] + origin
+            fit, c, csig, measurable, outcome = split_blob(
+                fr, noise, med, centre, shape, spot_model=spot_model, half=half, tophat=tophat,
+                pixel_offset=pixel_offset, sigma_floor=sigma_floor, min_snr=min_snr)
             sep, ssig = fit["separation"][0], fit["sep_sigma"][0]
-            measurable = np.isfinite(sep) and sep > min_snr * ssig
-            c = fit["centre"][0]
-            if not np.isfinite(c).all() or np.hypot(*(c - centre)) > 2.0:
-                c, csig = centre, np.nan
-                outcome = "fit failed"
-                measurable = False
-            else:
-                csig = fit["centre_sigma"][0]
-                outcome = "split" if measurable else \
-                    f"separation not measurable ({sep:.2f} px, sigma {ssig:.2f})"
             blobs.append((e, s, c[0], c[1], fit["half_sep"][0][0], fit["half_sep"][0][1], sep,
                           ssig, fit["sigma"][0], outcome))
             mids.append((e, s, c[0], c[1], csig, bool(measurable)))
@@ -576,27 +392,6 @@ def split_merged_bindings(table: pd.DataFrame, frames: dict, backgrounds: dict, 
             else:
                 for s, *_ in split_views:
                     notes[(e, s)] = notes.get((e, s), "") + "; " + lab["reason"]
-    _apply(out, updates)
-    # the sigma of a split track is at least its own scatter about a local
-    # quadratic in time (exposure order; as the tracker's markers)
-    split = out.reason.astype(str).str.startswith("split from a merged blob")
-    for (s, m), g in out[split].groupby(["station", "marker"]):
-        xy = np.full((len(names), 2), np.nan)
-        pos = np.array([eidx[e] for e in g.exposure])
-        xy[pos] = g[["x", "y"]].to_numpy(float)
-        emp = scatter_sigma(xy, np.isfinite(xy).all(1))
-        if np.isfinite(emp):
-            out.loc[g.index, "sigma"] = np.maximum(g.sigma.to_numpy(float), emp)
-    for (e, s), why in notes.items():
-        sel = (out.exposure == e) & (out.station == s) & out.marker.isin([right_m, left_m]) \
-            & (out.status != "ok")
-        out.loc[sel, "reason"] = out.loc[sel, "reason"].astype(str) + "; not split: " + why
-    counts["ambiguous"] = counts["flagged"] - counts["resolved"]
-    report = SplitReport(
-        midpoints=pd.DataFrame(mids, columns=MIDPOINT_COLUMNS),
-        blobs=pd.DataFrame(blobs, columns=["exposure", "station", "x", "y", "dx", "dy",
-                                           "separation", "sep_sigma", "sigma", "outcome"]),
-        labels=pd.DataFrame(labels, columns=["exposure", "views", "chi2", "chi2_second",
-                                             "distance", "across_deg", "outcome"]),
-        counts=counts)
+    finish_table(out, updates, notes, names, eidx, (right_m, left_m))
+    report = make_report(mids, blobs, labels, counts)
     return out, report
