@@ -215,7 +215,16 @@ def _end_state(rows, frames, centre, size, tail: bool):
         mean = c.mean(0)
         v = t @ (c - mean) / (t @ t)
         at = mean + v * t[end]
-    return at, float(np.median(size[k])), v, int(frames[k[end]])
+    return at, _median(size[k].tolist()), v, int(frames[k[end]])
+
+
+def _median(values: list) -> float:
+    """``float(np.median(values))`` of a few finite floats (the same bits:
+    the middle one, or the mean ``(a + b) / 2`` of the middle two) without
+    numpy's overhead per call (a call per tracklet and frame)."""
+    s = sorted(values)
+    h = len(s) // 2
+    return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2
 
 
 def _segments(tracks, frames):
