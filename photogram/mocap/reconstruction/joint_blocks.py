@@ -71,35 +71,40 @@ def solve_blocks(A, b, nP, J, steps):
         return D[key]
 
     Pc = {j: A[:, blk(j), cams].copy() for j in range(J)}
-    S = A[:, cams, cams].copy()
     r = {j: b[:, blk(j)].copy() for j in range(J)}
-    rc = b[:, cams].copy()
+    Wc = np.empty((m, nP, n - nP))               # rows L^-1 [A_jc] of every joint
+    z = np.empty((m, nP))                        # and L^-1 b_j
     kept = []
-    for j, nb in steps:
+    for e, (j, nb) in enumerate(steps):
         L = np.linalg.cholesky(get(j, j))
         Li = np.linalg.inv(L)
-        G = np.concatenate([get(j, x) for x in nb] + [Pc[j], r[j][:, :, None]], axis=2)
-        W = Li @ G                                                  # (m, bs, q)
-        U = np.swapaxes(W, 1, 2) @ W
         k = len(nb) * bs
-        for u, x in enumerate(nb):
-            ux = slice(u * bs, (u + 1) * bs)
-            for v, y in enumerate(nb):
-                get(x, y)
-                D[(x, y)] -= U[:, ux, v * bs:(v + 1) * bs]
-            Pc[x] -= U[:, ux, k:-1]
-            r[x] -= U[:, ux, -1]
-        S -= U[:, k:-1, k:-1]
-        rc -= U[:, k:-1, -1]
-        kept.append((j, nb, Li, W))
+        W = Li @ np.concatenate([get(j, x) for x in nb] + [Pc[j], r[j][:, :, None]], axis=2)
+        rows = slice(e * bs, (e + 1) * bs)
+        Wc[:, rows], z[:, rows] = W[:, :, k:-1], W[:, :, -1]
+        if k:
+            U = np.swapaxes(W[:, :, :k], 1, 2) @ W           # (m, k, q)
+            for u, x in enumerate(nb):
+                ux = slice(u * bs, (u + 1) * bs)
+                for v, y in enumerate(nb):
+                    get(x, y)
+                    D[(x, y)] -= U[:, ux, v * bs:(v + 1) * bs]
+                Pc[x] -= U[:, ux, k:-1]
+                r[x] -= U[:, ux, -1]
+        kept.append((j, nb, Li, W[:, :, :k]))
+    # the cameras' Schur complement: one product over all joints
+    WcT = np.swapaxes(Wc, 1, 2)
+    S = A[:, cams, cams] - WcT @ Wc
+    rc = b[:, cams] - np.einsum("wcp,wp->wc", WcT, z)
     x = np.empty_like(b)
     for w in range(m):
         x[w, cams] = cho_solve(cho_factor(S[w], check_finite=False), rc[w],
                                check_finite=False)
-    for j, nb, Li, W in reversed(kept):
-        k = len(nb) * bs
-        z = W[:, :, -1] - np.einsum("wpq,wq->wp", W[:, :, k:-1], x[:, cams])
-        for u, y in enumerate(nb):
-            z -= np.einsum("wpq,wq->wp", W[:, :, u * bs:(u + 1) * bs], x[:, blk(y)])
-        x[:, blk(j)] = np.einsum("wqp,wq->wp", Li, z)
+    for e in range(len(kept) - 1, -1, -1):
+        j, nb, Li, WN = kept[e]
+        rows = slice(e * bs, (e + 1) * bs)
+        y = z[:, rows] - np.einsum("wpq,wq->wp", Wc[:, rows], x[:, cams])
+        for u, i in enumerate(nb):
+            y -= np.einsum("wpq,wq->wp", WN[:, :, u * bs:(u + 1) * bs], x[:, blk(i)])
+        x[:, blk(j)] = np.einsum("wqp,wq->wp", Li, y)
     return x
