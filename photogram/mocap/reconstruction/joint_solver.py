@@ -8,8 +8,8 @@ matrix's structure (the joints one at a time in a minimum-degree order of
 the limb graph, then the cameras' Schur complement:
 :mod:`photogram.mocap.reconstruction.joint_blocks`; all pending windows of
 a trial at once, a loop over joints, never over windows or observations;
-10 ms instead of 38 ms for 3 windows of 24 joints x 39 + 198 unknowns, the same steps
-to rounding); where a pivot block is not positive definite, the dense
+10 ms instead of 38 ms for 3 windows of 24 joints x 39 + 198 unknowns, the
+same steps to rounding); where a pivot block is not positive definite, the dense
 Cholesky of each window decides as before. As in
 :mod:`photogram.mocap.reconstruction.solvers`, the first ``irls_first`` iterations use the
 plain IRLS model (a majoriser of the robust term) and the later ones Triggs'
