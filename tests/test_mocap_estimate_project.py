@@ -18,13 +18,14 @@ from photogram_cli.main import main
 # `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
 pytestmark = pytest.mark.slow
 
+FRAMES = 30
 FEATURELESS = 1          # camera C2 films uniform snow and sky
 
 
 @pytest.fixture(scope="module")
 def video_project(tmp_path_factory):
     folder = tmp_path_factory.mktemp("ski-estimate")
-    sim = simulate_session(seed=5, n_runs=1, frames_per_run=60)
+    sim = simulate_session(seed=5, n_runs=1, frames_per_run=FRAMES)
     write_simulated_project(sim, folder, name="ski")
     prj = write_estimate_project(sim, folder, name="ski")
     (folder / "video").mkdir()
@@ -57,11 +58,11 @@ def test_estimate_from_videos_reports_the_featureless_camera(video_project):
     assert summary["accuracy"]["mpjpe"] < 0.3
     assert summary["accuracy"]["mpjpe_hip"] < 0.05
     # the measured differences and the rotations are written
-    per = read_rotation_differences(out / "rotation_differences.csv", sim.cameras.names, 60)
+    per = read_rotation_differences(out / "rotation_differences.csv", sim.cameras.names, FRAMES)
     assert per["C1"].failed == 0 and per["C2"].failed == per["C2"].pairs
     rows = (out / "rotations.csv").read_text().splitlines()
     assert rows[1].startswith("frame,camera,omega,phi,kappa")
-    assert len(rows) == 2 + 60 * 6
+    assert len(rows) == 2 + FRAMES * 6
 
 
 def test_estimated_rotations_feed_back_as_known(video_project, tmp_path):

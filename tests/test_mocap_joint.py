@@ -16,6 +16,7 @@ from photogram.mocap.reconstruction.bootstrap import (aim_cameras, chain_rotatio
 from photogram.mocap.reconstruction.dct import dct_basis
 from photogram.mocap.reconstruction.estimate import estimate_poses_and_rotations, estimate_settings
 from photogram.mocap.reconstruction.joint import JointBatch
+from photogram.mocap.reconstruction.joint_blocks import elimination_order, solve_blocks
 from photogram.mocap.reconstruction.reconstruct import _batches
 from photogram.simulation.ski.simulate import simulate_session
 
@@ -130,6 +131,34 @@ def test_joint_gradient_is_minus_twice_the_right_hand_side(short_sim):
     args = (100.0, L, 500.0, 1e4, 1e4)
     picks = np.random.default_rng(4).choice(a.size + g.size, 12, replace=False)
     assert_gradient_is_minus_twice_rhs(jb, a, g, args, picks)
+
+
+def test_block_solve_equals_the_dense_cholesky_solve(short_sim):
+    """The damped normal matrix is zero outside the blocks of the limb graph
+    (what the block elimination assumes), the block solve of the solver
+    equals the dense Cholesky solve to rounding, and a pivot block that is
+    not positive definite is an error (the solver falls back to the dense
+    factorisation, which decides)."""
+    from scipy.linalg import cho_factor, cho_solve
+    jb, a, g = _joint_batch(*short_sim)
+    L = np.full(len(SKI24.limbs), 0.3)
+    _, H, rhs = jb.linearize(a, g, 100.0, L, 500.0, 1e4, 1e4)
+    J, bs = a.shape[1], a[0, 0].size
+    nP = J * bs
+    steps = elimination_order(J, tuple(map(tuple, SKI24.limb_indices().tolist())))
+    assert sorted(j for j, _ in steps) == list(range(J))
+    coupled = np.eye(J, dtype=bool)
+    for x, y in SKI24.limb_indices():
+        coupled[x, y] = coupled[y, x] = True
+    Hpp = H[0, :nP, :nP].reshape(J, bs, J, bs).transpose(0, 2, 1, 3)     # (J, J, bs, bs)
+    assert np.all(Hpp[~coupled] == 0.0) and np.any(Hpp[coupled] != 0.0)
+    A = H + np.eye(H.shape[1]) * 1e-3 * np.einsum("wii->wi", H)[:, None, :]
+    x = solve_blocks(A, rhs, nP, J, steps)
+    y = cho_solve(cho_factor(A[0]), rhs[0])
+    assert np.max(np.abs(x[0] - y)) < 1e-9 * np.max(np.abs(y))
+    A[0, :bs, :bs] *= -1.0
+    with pytest.raises(np.linalg.LinAlgError):
+        solve_blocks(A, rhs, nP, J, steps)
 
 
 def test_bootstrap_pieces_recover_truth_on_exact_data(short_sim):

@@ -138,7 +138,7 @@ def observation_jacobians(R, v, t_obs, scale):
     dt[:, 1, 2] = -p[:, 1] / z ** 2
     dt *= scale[:, :, None]
     J_delta = dt @ R
-    J_theta = -(dt @ R) @ skew(v)
+    J_theta = -J_delta @ skew(v)
     return r, J_delta, J_theta, p[:, 2] < 0
 
 

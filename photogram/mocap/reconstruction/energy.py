@@ -47,6 +47,7 @@ domain (``B^T diag(M_t) B``), which costs two products with the DCT basis.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -236,6 +237,28 @@ class WindowBatch:
         return lin
 
 
+@lru_cache(maxsize=32)
+def _limb_rounds(limbs: bytes, J: int) -> list:
+    """The limb terms of ``H V`` added to the joints in rounds: round r adds
+    to every joint its r-th limb term (``+z`` as the first joint of the
+    limb, ``-z`` as the second) in the limbs' order, so that each joint
+    receives the same additions in the same order as a loop over the
+    limbs (the same bits) with a few array operations (a joint has at most
+    four limbs). ``limbs`` the bytes of the (nl, 2) index array; list of
+    (joints, limbs, signs (n, 1, 1))."""
+    pairs = np.frombuffer(limbs, dtype=np.intp).reshape(-1, 2)
+    ops = [[] for _ in range(J)]
+    for m, (a, b) in enumerate(pairs):
+        ops[a].append((m, 1.0))
+        ops[b].append((m, -1.0))
+    out = []
+    for r in range(max((len(o) for o in ops), default=0)):
+        js = [j for j in range(J) if len(ops[j]) > r]
+        out.append((np.array(js), np.array([ops[j][r][0] for j in js]),
+                    np.array([ops[j][r][1] for j in js])[:, None, None]))
+    return out
+
+
 @dataclass
 class Linearization:
     """Gauss-Newton model ``H delta = rhs`` of a batch (never formed).
@@ -268,9 +291,9 @@ class Linearization:
             d = Y[:, p] - Y[:, q]                          # (nw, nl, 3, T)
             s = np.sum(self.limb_u * d, axis=2, keepdims=True) * self.limb_w[:, :, None, None]
             z = s * self.limb_u
-            for m in range(len(p)):
-                Z[:, p[m]] += z[:, m]
-                Z[:, q[m]] -= z[:, m]
+            key = np.ascontiguousarray(self.limbs, dtype=np.intp).tobytes()
+            for joints, limbs, sign in _limb_rounds(key, J):
+                Z[:, joints] += z[:, limbs] * sign
         return (Z.reshape(-1, T) @ self.B).reshape(nw, J, 3, k)
 
     def block_diagonal(self) -> np.ndarray:

@@ -3,8 +3,14 @@
 
 Every iteration forms the dense Gauss-Newton model of each window (about
 1000 unknowns with N_Pi = N_Gamma = 11) and solves the damped system
-``(H + mu diag(H)) delta = rhs`` by Cholesky (one factorisation per window
-and trial: a loop over windows, never over observations). As in
+``(H + mu diag(H)) delta = rhs`` by a block Cholesky that follows the
+matrix's structure (the joints one at a time in a minimum-degree order of
+the limb graph, then the cameras' Schur complement:
+:mod:`photogram.mocap.reconstruction.joint_blocks`; all pending windows of
+a trial at once, a loop over joints, never over windows or observations;
+10 ms instead of 38 ms for 3 windows of 24 joints x 39 + 198 unknowns, the
+same steps to rounding); where a pivot block is not positive definite, the dense
+Cholesky of each window decides as before. As in
 :mod:`photogram.mocap.reconstruction.solvers`, the first ``irls_first`` iterations use the
 plain IRLS model (a majoriser of the robust term) and the later ones Triggs'
 second-order correction; a step is accepted only if it lowers the window's
@@ -21,6 +27,7 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from photogram.mocap.reconstruction.blas import one_blas_thread
 from photogram.mocap.reconstruction.joint import JointBatch
+from photogram.mocap.reconstruction.joint_blocks import elimination_order, solve_blocks
 from photogram.mocap.reconstruction.solvers import damping_update, moved_positions
 
 __all__ = ["solve_joint", "solve_joint_lbfgs"]
@@ -69,6 +76,30 @@ def _solve_free(A, b, T, J):
     return out
 
 
+def _steps(H, rhs, d, m, mu, p, free, T, J, nP, order):
+    """The damped steps of the windows ``p`` of a chunk: all at once block
+    by block (:func:`~photogram.mocap.reconstruction.joint_blocks.solve_blocks`),
+    or one window at a time (free points; or where a pivot of the blocks is
+    not positive definite, so that the dense Cholesky decides)."""
+    steps = np.zeros((len(p), H.shape[1]))
+    solved = np.zeros(len(p), bool)
+    A = H[p]
+    A[:, np.arange(A.shape[1]), np.arange(A.shape[1])] += mu[:, None] * d[p] * m[p]
+    if not free and order is not None:
+        try:
+            return solve_blocks(A, rhs[p], nP, J, order), np.ones(len(p), bool)
+        except (LinAlgError, np.linalg.LinAlgError):
+            pass
+    for n, k in enumerate(p):
+        try:
+            steps[n] = (_solve_free(A[n], rhs[k], T, J) if free
+                        else _solve_dense(A[n], rhs[k]))
+            solved[n] = True
+        except (LinAlgError, np.linalg.LinAlgError):
+            pass
+    return steps, solved
+
+
 @one_blas_thread
 def solve_joint(batch: JointBatch, a, g, sigma2, lengths, lambda_rep, lambda_limbs,
                 lambda_rot, max_iter=100, tol=1e-9, irls_first=5, step_tol=0.0,
@@ -81,6 +112,9 @@ def solve_joint(batch: JointBatch, a, g, sigma2, lengths, lambda_rep, lambda_lim
     free = KP == T and np.array_equal(batch.obs.B, np.eye(T))
     nP = a[0].size
     args = (sigma2, lengths, lambda_rep, lambda_limbs, lambda_rot)
+    limbs = tuple((int(x), int(y)) for x, y in np.asarray(batch.obs.limbs).reshape(-1, 2)) \
+        if lambda_limbs else ()
+    order = elimination_order(J, limbs) if J else None
     E = batch.energy(a, g, *args)
     mu = np.full(nw, 1e-3)
     active = np.ones(nw, bool)
@@ -102,16 +136,7 @@ def solve_joint(batch: JointBatch, a, g, sigma2, lengths, lambda_rep, lambda_lim
             new_a, new_g, new_E = a[ids].copy(), g[ids].copy(), E0.copy()
             for _ in range(12):
                 p = np.flatnonzero(pending)
-                steps = np.zeros((len(p), H.shape[1]))
-                solved = np.zeros(len(p), bool)
-                for n, k in enumerate(p):
-                    A = H[k] + np.diag(mu[ids[k]] * d[k] * m[k])
-                    try:
-                        steps[n] = (_solve_free(A, rhs[k], T, J) if free
-                                    else _solve_dense(A, rhs[k]))
-                        solved[n] = True
-                    except (LinAlgError, np.linalg.LinAlgError):
-                        pass
+                steps, solved = _steps(H, rhs, d, m, mu[ids[p]], p, free, T, J, nP, order)
                 ta = a[ids[p]] + steps[:, :nP].reshape(a[ids[p]].shape)
                 tg = g[ids[p]] + steps[:, nP:].reshape(g[ids[p]].shape)
                 E1 = sub.subset(p).energy(ta, tg, *args)

@@ -140,13 +140,19 @@ def _marks(scene, spacing: float, foot, n: int) -> np.ndarray:
     if scene.spots is not None and len(scene.spots):
         sp = scene.spots
         ok = np.all((sp[:, :2] >= lo) & (sp[:, :2] <= hi), axis=1)
-        for p, q, r, depth in sp[ok]:
-            k = r / spacing
-            value = int(round(min(255.0, 255.0 * depth / 80.0 * min(1.0, k * k))))
-            if value < 2:
-                continue
-            c = (int(round((p - origin[0]) * scale)), int(round((q - origin[1]) * scale)))
-            cv2.circle(canvas, c, int(round(max(k, 0.5) * 16)), value, -1, cv2.LINE_AA, 4)
+        p, q, r, depth = sp[ok].T
+        # the same float operations as one spot at a time (np.rint rounds
+        # half to even like round()), then one cv2.circle per spot drawn
+        k = r / spacing
+        value = np.rint(np.minimum(255.0, 255.0 * depth / 80.0 * np.minimum(1.0, k * k)))
+        cx = np.rint((p - origin[0]) * scale)
+        cy = np.rint((q - origin[1]) * scale)
+        rad = np.rint(np.maximum(k, 0.5) * 16)
+        drawn = value >= 2
+        for x, y, radius, v in zip(cx[drawn].astype(int).tolist(), cy[drawn].astype(int).tolist(),
+                                   rad[drawn].astype(int).tolist(),
+                                   value[drawn].astype(int).tolist()):
+            cv2.circle(canvas, (x, y), radius, v, -1, cv2.LINE_AA, 4)
     return canvas.astype(np.float32) * np.float32(-80.0 / 255.0)
 
 
