@@ -201,7 +201,10 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
     """(box, value x coverage, coverage) of the board averaged over the
     sub-poses ``subs`` [(R_bw, t_bw), ...]; box (x0, y0, x1, y1) holds
     every output pixel the board touches (found on a 4 px grid, grown by
-    8 px), None if the board is not in the image."""
+    8 px), None if the board is not in the image. Rendered in strips of
+    ``STRIP`` rows, each over the columns of the grid's hits near its rows
+    only (grown the same way; a tilted or rolled board fills a fraction of
+    its box): the same images as over the whole box."""
     import cv2
     s = settings.supersample
     levels, texel0, margin = _texture(target, settings.margin)
@@ -227,8 +230,15 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
             for _, front in looks]
     for r0 in range(y0, y1, STRIP):          # strips of rows: bounded memory
         r1 = min(r0 + STRIP, y1)
-        hh, ww = r1 - r0, x1 - x0
-        rays = _sample_rays(camera, s, x0, r0, x1, r1)
+        # the strip's columns: those of the coarse hits whose grown box
+        # (-8 .. +11 px, as the whole box's) reaches the strip's rows
+        band = found[max((r0 - 8) // 4, 0):(r1 + 7) // 4 + 1]
+        cols = np.flatnonzero(band.any(axis=0))
+        if cols.size == 0:
+            continue
+        c0, c1 = max(cols[0] * 4 - 8, 0), min(cols[-1] * 4 + 12, w)
+        hh, ww = r1 - r0, c1 - c0
+        rays = _sample_rays(camera, s, c0, r0, c1, r1)
         xy = (np.ascontiguousarray(rays[..., 0]), np.ascontiguousarray(rays[..., 1]))
         vsum = np.zeros((hh * s, ww * s), np.float32)
         nsum = np.zeros((hh * s, ww * s), np.float32)
@@ -241,17 +251,25 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
                 continue
             inside, bx, by = inside[box], bx[box], by[box]
             texel = texel0 * 2 ** L
-            mu = np.where(inside, bx / texel - 0.5, -1).astype(np.float32)
-            mv = np.where(inside, by / texel - 0.5, -1).astype(np.float32)
-            tex = cv2.remap(levels[L], mu, mv, cv2.INTER_LINEAR,
+            # in place (bx, by are this sub-pose's own): the numbers of
+            # np.where(inside, bx / texel - 0.5, -1) in float32
+            outside = ~inside
+            maps = []
+            for b in (bx, by):
+                b /= texel
+                b -= 0.5
+                np.copyto(b, -1.0, where=outside)
+                maps.append(b.astype(np.float32))
+            tex = cv2.remap(levels[L], maps[0], maps[1], cv2.INTER_LINEAR,
                             borderMode=cv2.BORDER_REPLICATE)
+            weight = inside.astype(np.float32)
             tex *= np.float32(dg)
             tex += np.float32(g0)
-            tex *= inside
+            tex *= weight
             vsum[box] += tex
-            nsum[box] += inside
-        val[r0 - y0:r1 - y0] = _box_mean(vsum, s)
-        cov[r0 - y0:r1 - y0] = _box_mean(nsum, s)
+            nsum[box] += weight
+        val[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = _box_mean(vsum, s)
+        cov[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = _box_mean(nsum, s)
     return (x0, y0, x1, y1), val / len(poses), cov / len(poses)
 
 
