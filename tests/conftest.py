@@ -14,6 +14,11 @@ from pathlib import Path
 # spinning on the shared 2-core machine (a 1062 x 1062 Cholesky of the mocap
 # joint solver: 0.18-0.6 s CPU with two threads under load, 0.016 s with one).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# OpenCV's thread pool likewise (read when cv2 is first imported): its
+# parallel remap, blur and connected components cost more CPU than they
+# save on that machine (tests/test_rig_rendered.py: 19.2 s CPU, 3.8 s of
+# it system time, with two threads; 15.1 s, 0.5 s system, with one).
+os.environ.setdefault("OPENCV_FOR_THREADS_NUM", "1")
 
 import pytest  # noqa: E402
 
