@@ -244,3 +244,23 @@ def test_detect_rendered_equals_detecting_all_rendered_views(cameras):
         for k in a[name]:
             assert np.array_equal(a[name][k][0], b[name][k][0])
             assert np.array_equal(a[name][k][1], b[name][k][1])
+
+
+def test_views_without_the_printed_face_are_not_rendered(cameras):
+    """detect_rendered skips the views render.face_seen rejects: the
+    board's back towards the camera (rendered: plain grey, nothing
+    detected) or the board outside the image; a view of its face is kept."""
+    cam = cameras[0]
+    R, t, v, w = near_pose(cam, 20)
+    back = (R @ np.diag([-1.0, 1.0, -1.0]), t, v, w)      # turned about its y axis
+    away = (R, t + 5.0 * cam.R[0], v, w)                   # 5 m to the camera's right
+    settings = br.normal_settings()
+    assert render.face_seen(cam, (R, t, v, w), TARGET, settings)
+    assert not render.face_seen(cam, back, TARGET, settings)
+    assert not render.face_seen(cam, away, TARGET, settings)
+    img = br.render_view(cam, back, TARGET, settings)
+    board = np.abs(img.astype(float) - render._background(cam.name, cam.image_size, 0)) > 30
+    assert board.sum() > 10000                             # the back is in the image
+    assert detect(img, TARGET) is None
+    poses = br.BoardPoses(*(np.array(a)[None] for a in back))
+    assert br.detect_rendered([cam], poses, TARGET, settings) == {cam.name: {}}

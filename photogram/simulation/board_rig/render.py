@@ -273,6 +273,29 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
     return (x0, y0, x1, y1), val / len(poses), cov / len(poses)
 
 
+def face_seen(camera: RigCamera, pose, target, settings: RigRenderSettings) -> bool:
+    """Whether the view of ``pose`` = (R_bw, t_bw[, v, w]) by ``camera``
+    shows any of the board's printed face: some sub-pose of the shutter
+    (:func:`_sub_poses`) turns its face towards the camera and hits the
+    image's 4 px grid (as :func:`_board_layer` finds the board). A view
+    without it holds no marker (the back is plain grey), so nothing in it
+    can be detected as the board."""
+    if len(pose) == 2:
+        pose = (pose[0], pose[1], np.zeros(3), np.zeros(3))
+    _, _, margin = _texture(target, settings.margin)
+    W = target.cols * target.size + 2 * margin
+    H = target.rows * target.size + 2 * margin
+    coarse = None
+    for R_bw, t_bw in _sub_poses(pose, settings):
+        R_cb, t_cb = _camera_board(camera, R_bw, t_bw)
+        if R_cb[:, 2] @ t_cb > 0:                      # the face towards the camera
+            if coarse is None:
+                coarse = _coarse_rays(_camera_key(camera, settings.supersample))
+            if _hit(coarse, R_cb, t_cb, margin, W, H)[2].any():
+                return True
+    return False
+
+
 def render_view(camera: RigCamera, pose, target, settings: RigRenderSettings,
                 key=(0, 0)) -> np.ndarray:
     """The uint8 image of the board at ``pose`` = (R_bw, t_bw[, v, w]) seen
