@@ -49,7 +49,7 @@ def _sample_rays(camera: RigCamera, s: int, x0: int, y0: int, x1: int, y1: int) 
     interpolated between them: the distortion's curvature over one pixel
     makes that < 1e-3 px (tested against the exact inverse).
     """
-    grid = _centre_rays(_camera_key(camera, 0))[y0:y1 + 2, x0:x1 + 2]
+    grid = _centre_rays(_camera_key(camera, 0)).region(y0, y1 + 2, x0, x1 + 2)
     hh, ww = y1 - y0, x1 - x0
     out = np.empty((hh, s, ww, s, 2))
     offsets = (np.arange(s) + 0.5) / s - 0.5
@@ -68,17 +68,50 @@ def _key_camera(key) -> RigCamera:
                      np.zeros(3), size)
 
 
-@functools.lru_cache(maxsize=2)
-def _centre_rays(key) -> np.ndarray:
+class _CentreRays:
     """Normalised coordinates (h + 2, w + 2, 2) of the pixel centres -1 .. w
-    by -1 .. h (row, column: pixel (i, j) at [j + 1, i + 1]) of the camera of
-    ``key`` (:func:`_camera_key`), exact (:func:`_undistort`): the same for
-    every view, so inverted once (15 MB at 1280 x 720; :func:`render_rig`
-    renders camera after camera)."""
-    cam = _key_camera(key)
-    w, h = cam.image_size
-    uu, vv = np.meshgrid(np.arange(-1, w + 1, dtype=float), np.arange(-1, h + 1, dtype=float))
-    return _undistort(cam, np.column_stack([uu.ravel(), vv.ravel()])).reshape(h + 2, w + 2, 2)
+    by -1 .. h (row, column: pixel (i, j) at [j + 1, i + 1]) of one camera,
+    exact (:func:`_undistort`), inverted by tiles of ``TILE`` x ``TILE`` on
+    first use (:meth:`region`): the views of a set touch only part of the
+    image, and ``cv2.undistortPoints`` inverts each point on its own, so the
+    numbers are those of inverting the whole grid at once."""
+
+    TILE = 32
+
+    def __init__(self, camera: RigCamera):
+        w, h = camera.image_size
+        self.camera = camera
+        self.grid = np.empty((h + 2, w + 2, 2))
+        self.done = np.zeros((-(-(h + 2) // self.TILE), -(-(w + 2) // self.TILE)), bool)
+
+    def region(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        """``grid[r0:r1, c0:c1]``, its missing tiles inverted first."""
+        T = self.TILE
+        rows, cols = slice(r0 // T, -(-r1 // T)), slice(c0 // T, -(-c1 // T))
+        todo = np.argwhere(~self.done[rows, cols]) + [rows.start, cols.start]
+        if len(todo):
+            h2, w2 = self.grid.shape[:2]
+            blocks = [(slice(a * T, min(a * T + T, h2)), slice(b * T, min(b * T + T, w2)))
+                      for a, b in todo]
+            uv = np.concatenate([np.stack(np.meshgrid(np.arange(cs.start, cs.stop) - 1.0,
+                                                      np.arange(rs.start, rs.stop) - 1.0),
+                                          -1).reshape(-1, 2) for rs, cs in blocks])
+            xn = _undistort(self.camera, uv)
+            n0 = 0
+            for rs, cs in blocks:
+                n = (rs.stop - rs.start) * (cs.stop - cs.start)
+                self.grid[rs, cs] = xn[n0:n0 + n].reshape(rs.stop - rs.start, -1, 2)
+                n0 += n
+            self.done[rows, cols] = True
+        return self.grid[r0:r1, c0:c1]
+
+
+@functools.lru_cache(maxsize=2)
+def _centre_rays(key) -> _CentreRays:
+    """The pixel-centre rays (:class:`_CentreRays`) of the camera of ``key``
+    (:func:`_camera_key`): the same for every view, so inverted once (15 MB
+    at 1280 x 720; :func:`render_rig` renders camera after camera)."""
+    return _CentreRays(_key_camera(key))
 
 
 @functools.lru_cache(maxsize=2)
