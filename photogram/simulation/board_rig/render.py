@@ -49,17 +49,28 @@ def _sample_rays(camera: RigCamera, s: int, x0: int, y0: int, x1: int, y1: int) 
     interpolated between them: the distortion's curvature over one pixel
     makes that < 1e-3 px (tested against the exact inverse).
     """
+    return np.stack(_sample_xy(camera, s, x0, y0, x1, y1), axis=-1)
+
+
+def _sample_xy(camera: RigCamera, s: int, x0: int, y0: int, x1: int, y1: int) -> tuple:
+    """:func:`_sample_rays` as two contiguous arrays (rows, cols), x and y,
+    interpolated component by component (the same numbers)."""
     grid = _centre_rays(_camera_key(camera, 0)).region(y0, y1 + 2, x0, x1 + 2)
     hh, ww = y1 - y0, x1 - x0
-    out = np.empty((hh, s, ww, s, 2))
     offsets = (np.arange(s) + 0.5) / s - 0.5
-    for b, dy in enumerate(offsets):
-        r0, fy = (1, dy) if dy >= 0 else (0, 1 + dy)
-        rows = (1 - fy) * grid[r0:r0 + hh] + fy * grid[r0 + 1:r0 + 1 + hh]
-        for a, dx in enumerate(offsets):
-            c0, fx = (1, dx) if dx >= 0 else (0, 1 + dx)
-            out[:, b, :, a] = (1 - fx) * rows[:, c0:c0 + ww] + fx * rows[:, c0 + 1:c0 + 1 + ww]
-    return out.reshape(hh * s, ww * s, 2)
+    xy = []
+    for k in (0, 1):
+        g = grid[..., k]
+        out = np.empty((hh, s, ww, s))
+        for b, dy in enumerate(offsets):
+            r0, fy = (1, dy) if dy >= 0 else (0, 1 + dy)
+            rows = (1 - fy) * g[r0:r0 + hh] + fy * g[r0 + 1:r0 + 1 + hh]
+            for a, dx in enumerate(offsets):
+                c0, fx = (1, dx) if dx >= 0 else (0, 1 + dx)
+                np.add((1 - fx) * rows[:, c0:c0 + ww], fx * rows[:, c0 + 1:c0 + 1 + ww],
+                       out=out[:, b, :, a])
+        xy.append(out.reshape(hh * s, ww * s))
+    return tuple(xy)
 
 
 def _key_camera(key) -> RigCamera:
@@ -271,8 +282,7 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
             continue
         c0, c1 = max(cols[0] * 4 - 8, 0), min(cols[-1] * 4 + 12, w)
         hh, ww = r1 - r0, c1 - c0
-        rays = _sample_rays(camera, s, c0, r0, c1, r1)
-        xy = (np.ascontiguousarray(rays[..., 0]), np.ascontiguousarray(rays[..., 1]))
+        xy = _sample_xy(camera, s, c0, r0, c1, r1)
         vsum = np.zeros((hh * s, ww * s), np.float32)
         nsum = np.zeros((hh * s, ww * s), np.float32)
         for (R_cb, t_cb), (L, _), (g0, dg) in zip(poses, looks, grey):
