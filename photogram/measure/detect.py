@@ -141,7 +141,8 @@ def detect_targets(gray: np.ndarray, polarity: str = "dark", *, min_diameter: fl
                    min_fill: float = 0.85, max_fill: float = 1.15,
                    min_roundness: float = 0.25, max_residual: float = 0.5,
                    n_rays: int = 64, centroid: bool = False,
-                   relative_residual: float = 3.0, edge: str = "mid") -> Detections:
+                   relative_residual: float = 3.0, edge: str = "mid",
+                   bright: np.ndarray | None = None) -> Detections:
     """Find circular targets and measure their centres (module doc).
 
     Parameters
@@ -172,6 +173,9 @@ def detect_targets(gray: np.ndarray, polarity: str = "dark", *, min_diameter: fl
         Edge points at the mid-level crossing of each ray's profile
         (default) or from a blurred step fitted to it
         (:func:`photogram.measure.centre.edge_ellipse`).
+    bright : (h, w) float32, optional
+        :func:`target_bright` of a uint8 ``gray``, when the caller has it
+        (read only; not computed again).
 
     Returns
     -------
@@ -185,7 +189,7 @@ def detect_targets(gray: np.ndarray, polarity: str = "dark", *, min_diameter: fl
     if g.dtype != np.uint8:
         g = np.clip(np.rint(g), 0, 255).astype(np.uint8)
     t8 = cv2.bitwise_not(g) if polarity == "dark" else g
-    t = t8.astype(np.float32)
+    t = bright if bright is not None else t8.astype(np.float32)
     h, w = t.shape
     c, a, b, theta, area, box = _blobs(t8, min_diameter, max_diameter, min_contrast)
     reason = np.full(len(c), "", dtype=object)
