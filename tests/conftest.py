@@ -106,9 +106,11 @@ def pytest_runtest_teardown(item, nextitem):
             _TRIM(0)
             _TRIMMED[0] = _resident()
         return
-    render = sys.modules.get("photogram.simulation.board_rig.render")
-    if render is not None:      # the rendered rig sets' per-camera caches (165 MB)
-        render.clear_caches()
+    # the rendered rig sets' per-camera caches (165 MB), render_plane's maps (64 MB)
+    for name in ("photogram.simulation.board_rig.render", "photogram.measure.render"):
+        render = sys.modules.get(name)
+        if render is not None:
+            render.clear_caches()
     if _TRIM is not None:
         _TRIM(0)
         _TRIMMED[0] = _resident()

@@ -188,6 +188,12 @@ def _plane_maps(cam: PlaneCamera, origin: tuple, texel: float, ss: int):
     return _MAPS[key]
 
 
+def clear_caches() -> None:
+    """Drop the kept texture maps of :func:`render_plane` (up to
+    :data:`MAPS_KEPT_BYTES`)."""
+    _MAPS.clear()
+
+
 def _trace(cam: PlaneCamera, origin: tuple, texel: float, ss: int):
     """:func:`_plane_maps` computed, strip by strip (a generator)."""
     w, h = cam.size
