@@ -102,9 +102,9 @@ def detect_rendered(cameras, poses: BoardPoses, target, settings: RigRenderSetti
     detected and dropped in turn (one image in memory instead of all: 110 MB
     for 4 cameras and 30 poses at 1280 x 720); the same detections. Views
     that show nothing of the board's printed face (:func:`face_seen`: its
-    back towards the camera, or outside the image: 64 of the 280 views of
-    tests/test_rig_rendered.py's sets, none of them detected when rendered)
-    are not rendered: no board can be detected in them."""
+    back towards the camera, or outside the image: 53 of the 240 views of
+    tests/test_rig_rendered.py's two sets, none of them detected when
+    rendered) are not rendered: no board can be detected in them."""
     from photogram.io.targets import detect
     out = {}
     for i, cam in enumerate(cameras):
