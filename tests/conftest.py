@@ -14,6 +14,11 @@ from pathlib import Path
 # spinning on the shared 2-core machine (a 1062 x 1062 Cholesky of the mocap
 # joint solver: 0.18-0.6 s CPU with two threads under load, 0.016 s with one).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# OpenCV's thread pool likewise (read when cv2 is first imported): its
+# parallel remap, blur and connected components cost more CPU than they
+# save on that machine (tests/test_rig_rendered.py: 19.2 s CPU, 3.8 s of
+# it system time, with two threads; 15.1 s, 0.5 s system, with one).
+os.environ.setdefault("OPENCV_FOR_THREADS_NUM", "1")
 
 import pytest  # noqa: E402
 
@@ -101,9 +106,11 @@ def pytest_runtest_teardown(item, nextitem):
             _TRIM(0)
             _TRIMMED[0] = _resident()
         return
-    render = sys.modules.get("photogram.simulation.board_rig.render")
-    if render is not None:      # the rendered rig sets' per-camera caches (165 MB)
-        render.clear_caches()
+    # the rendered rig sets' per-camera caches (165 MB), render_plane's maps (64 MB)
+    for name in ("photogram.simulation.board_rig.render", "photogram.measure.render"):
+        render = sys.modules.get(name)
+        if render is not None:
+            render.clear_caches()
     if _TRIM is not None:
         _TRIM(0)
         _TRIMMED[0] = _resident()

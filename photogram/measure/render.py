@@ -150,30 +150,69 @@ def render_plane(texture: np.ndarray, origin, texel: float, cam: PlaneCamera, *,
     """
     import cv2
     w, h = cam.size
-    off = (np.arange(ss) + 0.5) / ss - 0.5
-    Hi = np.linalg.inv(cam.homography())
     out = np.zeros((h, w), np.float64)
     tex = texture.astype(np.float32)
+    for r0, r1, maps in _plane_maps(cam, tuple(map(float, origin)), float(texel), ss):
+        acc = np.zeros((r1 - r0, w))
+        for mu, mv in maps:
+            acc += cv2.remap(tex, mu, mv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        out[r0:r1] = acc / ss ** 2
+    if gradient:
+        gx = np.linspace(1 - gradient / 2, 1 + gradient / 2, w)
+        out *= gx[None, :]
+    return degrade(out, blur=blur, noise=noise, seed=seed, jpeg=jpeg)
+
+
+_MAPS: dict = {}
+MAPS_KEPT_BYTES = 64 * 2 ** 20
+
+
+def _plane_maps(cam: PlaneCamera, origin: tuple, texel: float, ss: int):
+    """Texture coordinates (float32 ``cv2.remap`` maps) of every sub-sample
+    of :func:`render_plane`: (r0, r1, [(mu, mv) per sub-sample offset]) per
+    strip of rows. They depend on the camera and the sheet's placement
+    only: the last set is kept if it holds at most :data:`MAPS_KEPT_BYTES`
+    (35-40 MB at 800 x 600 and ss 3 or 640 x 480 and ss 4; larger ones are
+    traced strip by strip), so that renders of one view with other
+    textures, noise or blur (seeds, polarities) do not trace the rays again."""
+    key = (cam.K.tobytes(), cam.R.tobytes(), np.asarray(cam.t, float).tobytes(),
+           tuple(cam.size), float(cam.k1), float(cam.k2), origin, texel, ss)
+    if key in _MAPS:
+        return _MAPS[key]
+    strips = _trace(cam, origin, texel, ss)
+    w, h = cam.size
+    if w * h * ss * ss * 8 > MAPS_KEPT_BYTES:
+        return strips
+    _MAPS.clear()
+    _MAPS[key] = list(strips)
+    return _MAPS[key]
+
+
+def clear_caches() -> None:
+    """Drop the kept texture maps of :func:`render_plane` (up to
+    :data:`MAPS_KEPT_BYTES`)."""
+    _MAPS.clear()
+
+
+def _trace(cam: PlaneCamera, origin: tuple, texel: float, ss: int):
+    """:func:`_plane_maps` computed, strip by strip (a generator)."""
+    w, h = cam.size
+    off = (np.arange(ss) + 0.5) / ss - 0.5
+    Hi = np.linalg.inv(cam.homography())
     rows = max(1, int(2_000_000 // (w * ss * ss)))
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
         yy, xx = np.mgrid[r0:r1, 0:w].astype(float)
-        acc = np.zeros((r1 - r0, w))
+        maps = []
         for oy in off:
             for ox in off:
                 uv = np.stack([xx + ox, yy + oy], axis=-1)
                 und = cam.undistort(uv)
                 p = und @ Hi[:, :2].T + Hi[:, 2]
                 X, Y = p[..., 0] / p[..., 2], p[..., 1] / p[..., 2]
-                mu = ((X - origin[0]) / texel).astype(np.float32)
-                mv = ((origin[1] - Y) / texel).astype(np.float32)
-                acc += cv2.remap(tex, mu, mv, cv2.INTER_LINEAR,
-                                 borderMode=cv2.BORDER_REPLICATE)
-        out[r0:r1] = acc / ss ** 2
-    if gradient:
-        gx = np.linspace(1 - gradient / 2, 1 + gradient / 2, w)
-        out *= gx[None, :]
-    return degrade(out, blur=blur, noise=noise, seed=seed, jpeg=jpeg)
+                maps.append((((X - origin[0]) / texel).astype(np.float32),
+                             ((origin[1] - Y) / texel).astype(np.float32)))
+        yield r0, r1, maps
 
 
 def degrade(out, *, blur: float = 0.0, noise: float = 0.0, seed=0, jpeg=None):

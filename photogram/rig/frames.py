@@ -19,6 +19,7 @@ frames worth calibrating from.
 
 from __future__ import annotations
 
+import collections
 import logging
 from pathlib import Path
 
@@ -77,18 +78,45 @@ def _video_frames(path: Path, step: float):
     return frames(), fps, n
 
 
-def _folder_frames(path: Path):
+def _found(gray: np.ndarray, target) -> tuple:
+    """(image size (w, h), the board's detection or None, its sharpness or
+    None) of one frame."""
+    from photogram.io.targets import detect
+    hit = detect(gray, target)
+    return ((gray.shape[1], gray.shape[0]), hit,
+            None if hit is None else board_sharpness(gray, hit[1]))
+
+
+#: :func:`_found` of the image files read in this process, by (path, size,
+#: modification time (ns), inode, target): a board project calibrated again
+#: (another floor frame, scene points) does not decode and detect its
+#: images again; the detection is deterministic. The last ``_FILES_SIZE``.
+_FILES: collections.OrderedDict = collections.OrderedDict()
+_FILES_SIZE = 4096
+
+
+def _folder_found(path: Path, target):
+    """(id, :func:`_found`) of every image of a folder (:data:`_FILES`)."""
     import cv2
 
     from photogram.io.targets import image_files
     from photogram.project.limits import check_image
     for f in image_files(path):
-        check_image(f)
-        img = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
-        if img is None:
-            raise InputError("cannot read this image", file=f,
-                             hint="a damaged or unsupported image file")
-        yield f.stem, img
+        st = f.stat()
+        key = (str(f.resolve()), st.st_size, st.st_mtime_ns, st.st_ino, target)
+        if key in _FILES:
+            _FILES.move_to_end(key)
+        else:
+            check_image(f)
+            img = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
+            if img is None:
+                raise InputError("cannot read this image", file=f,
+                                 hint="a damaged or unsupported image file")
+            _FILES[key] = _found(img, target)
+            while len(_FILES) > _FILES_SIZE:
+                _FILES.popitem(last=False)
+        size, hit, sharp = _FILES[key]
+        yield f.stem, (size, None if hit is None else (hit[0].copy(), hit[1].copy()), sharp)
 
 
 def read_camera(name: str, path: Path, target, *, step: float = 0.2,
@@ -101,27 +129,25 @@ def read_camera(name: str, path: Path, target, *, step: float = 0.2,
     id: value}, ``image_size`` (w, h), ``fps`` (0 for images), ``frames``
     (read), ``blurred`` (ids left out for sharpness)
     """
-    from photogram.io.targets import detect
     path = Path(path)
     if path.is_dir():
-        frames, fps, n = _folder_frames(path), 0.0, None
+        found, fps, n = _folder_found(path, target), 0.0, None
     else:
         frames, fps, n = _video_frames(path, step)
+        found = ((fid, _found(gray, target)) for fid, gray in frames)
     dets, sharp, size, count = {}, {}, None, 0
-    for fid, gray in frames:
+    for fid, (s, hit, sharpness) in found:
         count += 1
-        s = (gray.shape[1], gray.shape[0])
         if size is None:
             size = s
         elif s != size:
             raise InputError(f"camera {name}: frame {fid} is {s[0]} x {s[1]} px, the first "
                              f"{size[0]} x {size[1]}", file=path,
                              hint="one camera, one image size")
-        hit = detect(gray, target)
         if hit is None:
             continue
         dets[fid] = hit
-        sharp[fid] = board_sharpness(gray, hit[1])
+        sharp[fid] = sharpness
     if count == 0:
         raise InputError(f"camera {name}: no frame could be read", file=path,
                          hint="check the video file or the image folder")

@@ -19,7 +19,7 @@ TARGET_SPEC = "charuco:7x5:0.08:0.06:DICT_5X5_100"
 USABLE_DISTANCE = (2.0, 4.0)
 TEXELS_PER_SQUARE = 224          # 32 x 7: 5 exact mip levels, integer marker bits
 MAX_LEVEL = 5
-STRIP = 64                       # output rows rendered at a time
+STRIP = 16                       # output rows rendered at a time (each over its own columns)
 
 
 @dataclass(frozen=True, eq=False)

@@ -49,17 +49,28 @@ def _sample_rays(camera: RigCamera, s: int, x0: int, y0: int, x1: int, y1: int) 
     interpolated between them: the distortion's curvature over one pixel
     makes that < 1e-3 px (tested against the exact inverse).
     """
-    grid = _centre_rays(_camera_key(camera, 0))[y0:y1 + 2, x0:x1 + 2]
+    return np.stack(_sample_xy(camera, s, x0, y0, x1, y1), axis=-1)
+
+
+def _sample_xy(camera: RigCamera, s: int, x0: int, y0: int, x1: int, y1: int) -> tuple:
+    """:func:`_sample_rays` as two contiguous arrays (rows, cols), x and y,
+    interpolated component by component (the same numbers)."""
+    grid = _centre_rays(_camera_key(camera, 0)).region(y0, y1 + 2, x0, x1 + 2)
     hh, ww = y1 - y0, x1 - x0
-    out = np.empty((hh, s, ww, s, 2))
     offsets = (np.arange(s) + 0.5) / s - 0.5
-    for b, dy in enumerate(offsets):
-        r0, fy = (1, dy) if dy >= 0 else (0, 1 + dy)
-        rows = (1 - fy) * grid[r0:r0 + hh] + fy * grid[r0 + 1:r0 + 1 + hh]
-        for a, dx in enumerate(offsets):
-            c0, fx = (1, dx) if dx >= 0 else (0, 1 + dx)
-            out[:, b, :, a] = (1 - fx) * rows[:, c0:c0 + ww] + fx * rows[:, c0 + 1:c0 + 1 + ww]
-    return out.reshape(hh * s, ww * s, 2)
+    xy = []
+    for k in (0, 1):
+        g = grid[..., k]
+        out = np.empty((hh, s, ww, s))
+        for b, dy in enumerate(offsets):
+            r0, fy = (1, dy) if dy >= 0 else (0, 1 + dy)
+            rows = (1 - fy) * g[r0:r0 + hh] + fy * g[r0 + 1:r0 + 1 + hh]
+            for a, dx in enumerate(offsets):
+                c0, fx = (1, dx) if dx >= 0 else (0, 1 + dx)
+                np.add((1 - fx) * rows[:, c0:c0 + ww], fx * rows[:, c0 + 1:c0 + 1 + ww],
+                       out=out[:, b, :, a])
+        xy.append(out.reshape(hh * s, ww * s))
+    return tuple(xy)
 
 
 def _key_camera(key) -> RigCamera:
@@ -68,17 +79,50 @@ def _key_camera(key) -> RigCamera:
                      np.zeros(3), size)
 
 
-@functools.lru_cache(maxsize=2)
-def _centre_rays(key) -> np.ndarray:
+class _CentreRays:
     """Normalised coordinates (h + 2, w + 2, 2) of the pixel centres -1 .. w
-    by -1 .. h (row, column: pixel (i, j) at [j + 1, i + 1]) of the camera of
-    ``key`` (:func:`_camera_key`), exact (:func:`_undistort`): the same for
-    every view, so inverted once (15 MB at 1280 x 720; :func:`render_rig`
-    renders camera after camera)."""
-    cam = _key_camera(key)
-    w, h = cam.image_size
-    uu, vv = np.meshgrid(np.arange(-1, w + 1, dtype=float), np.arange(-1, h + 1, dtype=float))
-    return _undistort(cam, np.column_stack([uu.ravel(), vv.ravel()])).reshape(h + 2, w + 2, 2)
+    by -1 .. h (row, column: pixel (i, j) at [j + 1, i + 1]) of one camera,
+    exact (:func:`_undistort`), inverted by tiles of ``TILE`` x ``TILE`` on
+    first use (:meth:`region`): the views of a set touch only part of the
+    image, and ``cv2.undistortPoints`` inverts each point on its own, so the
+    numbers are those of inverting the whole grid at once."""
+
+    TILE = 32
+
+    def __init__(self, camera: RigCamera):
+        w, h = camera.image_size
+        self.camera = camera
+        self.grid = np.empty((h + 2, w + 2, 2))
+        self.done = np.zeros((-(-(h + 2) // self.TILE), -(-(w + 2) // self.TILE)), bool)
+
+    def region(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        """``grid[r0:r1, c0:c1]``, its missing tiles inverted first."""
+        T = self.TILE
+        rows, cols = slice(r0 // T, -(-r1 // T)), slice(c0 // T, -(-c1 // T))
+        todo = np.argwhere(~self.done[rows, cols]) + [rows.start, cols.start]
+        if len(todo):
+            h2, w2 = self.grid.shape[:2]
+            blocks = [(slice(a * T, min(a * T + T, h2)), slice(b * T, min(b * T + T, w2)))
+                      for a, b in todo]
+            uv = np.concatenate([np.stack(np.meshgrid(np.arange(cs.start, cs.stop) - 1.0,
+                                                      np.arange(rs.start, rs.stop) - 1.0),
+                                          -1).reshape(-1, 2) for rs, cs in blocks])
+            xn = _undistort(self.camera, uv)
+            n0 = 0
+            for rs, cs in blocks:
+                n = (rs.stop - rs.start) * (cs.stop - cs.start)
+                self.grid[rs, cs] = xn[n0:n0 + n].reshape(rs.stop - rs.start, -1, 2)
+                n0 += n
+            self.done[rows, cols] = True
+        return self.grid[r0:r1, c0:c1]
+
+
+@functools.lru_cache(maxsize=2)
+def _centre_rays(key) -> _CentreRays:
+    """The pixel-centre rays (:class:`_CentreRays`) of the camera of ``key``
+    (:func:`_camera_key`): the same for every view, so inverted once (15 MB
+    at 1280 x 720; :func:`render_rig` renders camera after camera)."""
+    return _CentreRays(_key_camera(key))
 
 
 @functools.lru_cache(maxsize=2)
@@ -201,7 +245,10 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
     """(box, value x coverage, coverage) of the board averaged over the
     sub-poses ``subs`` [(R_bw, t_bw), ...]; box (x0, y0, x1, y1) holds
     every output pixel the board touches (found on a 4 px grid, grown by
-    8 px), None if the board is not in the image."""
+    8 px), None if the board is not in the image. Rendered in strips of
+    ``STRIP`` rows, each over the columns of the grid's hits near its rows
+    only (grown the same way; a tilted or rolled board fills a fraction of
+    its box): the same images as over the whole box."""
     import cv2
     s = settings.supersample
     levels, texel0, margin = _texture(target, settings.margin)
@@ -227,9 +274,15 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
             for _, front in looks]
     for r0 in range(y0, y1, STRIP):          # strips of rows: bounded memory
         r1 = min(r0 + STRIP, y1)
-        hh, ww = r1 - r0, x1 - x0
-        rays = _sample_rays(camera, s, x0, r0, x1, r1)
-        xy = (np.ascontiguousarray(rays[..., 0]), np.ascontiguousarray(rays[..., 1]))
+        # the strip's columns: those of the coarse hits whose grown box
+        # (-8 .. +11 px, as the whole box's) reaches the strip's rows
+        band = found[max((r0 - 8) // 4, 0):(r1 + 7) // 4 + 1]
+        cols = np.flatnonzero(band.any(axis=0))
+        if cols.size == 0:
+            continue
+        c0, c1 = max(cols[0] * 4 - 8, 0), min(cols[-1] * 4 + 12, w)
+        hh, ww = r1 - r0, c1 - c0
+        xy = _sample_xy(camera, s, c0, r0, c1, r1)
         vsum = np.zeros((hh * s, ww * s), np.float32)
         nsum = np.zeros((hh * s, ww * s), np.float32)
         for (R_cb, t_cb), (L, _), (g0, dg) in zip(poses, looks, grey):
@@ -241,18 +294,49 @@ def _board_layer(camera: RigCamera, subs, target, settings) -> tuple | None:
                 continue
             inside, bx, by = inside[box], bx[box], by[box]
             texel = texel0 * 2 ** L
-            mu = np.where(inside, bx / texel - 0.5, -1).astype(np.float32)
-            mv = np.where(inside, by / texel - 0.5, -1).astype(np.float32)
-            tex = cv2.remap(levels[L], mu, mv, cv2.INTER_LINEAR,
+            # in place (bx, by are this sub-pose's own): the numbers of
+            # np.where(inside, bx / texel - 0.5, -1) in float32
+            outside = ~inside
+            maps = []
+            for b in (bx, by):
+                b /= texel
+                b -= 0.5
+                np.copyto(b, -1.0, where=outside)
+                maps.append(b.astype(np.float32))
+            tex = cv2.remap(levels[L], maps[0], maps[1], cv2.INTER_LINEAR,
                             borderMode=cv2.BORDER_REPLICATE)
+            weight = inside.astype(np.float32)
             tex *= np.float32(dg)
             tex += np.float32(g0)
-            tex *= inside
+            tex *= weight
             vsum[box] += tex
-            nsum[box] += inside
-        val[r0 - y0:r1 - y0] = _box_mean(vsum, s)
-        cov[r0 - y0:r1 - y0] = _box_mean(nsum, s)
+            nsum[box] += weight
+        val[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = _box_mean(vsum, s)
+        cov[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = _box_mean(nsum, s)
     return (x0, y0, x1, y1), val / len(poses), cov / len(poses)
+
+
+def face_seen(camera: RigCamera, pose, target, settings: RigRenderSettings) -> bool:
+    """Whether the view of ``pose`` = (R_bw, t_bw[, v, w]) by ``camera``
+    shows any of the board's printed face: some sub-pose of the shutter
+    (:func:`_sub_poses`) turns its face towards the camera and hits the
+    image's 4 px grid (as :func:`_board_layer` finds the board). A view
+    without it holds no marker (the back is plain grey), so nothing in it
+    can be detected as the board."""
+    if len(pose) == 2:
+        pose = (pose[0], pose[1], np.zeros(3), np.zeros(3))
+    _, _, margin = _texture(target, settings.margin)
+    W = target.cols * target.size + 2 * margin
+    H = target.rows * target.size + 2 * margin
+    coarse = None
+    for R_bw, t_bw in _sub_poses(pose, settings):
+        R_cb, t_cb = _camera_board(camera, R_bw, t_bw)
+        if R_cb[:, 2] @ t_cb > 0:                      # the face towards the camera
+            if coarse is None:
+                coarse = _coarse_rays(_camera_key(camera, settings.supersample))
+            if _hit(coarse, R_cb, t_cb, margin, W, H)[2].any():
+                return True
+    return False
 
 
 def render_view(camera: RigCamera, pose, target, settings: RigRenderSettings,
