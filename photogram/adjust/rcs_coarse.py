@@ -53,6 +53,9 @@ PRECONDITIONERS = ("auto", "schur_jacobi", "two_level")
 # coarse modes whose eigenvalue of the unit-diagonal S_c is below this are
 # left out of the coarse correction: the (damped) gauge freedom
 FLOOR = 3e-2
+# the columns of a row group that the coarse space aggregates ("all" or a
+# tuple of slot numbers)
+COARSE_SLOTS = "all"
 
 
 def applicable(structure) -> bool:
@@ -137,9 +140,12 @@ class _Pattern:
     (fixed; cached): clusters, prolongation, the (group, cluster) blocks
     of ``W A^-1 W^T P`` and the sparse layout of ``S P``."""
 
-    def __init__(self, gc, n_r, group, ptr, size):
+    def __init__(self, gc, n_r, group, ptr, size, slots=None, compiled=False):
         n_g, s = gc.shape
-        self.s, self.n_r = s, n_r
+        self.slots = np.arange(s) if slots is None else np.asarray(slots, dtype=np.int64)
+        k = len(self.slots)
+        self.s, self.k, self.n_r = s, k, n_r
+        self.group, self.ptr = group, ptr
         seg = np.repeat(np.arange(len(ptr) - 1), np.diff(ptr))
         M = sp.csr_matrix((np.ones(len(group)), (group, seg)), shape=(n_g, len(ptr) - 1))
         C = (M @ M.T).tocsr()
@@ -147,46 +153,61 @@ class _Pattern:
         C.eliminate_zeros()
         self.cluster = cluster_groups(C, size)
         n_cl = self.n_clusters = int(self.cluster.max()) + 1
-        self.n_c = n_cl * s
-        valid = gc < n_r
-        coarse = self.cluster[:, None] * s + np.arange(s)[None, :]
-        self.P = sp.csr_matrix((np.ones(int(valid.sum())), (gc[valid], coarse[valid])),
+        self.n_c = n_cl * k
+        gk = gc[:, self.slots]
+        valid = gk < n_r
+        coarse = self.cluster[:, None] * k + np.arange(k)[None, :]
+        self.P = sp.csr_matrix((np.ones(int(valid.sum())), (gk[valid], coarse[valid])),
                                shape=(n_r, self.n_c))
-        # (group, cluster) pairs that share a point: one s x s block each
-        cl_row = self.cluster[group]
-        key = seg * n_cl + cl_row
-        self.perm = np.argsort(key, kind="stable")
-        ks = key[self.perm]
-        self.mstarts = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]]) if len(ks) else \
-            np.zeros(0, np.int64)
-        self.mseg = ks[self.mstarts] // n_cl
-        self.mcl = ks[self.mstarts] % n_cl
-        self.mptr = np.searchsorted(self.mseg, np.arange(len(ptr)))
-        cnt = (self.mptr[1:] - self.mptr[:-1])[seg]                  # clusters of a row's point
-        pr = np.repeat(np.arange(len(group)), cnt)
-        first = np.repeat(np.cumsum(cnt) - cnt, cnt)
-        pm = self.mptr[:-1][seg][pr] + np.arange(len(pr)) - first
-        bkey = group[pr] * n_cl + self.mcl[pm]
-        ukeys, bid = np.unique(bkey, return_inverse=True)
-        self.bg, self.bc = ukeys // n_cl, ukeys % n_cl
-        self.n_blocks = len(ukeys)
+        # (group, cluster) pairs that share a point: one s x k block each,
+        # numbered in (group, cluster) order
+        self._numpy = None
+        if compiled:
+            from photogram.adjust import _numba_coarse
+            seen = np.zeros((n_g, n_cl), dtype=np.bool_)
+            _numba_coarse.mark_blocks(group, ptr, self.cluster, seen)
+            self.bg, self.bc = np.nonzero(seen)
+        else:
+            self.bg, self.bc = self.numpy_plan()[0]
+        self.n_blocks = len(self.bg)
         self.lookup = np.full((n_g, n_cl), -1, dtype=np.int64)
         self.lookup[self.bg, self.bc] = np.arange(self.n_blocks)
-        order = np.argsort(bid, kind="stable")
-        self.pair_row, self.pair_m = pr[order], pm[order]
-        self.pair_bid = bid[order]
         # the blocks' entries as a CSR matrix (n_r x n_c): rows gc[bg, a],
-        # columns bc * s + b; the permutation from block order to CSR order
-        a, b = np.meshgrid(np.arange(s), np.arange(s), indexing="ij")
+        # columns bc * k + b; the permutation from block order to CSR order
+        a, b = np.meshgrid(np.arange(s), np.arange(k), indexing="ij")
         rows = gc[self.bg][:, :, None] + 0 * b[None]
-        cols = self.bc[:, None, None] * s + b[None] + 0 * a[None]
+        cols = self.bc[:, None, None] * k + b[None] + 0 * a[None]
         ok = (rows < n_r).ravel()
-        src = np.arange(self.n_blocks * s * s)[ok]
+        src = np.arange(self.n_blocks * s * k)[ok]
         T = sp.csr_matrix((src.astype(float) + 1.0, (rows.ravel()[ok], cols.ravel()[ok])),
                           shape=(n_r, self.n_c))
         T.sort_indices()
         self.csr_src = T.data.astype(np.int64) - 1
         self.csr_indices, self.csr_indptr = T.indices, T.indptr
+
+    def numpy_plan(self):
+        """The numpy twin's index arrays (computed on first use): the
+        blocks ``(bg, bc)``; the rows sorted by (point, cluster) and the
+        starts of those runs; the (row, run) pairs sorted by block."""
+        if self._numpy is None:
+            group, ptr, n_cl = self.group, self.ptr, self.n_clusters
+            seg = np.repeat(np.arange(len(ptr) - 1), np.diff(ptr))
+            key = seg * n_cl + self.cluster[group]
+            perm = np.argsort(key, kind="stable")
+            ks = key[perm]
+            mstarts = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]]) if len(ks) else \
+                np.zeros(0, np.int64)
+            mseg, mcl = ks[mstarts] // n_cl, ks[mstarts] % n_cl
+            mptr = np.searchsorted(mseg, np.arange(len(ptr)))
+            cnt = (mptr[1:] - mptr[:-1])[seg]                   # clusters of a row's point
+            pr = np.repeat(np.arange(len(group)), cnt)
+            first = np.repeat(np.cumsum(cnt) - cnt, cnt)
+            pm = mptr[:-1][seg][pr] + np.arange(len(pr)) - first
+            ukeys, bid = np.unique(group[pr] * n_cl + mcl[pm], return_inverse=True)
+            order = np.argsort(bid, kind="stable")
+            self._numpy = ((ukeys // n_cl, ukeys % n_cl), perm, mstarts, mseg,
+                           pr[order], pm[order], bid[order])
+        return self._numpy
 
     def to_csr(self, blocks):
         """The (group, cluster) blocks as a CSR ``n_r x n_c`` matrix."""
@@ -195,29 +216,31 @@ class _Pattern:
                              shape=(self.n_r, self.n_c))
 
 
-def pattern(owner, gc, n_r, group, ptr, size):
+def pattern(owner, gc, n_r, group, ptr, size, slots=None, compiled=False):
     """The cached :class:`_Pattern` of ``owner`` (a structure or plan)."""
     cache = owner.__dict__.setdefault("_coarse_patterns", {})
-    if size not in cache:
-        cache[size] = _Pattern(gc, n_r, group, ptr, size)
-    return cache[size]
+    key = (size, None if slots is None else tuple(slots))
+    if key not in cache:
+        cache[key] = _Pattern(gc, n_r, group, ptr, size, slots, compiled)
+    return cache[key]
 
 
 def _coupling_numpy(pat, WT, Ainv_seg, chunk=1 << 18):
-    """``(W A^-1 W^T P)`` per (group, cluster) block (n_blocks, s, s),
+    """``(W A^-1 W^T P)`` per (group, cluster) block (n_blocks, s, k),
     numpy: ``W_o^T`` summed per (point, cluster), times the point's
     ``A^-1``, then one ``s x s`` product per (row, cluster of its point),
     summed per block in sorted chunks."""
-    s = WT.shape[2]
-    Y = np.add.reduceat(WT[pat.perm], pat.mstarts, axis=0) if len(pat.perm) else \
-        np.zeros((0, 3, s))
-    Z = np.matmul(Ainv_seg[pat.mseg], Y)                        # (n_m, 3, s)
-    out = np.zeros((pat.n_blocks, s, s))
-    n = len(pat.pair_row)
+    s, k = WT.shape[2], pat.k
+    _, perm, mstarts, mseg, pair_row, pair_m, pair_bid = pat.numpy_plan()
+    Y = np.add.reduceat(WT[perm][:, :, pat.slots], mstarts, axis=0) if len(perm) \
+        else np.zeros((0, 3, k))
+    Z = np.matmul(Ainv_seg[mseg], Y)                            # (n_m, 3, k)
+    out = np.zeros((pat.n_blocks, s, k))
+    n = len(pair_row)
     for lo in range(0, n, chunk):
         hi = min(lo + chunk, n)
-        bid = pat.pair_bid[lo:hi]
-        vals = np.einsum("nis,nit->nst", WT[pat.pair_row[lo:hi]], Z[pat.pair_m[lo:hi]])
+        bid = pair_bid[lo:hi]
+        vals = np.einsum("nis,nit->nst", WT[pair_row[lo:hi]], Z[pair_m[lo:hi]])
         starts = np.flatnonzero(np.r_[True, bid[1:] != bid[:-1]])
         out[bid[starts]] += np.add.reduceat(vals, starts, axis=0)
     return out
@@ -225,9 +248,9 @@ def _coupling_numpy(pat, WT, Ainv_seg, chunk=1 << 18):
 
 def _coupling_numba(pat, WT, group, ptr, Ainv_seg):
     from photogram.adjust import _numba_coarse
-    s = WT.shape[2]
-    out = np.zeros((pat.n_blocks, s, s))
-    _numba_coarse.coupling_blocks(WT, group, ptr, Ainv_seg, pat.cluster, pat.lookup, out)
+    out = np.zeros((pat.n_blocks, WT.shape[2], pat.k))
+    _numba_coarse.coupling_blocks(WT, group, ptr, Ainv_seg, pat.cluster, pat.lookup,
+                                  pat.slots, out)
     return out
 
 
@@ -241,7 +264,7 @@ class TwoLevel:
     jacobi : callable
         The Schur-Jacobi inverse ``J``.
     pat : _Pattern
-    coupling : (n_blocks, s, s) array
+    coupling : (n_blocks, s, k) array
         ``W A^-1 W^T P`` per (group, cluster) block.
     """
 
@@ -299,23 +322,32 @@ def _rows(op):
     return WT, op.grp, st.pt_ptr, op.Ainv, st
 
 
-def two_level(op, jacobi, cluster_size=64, compiled=None):
+def two_level(op, jacobi, cluster_size=64, compiled=None, floor=None, slots=None):
     """The two-level preconditioner of a
     :class:`~photogram.adjust.rcs_iterative.SchurOperator` with smoother
     ``jacobi``; ``compiled``: use the numba kernel (None: when the
-    kernels are active)."""
+    kernels are active); ``floor``: the eigenvalue of the unit-diagonal
+    ``S_c`` below which coarse modes are left out (None: ``FLOOR``);
+    ``slots``: the columns of a group that the coarse space aggregates
+    (None: ``COARSE_SLOTS``; "all": every column)."""
     st = op.system.structure
     WT, group, ptr, Ainv_seg, owner = _rows(op)
     group = np.ascontiguousarray(group, dtype=np.int64)
     ptr = np.ascontiguousarray(ptr, dtype=np.int64)
-    pat = pattern(owner, st.group_cols, st.n_r, group, ptr, int(cluster_size))
+    if slots is None:
+        slots = COARSE_SLOTS
+    if isinstance(slots, str) or slots is None:
+        slots = None
+    else:
+        slots = [j for j in slots if j < st.group_cols.shape[1]]
     if compiled is None:
         compiled = kernels.active(len(group)) and _have_numba()
+    pat = pattern(owner, st.group_cols, st.n_r, group, ptr, int(cluster_size), slots, compiled)
     if compiled:
         coupling = _coupling_numba(pat, WT, group, ptr, Ainv_seg)
     else:
         coupling = _coupling_numpy(pat, WT, Ainv_seg)
-    return TwoLevel(op.Ncc, jacobi, pat, coupling)
+    return TwoLevel(op.Ncc, jacobi, pat, coupling, floor)
 
 
 def _have_numba():
