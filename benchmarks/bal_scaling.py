@@ -27,6 +27,7 @@ cameras for DENSE_SCHUR, linear otherwise) or at more than
 Run: /work/venv-bal/bin/python benchmarks/bal_scaling.py
      [--cameras 100,333,1000,3333] [--iterations 4] [--no-numpy] [--seed 1]
      [--preconditioner auto|schur_jacobi|two_level] [--cluster-size 64]
+     [--ceres-settings ITERATIVE_SCHUR:1,...]
      [--ceres-from earlier_output.txt]
 Prints a table and ``RESULT key=value ...``.
 """
@@ -170,6 +171,9 @@ def main():
     ap.add_argument("--cluster-size", type=int, default=None,
                     help="SolverOptions.coarse_cluster_size (default: the option's default)")
     ap.add_argument("--no-ceres", action="store_true")
+    ap.add_argument("--ceres-settings", default=None,
+                    help="only these Ceres settings, e.g. ITERATIVE_SCHUR:1,SPARSE_SCHUR:1 "
+                         "(default: all six)")
     ap.add_argument("--ceres-limit", type=float, default=600.0)
     ap.add_argument("--ceres-max-obs", type=float, default=1.1e7)
     ap.add_argument("--numpy-max-obs", type=float, default=1.1e7)
@@ -184,6 +188,8 @@ def main():
         have_ceres = False
         print("pycolmap is not installed: no Ceres columns")
     sizes = [int(c) for c in args.cameras.split(",")]
+    settings = SETTINGS if args.ceres_settings is None else [
+        (k, int(t)) for k, t in (w.split(":") for w in args.ceres_settings.split(","))]
     print(f"SIMULATED sphere BAL problems, seed {args.seed}, {args.iterations} iterations; "
           f"numba {'installed' if kernels.HAVE_NUMBA else 'missing'}; times per iteration, "
           "CPU s (wall s)")
@@ -193,7 +199,7 @@ def main():
     print(f"photogram: cg_preconditioner={args.preconditioner}"
           + (f", coarse_cluster_size={args.cluster_size}" if args.cluster_size else ""))
     warm_up()
-    rows, hist = [], {s: [] for s in SETTINGS}
+    rows, hist = [], {s: [] for s in settings}
     for n_c in sizes:
         bal = sphere_bal(n_c, seed=args.seed).problem
         n_obs = bal.n_observations
@@ -206,7 +212,7 @@ def main():
         if args.ceres_from is not None:
             row["ceres"] = earlier_ceres(args.ceres_from).get(n_c, {})
         elif have_ceres and n_obs <= args.ceres_max_obs:
-            for kind, threads in SETTINGS:
+            for kind, threads in settings:
                 guess = predicted(hist[(kind, threads)], kind, n_c, args.iterations)
                 if guess is not None and guess > args.ceres_limit:
                     row["ceres"][(kind, threads)] = None

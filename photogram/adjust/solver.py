@@ -71,8 +71,8 @@ class SolverOptions:
     ``"schur_jacobi"``, ``"two_level"`` (Schur-Jacobi plus a coarse
     correction on clusters of about ``coarse_cluster_size`` cameras,
     :mod:`photogram.adjust.rcs_coarse`) or ``"auto"`` (two-level from
-    ``TWO_LEVEL_MIN_GROUPS`` row groups on, where it was measured to pay,
-    when it applies). ``Summary.cg_preconditioner`` says which one ran.
+    ``TWO_LEVEL_MIN_GROUPS`` row groups on with the numba kernels, where
+    it was measured to pay, when it applies). ``Summary.cg_preconditioner`` says which one ran.
     """
 
     max_iterations: int = 50
@@ -287,7 +287,8 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
 def cg_preconditioner(problem: Problem, options: SolverOptions, method: str) -> str:
     """The CG preconditioner of the iterative RCS solve that
     ``options.cg_preconditioner`` asks for ("" with the dense solve;
-    ``"auto"``: two-level from ``TWO_LEVEL_MIN_GROUPS`` row groups on, when
+    ``"auto"``: two-level from ``TWO_LEVEL_MIN_GROUPS`` row groups on, with
+    the compiled kernels active, when
     :func:`photogram.adjust.rcs_coarse.applicable`)."""
     from photogram.adjust import rcs_coarse
     choice = options.cg_preconditioner
@@ -301,7 +302,8 @@ def cg_preconditioner(problem: Problem, options: SolverOptions, method: str) -> 
         raise ValueError("cg_preconditioner='two_level' needs at least two row groups and "
                          "every reduced column in at most one group; use 'schur_jacobi'")
     if choice == "auto":
-        big = problem.structure.group_cols.shape[0] >= TWO_LEVEL_MIN_GROUPS
+        st = problem.structure
+        big = st.group_cols.shape[0] >= TWO_LEVEL_MIN_GROUPS and kernels.active(st.n_e_rows)
         return "two_level" if big and ok else "schur_jacobi"
     return choice
 
