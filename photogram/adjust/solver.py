@@ -34,7 +34,7 @@ DAMPINGS = ("none", "lm", "armijo", "trust_region")
 # "fused": numba with point_rows' fused BAL linearization}
 ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000, "fused": 500}
 # row groups (cameras) from which "auto" preconditions CG with two levels
-TWO_LEVEL_MIN_GROUPS = 1000
+TWO_LEVEL_MIN_GROUPS = 2000
 
 
 @dataclass
