@@ -28,6 +28,8 @@ cameras for DENSE_SCHUR, linear otherwise) or at more than
 
 Run: /work/venv-bal/bin/python benchmarks/bal_scaling.py
      [--cameras 100,333,1000,3333] [--iterations 4] [--no-numpy] [--seed 1]
+     [--preconditioner auto|schur_jacobi|two_level] [--cluster-size 64]
+     [--ceres-settings ITERATIVE_SCHUR:1,...]
      [--ceres-from earlier_output.txt]
 Prints a table and ``RESULT key=value ...``.
 """
@@ -52,19 +54,21 @@ SETTINGS = [(k, t) for k in ("DENSE_SCHUR", "SPARSE_SCHUR", "ITERATIVE_SCHUR") f
 
 
 def warm_up():
-    """Load numba's cached kernels (both RCS solves) before any timing: a
+    """Load numba's cached kernels (both RCS solves, both preconditioners) before any timing: a
     problem above the kernels' row threshold (20,000 E-rows), solved for
     two iterations with the dense and with the iterative RCS."""
     if not kernels.HAVE_NUMBA:
         return
     kernels.use_numba(True)
     warm = sphere_bal(20, obs_per_camera=1500, seed=99).problem
-    for method in ("dense", "iterative"):
+    for method, pre in (("dense", "auto"), ("iterative", "schur_jacobi"),
+                        ("iterative", "two_level")):
         solve_bal(build_bal_problem(warm, behind="keep"),
-                  bal_options(max_iterations=2, linear_solver=method))
+                  bal_options(max_iterations=2, linear_solver=method, cg_preconditioner=pre,
+                              coarse_cluster_size=5))
 
 
-def photogram_run(bal, iterations, numba):
+def photogram_run(bal, iterations, numba, precond=None):
     kernels.use_numba(numba)
     steps, original = [], rcs_iterative.pcg
 
@@ -74,17 +78,17 @@ def photogram_run(bal, iterations, numba):
         return x, it
     rcs_iterative.pcg = pcg
     try:
-        out = _photogram_run(bal, iterations)
+        out = _photogram_run(bal, iterations, precond or {})
     finally:
         rcs_iterative.pcg = original
     out["cg"] = steps
     return out
 
 
-def _photogram_run(bal, iterations):
+def _photogram_run(bal, iterations, precond):
     built = build_bal_problem(bal, behind="keep")
     marks = []
-    opt = bal_options(max_iterations=iterations,
+    opt = bal_options(max_iterations=iterations, **precond,
                       callback=lambda i, c, lam: marks.append((i, time.process_time(),
                                                                time.perf_counter())))
     c0, w0 = time.process_time(), time.perf_counter()
@@ -94,7 +98,7 @@ def _photogram_run(bal, iterations):
     if s.status == "max_iterations" and marks:
         it, cpu, wall = marks[-1][0], marks[-1][1] - c0, marks[-1][2] - w0
     return {"cpu": cpu / it, "wall": wall / it, "iterations": it, "final": s.final_cost,
-            "solver": s.linear_solver}
+            "solver": s.linear_solver, "precond": s.cg_preconditioner}
 
 
 def ceres_run(bal, iterations, kind, threads):
@@ -163,7 +167,15 @@ def main():
     ap.add_argument("--iterations", type=int, default=4)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-numpy", action="store_true", help="skip the pure-numpy path")
+    ap.add_argument("--preconditioner", default="auto",
+                    choices=("auto", "schur_jacobi", "two_level"),
+                    help="SolverOptions.cg_preconditioner of photogram's iterative RCS solve")
+    ap.add_argument("--cluster-size", type=int, default=None,
+                    help="SolverOptions.coarse_cluster_size (default: the option's default)")
     ap.add_argument("--no-ceres", action="store_true")
+    ap.add_argument("--ceres-settings", default=None,
+                    help="only these Ceres settings, e.g. ITERATIVE_SCHUR:1,SPARSE_SCHUR:1 "
+                         "(default: all six)")
     ap.add_argument("--ceres-limit", type=float, default=600.0)
     ap.add_argument("--ceres-max-obs", type=float, default=1.1e7)
     ap.add_argument("--numpy-max-obs", type=float, default=1.1e7)
@@ -178,24 +190,31 @@ def main():
         have_ceres = False
         print("pycolmap is not installed: no Ceres columns")
     sizes = [int(c) for c in args.cameras.split(",")]
+    settings = SETTINGS if args.ceres_settings is None else [
+        (k, int(t)) for k, t in (w.split(":") for w in args.ceres_settings.split(","))]
     print(f"SIMULATED sphere BAL problems, seed {args.seed}, {args.iterations} iterations; "
           f"numba {'installed' if kernels.HAVE_NUMBA else 'missing'}; times per iteration, "
           "CPU s (wall s)")
+    precond = {"cg_preconditioner": args.preconditioner}
+    if args.cluster_size is not None:
+        precond["coarse_cluster_size"] = args.cluster_size
+    print(f"photogram: cg_preconditioner={args.preconditioner}"
+          + (f", coarse_cluster_size={args.cluster_size}" if args.cluster_size else ""))
     warm_up()
-    rows, hist = [], {s: [] for s in SETTINGS}
+    rows, hist = [], {s: [] for s in settings}
     for n_c in sizes:
         bal = sphere_bal(n_c, seed=args.seed).problem
         n_obs = bal.n_observations
         row = {"cameras": n_c, "obs": n_obs, "points": bal.n_points}
         if kernels.HAVE_NUMBA:
-            row["numba"] = photogram_run(bal, args.iterations, True)
+            row["numba"] = photogram_run(bal, args.iterations, True, precond)
         if not args.no_numpy and n_obs <= args.numpy_max_obs:
-            row["numpy"] = photogram_run(bal, args.iterations, False)
+            row["numpy"] = photogram_run(bal, args.iterations, False, precond)
         row["ceres"] = {}
         if args.ceres_from is not None:
             row["ceres"] = earlier_ceres(args.ceres_from).get(n_c, {})
         elif have_ceres and n_obs <= args.ceres_max_obs:
-            for kind, threads in SETTINGS:
+            for kind, threads in settings:
                 guess = predicted(hist[(kind, threads)], kind, n_c, args.iterations)
                 if guess is not None and guess > args.ceres_limit:
                     row["ceres"][(kind, threads)] = None
@@ -214,7 +233,8 @@ def report(row):
         r = row.get(key)
         if r:
             cg = f", CG steps {'+'.join(map(str, r['cg']))}" if r.get("cg") else ""
-            print(f"  photogram {key:<6} ({r['solver']:<9}) {r['cpu']:8.3f} ({r['wall']:7.3f})  "
+            solver = r["solver"] + (f", {r['precond']}" if r.get("precond") else "")
+            print(f"  photogram {key:<6} ({solver:<9}) {r['cpu']:8.3f} ({r['wall']:7.3f})  "
                   f"{r['iterations']} it, cost {r['final']:.6g}{cg}")
     for (kind, threads), r in row["ceres"].items():
         if r is None:

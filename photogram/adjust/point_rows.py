@@ -389,11 +389,12 @@ class PointSystem(NormalSystem):
         return Ncc, Ainv
 
     def solve_iterative(self, layout, damping, tolerance, max_iterations, point_labels=None,
-                        criterion="residual"):
+                        criterion="residual", precond=("schur_jacobi", 64)):
         """The damped step by preconditioned CG on the reduced camera
         system (:func:`photogram.adjust.schur.solve`'s iterative method),
-        every point-side quantity in the plan's order."""
-        from photogram.adjust import rcs_iterative
+        every point-side quantity in the plan's order (``precond``: kind
+        and cluster size, :func:`photogram.adjust.rcs_coarse.preconditioner`)."""
+        from photogram.adjust import rcs_coarse, rcs_iterative
         from photogram.errors import GeometryError
         n_r = layout.n_reduced
         pl = self.plan
@@ -403,12 +404,12 @@ class PointSystem(NormalSystem):
         if parts is None:
             rhs_c = -self.g[:n_r] + op.w_times_e(
                 np.einsum("nij,nj->ni", op.Ainv, self.g[n_r:].reshape(-1, 3)))
-            precond = rcs_iterative.schur_jacobi(op)
+            apply = rcs_coarse.preconditioner(op, *precond)
         else:
             rhs_c = -self.g[:n_r] + parts[1]
-            precond = rcs_iterative.schur_jacobi(op, parts[0])
+            apply = rcs_coarse.preconditioner(op, *precond, coupling=parts[0])
         rhs_c[~layout.free[:n_r]] = 0.0
-        dx_c, _ = rcs_iterative.pcg(op, rhs_c, precond, tolerance, max_iterations, criterion)
+        dx_c, _ = rcs_iterative.pcg(op, rhs_c, apply, tolerance, max_iterations, criterion)
         rhs_o = -self.g_o - self.back_o(dx_c)
         dx = np.empty(layout.n_columns)
         dx[:n_r] = dx_c

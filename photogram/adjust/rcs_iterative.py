@@ -285,7 +285,12 @@ def pcg(op, b, precond, tolerance=0.1, max_iterations=500, criterion="residual")
     ``ConjugateGradientsSolver`` with ``q_tolerance = eta``): with the
     quadratic model ``Q(x) = x^T S x - 2 b^T x = -x^T (b + r)``, stop at
     step i when ``i (Q_i - Q_{i-1}) / Q_i < tolerance``, i.e. when the
-    last step's share of the model decrease so far, times i, is small."""
+    last step's share of the model decrease so far, times i, is small.
+
+    A preconditioner with a ``measure`` attribute (a function ``r ->
+    J r``, e.g. :class:`photogram.adjust.rcs_coarse.TwoLevel`) has the
+    residual test taken in that norm, ``sqrt(r^T J r)``, instead of its
+    own: the same test whichever preconditioner runs."""
     if criterion not in CG_CRITERIA:
         raise ValueError(f"unknown CG criterion {criterion!r} ({', '.join(CG_CRITERIA)})")
     x = np.zeros_like(b)
@@ -294,7 +299,8 @@ def pcg(op, b, precond, tolerance=0.1, max_iterations=500, criterion="residual")
     rz = float(r @ z)
     if not rz > 0.0:
         return x, 0
-    stop = tolerance * tolerance * rz
+    measure = getattr(precond, "measure", None)
+    stop = tolerance * tolerance * (rz if measure is None else float(r @ measure(r)))
     model = criterion == "model"
     q0 = 0.0
     p = z.copy()
@@ -317,7 +323,7 @@ def pcg(op, b, precond, tolerance=0.1, max_iterations=500, criterion="residual")
             q0 = q1
         z = precond(r)
         rz_new = float(r @ z)
-        if not model and rz_new <= stop:
+        if not model and (rz_new if measure is None else float(r @ measure(r))) <= stop:
             break
         if rz_new == 0.0:
             break

@@ -182,7 +182,8 @@ RCS_METHODS = ("dense", "iterative")
 
 
 def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense",
-          cg_tolerance=0.1, cg_max_iterations=500, cg_criterion="residual"):
+          cg_tolerance=0.1, cg_max_iterations=500, cg_criterion="residual",
+          cg_preconditioner="schur_jacobi", coarse_cluster_size=64):
     """One Gauss-Newton (or damped, Levenberg-Marquardt) step.
 
     Parameters
@@ -204,6 +205,9 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
         ``cg_tolerance`` by ``cg_criterion``, see
         :func:`photogram.adjust.rcs_iterative.pcg`; not with datum conditions ``G``, no
         factorization: ``fact`` is None).
+    cg_preconditioner : "schur_jacobi" or "two_level"
+        With ``coarse_cluster_size``: the preconditioner of the iterative
+        solve (:func:`photogram.adjust.rcs_coarse.preconditioner`).
 
     Returns
     -------
@@ -217,7 +221,8 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
     if method == "iterative" and G is None and hasattr(system, "solve_iterative"):
         # photogram.adjust.point_rows.PointSystem: everything in its point order
         return system.solve_iterative(layout, damping, cg_tolerance, cg_max_iterations,
-                                      point_labels, cg_criterion), None
+                                      point_labels, cg_criterion,
+                                      (cg_preconditioner, coarse_cluster_size)), None
     Ncc, A = damped(system, layout, damping)
     g_c, g_e = system.g[:n_r], system.g[n_r:]
     Ainv = invert_point_blocks(A, point_labels)
@@ -226,7 +231,7 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
             raise ValueError("the iterative reduced-camera-system solve takes no datum "
                              "conditions G (use method='dense')")
         return _solve_iterative(system, Ncc, Ainv, layout, cg_tolerance, cg_max_iterations,
-                                cg_criterion)
+                                cg_criterion, (cg_preconditioner, coarse_cluster_size))
     S, YGe = reduced_camera_system(system, Ainv, Ncc)
     rhs_c = -g_c + YGe
 
@@ -277,15 +282,17 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
     return dx, Factorization(Ainv, M, cho, d if G is None else dd, AinvGe, n_r, system)
 
 
-def _solve_iterative(system, Ncc, Ainv, layout, tolerance, max_iterations, criterion):
-    """The step by conjugate gradients on the reduced camera system."""
-    from photogram.adjust import rcs_iterative
+def _solve_iterative(system, Ncc, Ainv, layout, tolerance, max_iterations, criterion,
+                     precond=("schur_jacobi", 64)):
+    """The step by conjugate gradients on the reduced camera system
+    (``precond``: the preconditioner's kind and cluster size)."""
+    from photogram.adjust import rcs_coarse, rcs_iterative
     n_r, n_e = layout.n_reduced, layout.n_eliminated
     g_c, g_e = system.g[:n_r], system.g[n_r:].reshape(n_e, 3)
     op = rcs_iterative.SchurOperator(system, Ncc, Ainv)
     rhs_c = -g_c + op.w_times_e(np.einsum("nij,nj->ni", Ainv, g_e))
     rhs_c[~layout.free[:n_r]] = 0.0
-    dx_c, _ = rcs_iterative.pcg(op, rhs_c, rcs_iterative.schur_jacobi(op),
+    dx_c, _ = rcs_iterative.pcg(op, rhs_c, rcs_coarse.preconditioner(op, *precond),
                                 tolerance, max_iterations, criterion)
     rhs_e = -g_e - system.wt_times_c(dx_c)
     dx_e = np.matmul(Ainv, rhs_e[:, :, None])[:, :, 0].ravel()

@@ -33,6 +33,12 @@ DAMPINGS = ("none", "lm", "armijo", "trust_region")
 # reduced columns from which "auto" solves the RCS iteratively: {numba: n;
 # "fused": point_rows' fused BAL linearization, numba or its numpy twin}
 ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000, "fused": 500}
+# row groups (cameras) from which "auto" preconditions CG with two levels:
+# up to 3333 cameras (10^7 observations, the largest measured) it did not
+# pay (it halves the CG steps, its coarse pass costs as much as they
+# saved; docs/benchmarks.md, "Follow-up 5"); 10000 is an extrapolation of
+# the growing Schur-Jacobi step counts, not a measurement
+TWO_LEVEL_MIN_GROUPS = 10000
 
 
 @dataclass
@@ -66,7 +72,12 @@ class SolverOptions:
     ``"model"``, by Ceres' test for Levenberg-Marquardt steps (the last
     step's share of the quadratic model's decrease, times the step count,
     below ``cg_tolerance``; :func:`photogram.adjust.rcs_iterative.pcg`), or
-    after ``cg_max_iterations`` steps.
+    after ``cg_max_iterations`` steps. ``cg_preconditioner``:
+    ``"schur_jacobi"``, ``"two_level"`` (Schur-Jacobi plus a coarse
+    correction on clusters of about ``coarse_cluster_size`` cameras,
+    :mod:`photogram.adjust.rcs_coarse`) or ``"auto"`` (two-level from
+    ``TWO_LEVEL_MIN_GROUPS`` row groups on with the numba kernels, where
+    it was measured to pay, when it applies). ``Summary.cg_preconditioner`` says which one ran.
     """
 
     max_iterations: int = 50
@@ -91,6 +102,8 @@ class SolverOptions:
     cg_tolerance: float = 0.1         # Ceres' eta (ITERATIVE_SCHUR)
     cg_max_iterations: int = 500
     cg_criterion: str = "residual"    # residual | model (Ceres' LM test, rcs_iterative.pcg)
+    cg_preconditioner: str = "auto"   # auto | schur_jacobi | two_level (rcs_coarse)
+    coarse_cluster_size: int = 64     # row groups (cameras) per coarse cluster (two_level)
 
 
 @dataclass
@@ -110,6 +123,7 @@ class Summary:
     successful_steps: int = 0
     unsuccessful_steps: int = 0
     linear_solver: str = ""             # dense | iterative (the RCS solve used)
+    cg_preconditioner: str = ""         # schur_jacobi | two_level (iterative RCS only)
 
     def to_dict(self) -> dict:
         return {k: v for k, v in self.__dict__.items()}
@@ -140,7 +154,8 @@ class Problem:
         # how solve_linear solves the reduced camera system (set by solve()
         # for its run from SolverOptions; dense otherwise)
         self.rcs = {"method": "dense", "cg_tolerance": 0.1, "cg_max_iterations": 500,
-                    "cg_criterion": "residual"}
+                    "cg_criterion": "residual", "cg_preconditioner": "schur_jacobi",
+                    "coarse_cluster_size": 64}
 
     def weights(self, k):
         """sqrt of the weight of every residual of block k (0 = not used)."""
@@ -257,8 +272,12 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     """
     opt = options or SolverOptions()
     saved = dict(problem.rcs)
-    problem.rcs.update(method=rcs_method(problem, opt), cg_tolerance=opt.cg_tolerance,
-                       cg_max_iterations=opt.cg_max_iterations, cg_criterion=opt.cg_criterion)
+    method = rcs_method(problem, opt)
+    precond = cg_preconditioner(problem, opt, method)
+    problem.rcs.update(method=method, cg_tolerance=opt.cg_tolerance,
+                       cg_max_iterations=opt.cg_max_iterations, cg_criterion=opt.cg_criterion,
+                       cg_preconditioner=precond or "schur_jacobi",
+                       coarse_cluster_size=opt.coarse_cluster_size)
     try:
         with single_thread_blas():
             s = _solve(problem, opt)
@@ -266,7 +285,32 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
         method = problem.rcs["method"]
         problem.rcs = saved
     s.linear_solver = method
+    s.cg_preconditioner = precond
     return s
+
+
+def cg_preconditioner(problem: Problem, options: SolverOptions, method: str) -> str:
+    """The CG preconditioner of the iterative RCS solve that
+    ``options.cg_preconditioner`` asks for ("" with the dense solve;
+    ``"auto"``: two-level from ``TWO_LEVEL_MIN_GROUPS`` row groups on, with
+    the compiled kernels active, when
+    :func:`photogram.adjust.rcs_coarse.applicable`)."""
+    from photogram.adjust import rcs_coarse
+    choice = options.cg_preconditioner
+    if choice not in rcs_coarse.PRECONDITIONERS:
+        raise ValueError(f"unknown cg_preconditioner {choice!r} "
+                         f"({', '.join(rcs_coarse.PRECONDITIONERS)})")
+    if method != "iterative":
+        return ""
+    ok = rcs_coarse.applicable(problem.structure)
+    if choice == "two_level" and not ok:
+        raise ValueError("cg_preconditioner='two_level' needs at least two row groups and "
+                         "every reduced column in at most one group; use 'schur_jacobi'")
+    if choice == "auto":
+        st = problem.structure
+        big = st.group_cols.shape[0] >= TWO_LEVEL_MIN_GROUPS and kernels.active(st.n_e_rows)
+        return "two_level" if big and ok else "schur_jacobi"
+    return choice
 
 
 def rcs_method(problem: Problem, options: SolverOptions) -> str:
