@@ -51,8 +51,8 @@ test-fast: $(STAMP)
 # `make test` tests: the test files that compare the two paths or test the
 # kernels, which skip where numba is missing. .ci/run runs it after `make test`.
 NUMBA_VENV := .venv-numba
-NUMBA_TESTS := tests/test_adjust_kernels.py tests/test_adjust_rcs_sparse.py tests/test_bal.py \
-	tests/test_bal_point_rows.py tests/test_rcs_cg_criterion.py tests/test_stats_blockwise.py
+NUMBA_TESTS := tests/test_adjust_kernels.py tests/test_adjust_rcs_sparse.py tests/test_bal.py tests/test_rcs_coarse.py \
+	tests/test_bal_point_rows.py tests/test_bal_point_rows_numpy.py tests/test_rcs_cg_criterion.py tests/test_stats_blockwise.py
 $(NUMBA_VENV)/.installed: setup.cfg pyproject.toml
 	$(PYTHON) -m venv $(NUMBA_VENV)
 	$(NUMBA_VENV)/bin/python -m pip install --quiet --upgrade pip

@@ -36,7 +36,7 @@ ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000, "fused": 500}
 # row groups (cameras) from which "auto" preconditions CG with two levels:
 # up to 3333 cameras (10^7 observations, the largest measured) it did not
 # pay (it halves the CG steps, its coarse pass costs as much as they
-# saved; docs/benchmarks.md, "Follow-up 5"); 10000 is an extrapolation of
+# saved; docs/benchmarks.md, "Follow-up 4"); 10000 is an extrapolation of
 # the growing Schur-Jacobi step counts, not a measurement
 TWO_LEVEL_MIN_GROUPS = 10000
 
