@@ -55,10 +55,11 @@ def _mocap(project):
     return project.output_folder(), None
 
 
-def _measure(path):
+def _measure(path, report: bool = True):
     """photogram measure of a target field into its default folder (the demo
     replaces its own earlier measurement, and says so), then the check
-    against the typed observations beside it."""
+    against the typed observations beside it; report.pdf and the drawn
+    images unless ``report`` is false."""
     from photogram.commands.measure import measure_to_folder
     from photogram.measure.compare import compare_tables
     from photogram.project.output_policy import claim_output
@@ -67,7 +68,7 @@ def _measure(path):
     rel = path.relative_to(ROOT)
     if claim_output(folder, command="measure", force=True) != "new":
         print(f"measure {rel}: replacing the earlier results in {folder.relative_to(ROOT)}")
-    folder, result = measure_to_folder(path, folder, force=True)
+    folder, result = measure_to_folder(path, folder, force=True, report=report)
     per = [len([v for v in im.numbering.labels if v]) for im in result.images]
     print(f"measure {rel}: {len(result.table())} observations in {len(result.images)} images "
           f"({min(per)}-{max(per)} per image); results in {folder.relative_to(ROOT)}")

@@ -106,12 +106,12 @@ def test_demo_runs_the_lab_and_field_chain(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(demo, "PROJECTS", tmp_path / "projects")
     all_steps = demo.steps
     assert [s[0] for s in all_steps()[:3]] == ["measure", "calibrate", "orient"]
-    # the first three steps, calibrate and orient without report.pdf (not
-    # under test here: tests/test_report*.py; the report costs more CPU
-    # than the adjustment)
+    # the first three steps, measure, calibrate and orient without report.pdf
+    # (not under test here: tests/test_report*.py and, for measure,
+    # test_measure_errors.py::test_report_drawings_and_pdf; the report costs
+    # more CPU than the adjustment)
     monkeypatch.setattr(demo, "steps", lambda: [
-        (c, functools.partial(f, report=False) if c in ("calibrate", "orient") else f, p, n)
-        for c, f, p, n in all_steps()[:3]])
+        (c, functools.partial(f, report=False), p, n) for c, f, p, n in all_steps()[:3]])
     assert main(["demo"]) == 0
     out = capsys.readouterr().out
     # the photographs are measured first, checked against the typed table, then calibrated
@@ -119,7 +119,8 @@ def test_demo_runs_the_lab_and_field_chain(tmp_path, monkeypatch, capsys):
     check = re.search(r"check against the typed lab_image_points\.csv: (\d+) of 446 found.*"
                       r" (\d+) more than 3 px off \(wrong labels\)", out)
     assert check and int(check.group(1)) >= 0.84 * 446 and check.group(2) == "0", out
-    assert (tmp_path / "projects" / "lab" / "results-measure" / "image_points.csv").is_file()
+    measured = tmp_path / "projects" / "lab" / "results-measure"
+    assert (measured / "image_points.csv").is_file() and not (measured / "report.pdf").exists()
     assert "calibrate projects/lab/lab.prj: converged" in out
     assert "orient projects/field/field.prj: converged" in out
     assert (tmp_path / "projects" / "field" / "results" / "summary.json").is_file()

@@ -77,6 +77,12 @@ _REPLICATES = 400
 
 # --------------------------------------------------------------------------
 # fine: triangulate from the others, reproject into the camera under test
+def _norm3(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm over the last axis (3): the sums np.linalg.norm forms,
+    in its order (the same bits), without its overhead."""
+    return np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1] + v[..., 2] * v[..., 2])
+
+
 def triangulate_bearings(u: np.ndarray, w: np.ndarray, X0: np.ndarray,
                          iterations: int = 4) -> np.ndarray:
     """Points (F, J, 3) closest to the rays ``X0[c] + s u[f, c, j]``
@@ -92,11 +98,13 @@ def triangulate_bearings(u: np.ndarray, w: np.ndarray, X0: np.ndarray,
     weights = np.where(ok, w, 0.0)
     two = ok.sum(1) >= 2
     eye = np.eye(3)
+    uT = uu.transpose(0, 2, 1, 3)                                   # (F, J, C, 3)
+    uc = uu.transpose(0, 2, 3, 1)                                   # (F, J, 3, C)
     X = np.full(u.shape[:1] + u.shape[2:], np.nan)
     for it in range(iterations):
         sw = weights.sum(1)                                         # (F, J)
-        wu = (weights[..., None] * uu).transpose(0, 2, 3, 1)         # (F, J, 3, C)
-        A = sw[..., None, None] * eye - wu @ uu.transpose(0, 2, 1, 3)
+        wu = weights.transpose(0, 2, 1)[:, :, None, :] * uc          # (F, J, 3, C)
+        A = sw[..., None, None] * eye - wu @ uT
         b = weights.transpose(0, 2, 1) @ X0 - np.einsum("fjac,fcj->fja", wu, ux0)
         det = np.linalg.det(A)
         good = two & (np.abs(det) > 1e-12 * np.maximum(sw, 1e-300) ** 3)
@@ -107,11 +115,10 @@ def triangulate_bearings(u: np.ndarray, w: np.ndarray, X0: np.ndarray,
         d = X[:, None] - X0c                                        # (F, C, J, 3)
         along = np.sum(uu * d, -1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            ang = np.linalg.norm(d - along[..., None] * uu, axis=-1) / np.linalg.norm(d, axis=-1)
-        ang = np.where(ok, ang, np.nan)
-        if not np.any(np.isfinite(ang)):
+            ang = _norm3(d - along[..., None] * uu) / _norm3(d)
+        if not np.any(ok & np.isfinite(ang)):
             break
-        scale = 2.0 * np.nanmedian(ang) + 1e-12
+        scale = 2.0 * np.median(ang[ok & ~np.isnan(ang)]) + 1e-12    # = nanmedian
         weights = np.where(ok, w / (1.0 + (np.nan_to_num(ang) / scale) ** 2), 0.0)
     return X
 

@@ -178,8 +178,9 @@ def _tracklets(frames, centre, size, usable, F, gate):
         taken = set()
         if active and cand:
             last = np.array([tracks[t][-1] for t in active])
-            ends = [_end_state(np.array(tracks[t]), frames, centre, size, True)
-                    for t in active]
+            # the tail is all _end_state reads (not the whole tracklet each frame)
+            ends = [_end_state(np.array(tracks[t][-_VELOCITY_FRAMES:]), frames, centre, size,
+                               True) for t in active]
             g = (f - frames[last]).astype(float)
             pred = np.array([e[0] + e[2] * gi for e, gi in zip(ends, g)])
             c = np.array(cand)
