@@ -771,11 +771,18 @@ def staged_base() -> Path:
 _STAGED: dict = {}
 
 
-def run_case(case: Case, base: Path, work: Path) -> tuple[Outcome, list[str]]:
+def run_case(case: Case, base: Path, work: Path | None = None) -> tuple[Outcome, list[str]]:
     """Run ``case`` on the mirror of ``base`` (:class:`Mirror`), its outputs
-    in ``work``; returns the outcome and the list of problems (empty: the
-    case passed)."""
+    in ``work/out``; returns the outcome and the list of problems (empty: the
+    case passed). Without ``work``, one folder beside the mirror serves every
+    case of the process, its ``out`` removed before each case (a temporary
+    folder per case cost as much as the cheapest cases' commands)."""
     m = mirror_of(base)
+    if work is None:
+        work = m.root.parent / f"{m.root.name}.work"
+        work.mkdir(exist_ok=True)
+        if (work / "out").exists():
+            shutil.rmtree(work / "out")
     out = Path(work) / "out"
     res = m.run(case, out)
     return res, problems(case, res, m.root, out)
