@@ -1,5 +1,7 @@
 """Camera models: analytic Jacobians, round trips, OpenCV agreement."""
 
+import functools
+
 import cv2
 import numpy as np
 import pytest
@@ -62,9 +64,11 @@ TYPICAL = {
 STEP = {"angles": 1e-4, "rotation": 1e-4, "X0": 1e-3, "X": 1e-3}
 
 
-def scene(model, n=N, seed=1):
-    """n observations, each with its own station and slightly different
-    interior parameters, of points visible in the 640 x 480 image."""
+@functools.lru_cache(maxsize=None)
+def _geometry(n, seed):
+    """The stations and points of :func:`scene` (the same for every model:
+    drawn before the interior parameters) and the generator's state after
+    them; computed once per (n, seed), read-only."""
     rng = np.random.default_rng(seed)
     angles = np.stack([rng.uniform(-0.6, 0.6, n), rng.uniform(-0.6, 0.6, n),
                        rng.uniform(-np.pi, np.pi, n)], -1)
@@ -74,6 +78,17 @@ def scene(model, n=N, seed=1):
     py = rng.uniform(20, 460, n) - 240
     Xc = np.stack([px / 1420 * depth, -py / 1420 * depth, -depth], -1)
     X = np.einsum("nji,nj->ni", opk_to_matrix(angles), Xc) + X0
+    for a in (X, angles, X0):
+        a.setflags(write=False)
+    return X, angles, X0, rng.bit_generator.state
+
+
+def scene(model, n=N, seed=1):
+    """n observations, each with its own station and slightly different
+    interior parameters, of points visible in the 640 x 480 image."""
+    X, angles, X0, state = _geometry(n, seed)
+    rng = np.random.default_rng()
+    rng.bit_generator.state = state
     io = PARAMS[model] * (1 + 0.01 * rng.normal(size=(n, len(PARAMS[model]))))
     return X, angles, X0, io
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from photogram.errors import GeometryError, InputError
-from photogram.geometry.brown import BrownModel
+from photogram.geometry.brown import BrownModel, radial_not_monotonic
 from photogram.geometry.camera import newton_invert, register_model
 from photogram.geometry.forward_model import ForwardModel
 
@@ -73,10 +73,7 @@ def _radial_monotonic(u, v, io, samples=33):
     """Reject spurious roots of the inversion (as ``BrownModel``): the
     radial correction ``r (1 + k(r^2))`` of the distortion input (u, v) must
     increase from the centre out to it."""
-    s = (u * u + v * v)[:, None] * np.linspace(0.0, 1.0, samples)
-    K1, K2, K3 = io[:, 3:4], io[:, 4:5], io[:, 5:6]
-    slope = 1 + s * (3 * K1 + s * (5 * K2 + 7 * s * K3))
-    bad = np.count_nonzero(np.any(slope <= 0, axis=1))
+    bad = radial_not_monotonic(u * u + v * v, io, samples)
     if bad:
         raise GeometryError(
             f"{bad} of {len(u)} points project where the distortion "

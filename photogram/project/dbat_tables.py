@@ -88,6 +88,33 @@ class DbatImagePoints:
     path: Path | None = None
 
 
+def _idents(cells: list[str]) -> list[str]:
+    """:func:`_ident` of each cell, once per distinct cell."""
+    seen: dict[str, str] = {}
+    return [seen[c] if c in seen else seen.setdefault(c, _ident(c)) for c in cells]
+
+
+def _image_points_at_once(rows, ci, n_cols, sxy):
+    """The columns of :func:`read_image_points` for rows without a problem,
+    whole columns at a time; None if any row has one (the row-by-row loop
+    then raises the first problem's error)."""
+    if not rows or any(len(f) < n_cols for _, f in rows):
+        return None
+    try:
+        xy = np.array([(float(f[ci["x"]]), float(f[ci["y"]])) for _, f in rows], dtype=float)
+        if "sxy" in ci:
+            sg = np.array([float(f[ci["sxy"]]) for _, f in rows], dtype=float)
+        else:
+            sg = np.full(len(rows), float(sxy) if sxy is not None else np.nan)
+    except ValueError:
+        return None
+    if not np.all(np.isfinite(xy)) or ("sxy" in ci and not np.all(np.isfinite(sg))) or \
+            not np.all(np.isnan(sg) | (sg > 0)):
+        return None
+    return (_idents([f[ci["im"]] for _, f in rows]), _idents([f[ci["id"]] for _, f in rows]),
+            xy, sg, np.array([no for no, _ in rows], dtype=int))
+
+
 def read_image_points(path, format: str = "im,id,x,y,sxy",
                       sxy: float | None = None) -> DbatImagePoints:
     """Read a DBAT image-point table.
@@ -118,8 +145,13 @@ def read_image_points(path, format: str = "im,id,x,y,sxy",
             raise InputError(f"image-point format {format!r} has no column {need!r}",
                              file=path, hint='e.g. "im,id,x,y,sxy" or "id,im,x,y"')
     ci = {c: cols.index(c) for c in cols}
+    rows = list(_rows(path))
+    fast = _image_points_at_once(rows, ci, len(cols), sxy)
+    if fast is not None:
+        im, pt, xy, sg, ln = fast
+        return DbatImagePoints(image=im, point=pt, xy=xy, sxy=sg, line=ln, path=path)
     im, pt, xy, sg, ln = [], [], [], [], []
-    for no, f in _rows(path):
+    for no, f in rows:
         if len(f) < len(cols):
             raise InputError(f"expected {len(cols)} columns ({format}), got {len(f)}",
                              file=path, line=no)

@@ -108,12 +108,13 @@ class Table:
         if required:
             self.text(column)
         try:
-            if any("_" in c for c in cells):      # float() reads '1_0' as 10: not in a table
+            if "_" in "".join(cells):     # float() reads '1_0' as 10: not in a table
                 raise ValueError
             values = np.array([c if c else "nan" for c in cells], dtype=str).astype(float)
         except ValueError:
             values = np.array([self._parse(i, column, c) for i, c in enumerate(cells)])
-        bad = np.flatnonzero(~np.isfinite(values) & np.array([bool(c) for c in cells], bool))
+        bad = np.flatnonzero(~np.isfinite(values) &
+                             np.fromiter(map(bool, cells), bool, len(cells)))
         if len(bad):
             i = int(bad[0])
             hint = "leave the cell empty for an unknown value" if not required \
@@ -151,13 +152,9 @@ def _delimiter(header: str) -> str:
 
 
 def _logical_lines(text: str) -> tuple[list[str], list[int]]:
-    lines, numbers = [], []
-    for number, line in enumerate(text.splitlines(), 1):
-        stripped = line.strip()
-        if stripped and not stripped.startswith("#"):
-            lines.append(line)
-            numbers.append(number)
-    return lines, numbers
+    kept = [(number, line) for number, line in enumerate(text.splitlines(), 1)
+            if (stripped := line.strip()) and stripped[0] != "#"]
+    return [line for _, line in kept], [number for number, _ in kept]
 
 
 def read_table(path: Path, *, required: Iterable[str], optional: Iterable[str] = (),
@@ -190,7 +187,24 @@ def read_table(path: Path, *, required: Iterable[str], optional: Iterable[str] =
     if not lines:
         raise InputError(f"the {what} is empty (no header row)", file=path, line=1,
                          hint=f"the first line must name the columns: {', '.join(required)}")
-    reader = csv.reader(lines, delimiter=_delimiter(lines[0]))
+    delimiter = _delimiter(lines[0])
+    fast = _read_unquoted(lines, numbers, delimiter)
+    if fast is not None:
+        header, rows, records = fast
+        table = Table(path, header, [], np.zeros(0, int), numbers[0])
+        _check_header(table, required, optional, what)
+        for row, line in zip(rows, records):
+            if len(row) != len(header):
+                raise InputError(f"this record has {len(row)} fields but the header has "
+                                 f"{len(header)}", file=path, line=line,
+                                 hint="every row needs one cell per column; "
+                                      "empty cells are allowed")
+        if not rows:
+            raise InputError(f"the {what} has a header but no rows", file=path,
+                             line=numbers[0], hint="add at least one row below the header")
+        table.rows, table.records = rows, np.array(records, dtype=int)
+        return table
+    reader = csv.reader(lines, delimiter=delimiter)
     header = [h.strip() for h in next(csv_records(reader, numbers, path), [])]
     table = Table(path, header, [], np.zeros(0, int), numbers[0])
     _check_header(table, required, optional, what)
@@ -208,6 +222,27 @@ def read_table(path: Path, *, required: Iterable[str], optional: Iterable[str] =
                          line=numbers[0], hint="add at least one row below the header")
     table.rows, table.records = rows, np.array(records, dtype=int)
     return table
+
+
+def _read_unquoted(lines: list[str], numbers: list[int], delimiter: str):
+    """The fast path of :func:`read_table`: without a quote character every
+    logical line is one record, so the records need not be read one by one
+    to know their line numbers. Returns (header, rows, line numbers of the
+    rows), cells stripped, or None when the text holds a quote or the csv
+    module objects (the record-by-record path then finds the same records
+    and reports the error at its line)."""
+    if any('"' in line for line in lines):
+        return None
+    try:
+        records = list(csv.reader(lines, delimiter=delimiter))
+    except csv.Error:
+        return None
+    if len(records) != len(lines):
+        return None
+    strip = str.strip
+    header = list(map(strip, records[0]))
+    rows = [list(map(strip, row)) for row in records[1:]]
+    return header, rows, numbers[1:]
 
 
 def csv_records(reader, numbers: list[int], path: Path):
@@ -309,6 +344,15 @@ def _cell(value) -> str:
     return str(value)
 
 
+def _cells(values) -> list[str]:
+    """:func:`_cell` of each value; a float64/float32 array at once (its
+    ``tolist`` floats are the values :func:`format_float` formats)."""
+    if isinstance(values, np.ndarray) and values.ndim == 1 and \
+            values.dtype in (np.float64, np.float32):
+        return ["" if v != v else repr(v) for v in values.tolist()]
+    return [_cell(v) for v in values]
+
+
 def format_table(columns: Mapping[str, Iterable], *, comment: str | None = None) -> str:
     """CSV text of ``columns`` (name -> values); floats via repr, NaN empty.
 
@@ -319,7 +363,7 @@ def format_table(columns: Mapping[str, Iterable], *, comment: str | None = None)
     start a line of its own.
     """
     names = list(columns)
-    data = [[_cell(v) for v in columns[n]] for n in names]
+    data = [_cells(columns[n]) for n in names]
     n_rows = len(data[0]) if data else 0
     quote_all = any(v.startswith("#") for v in data[0]) if data else False
     buf = io.StringIO()

@@ -109,7 +109,15 @@ class TomlSource:
         self.path = Path(path)
         self.text = text
         self.data = data
-        self._lines = _index_lines(text)
+        self._index: dict[tuple, int] | None = None    # built on first use
+
+    @property
+    def _lines(self) -> dict[tuple, int]:
+        """Key path -> line (:func:`_index_lines`), indexed when first asked:
+        most files read without an error never need it."""
+        if self._index is None:
+            self._index = _index_lines(self.text)
+        return self._index
 
     @classmethod
     def load(cls, path: Path, what: str = "project file") -> "TomlSource":
