@@ -9,6 +9,7 @@ import gc
 
 import numpy as np
 import pytest
+from bal_checks import assert_same_normal_equations, check_gradient
 
 from photogram.adjust import kernels, point_rows, rcs_iterative, schur
 from photogram.adjust.normal import assemble
@@ -44,16 +45,8 @@ def test_fused_normal_equations_equal_the_generic_ones(numba_small):
     problem = _problem()
     state = problem.state
     fused = problem.linearize(state)
-    assert isinstance(fused, point_rows.PointSystem)
     ref = _generic(problem, state)
-    assert not isinstance(ref, point_rows.PointSystem)
-    scale = np.abs(ref.Ncc.toarray()).max()
-    np.testing.assert_allclose(fused.Ncc.toarray(), ref.Ncc.toarray(), rtol=0, atol=1e-12 * scale)
-    np.testing.assert_allclose(fused.A, ref.A, rtol=1e-12, atol=1e-12 * np.abs(ref.A).max())
-    np.testing.assert_allclose(fused.g, ref.g, rtol=0, atol=1e-11 * np.abs(ref.g).max())
-    np.testing.assert_allclose(fused.WT, ref.WT, rtol=0, atol=1e-12 * np.abs(ref.WT).max())
-    assert fused.cost == pytest.approx(ref.cost, rel=1e-12)
-    assert problem.cost(state) == pytest.approx(ref.cost, rel=1e-12)
+    assert_same_normal_equations(fused, ref, problem, state)
     x = np.random.default_rng(1).standard_normal(problem.layout.n_reduced)
     np.testing.assert_allclose(fused.wt_times_c(x), ref.wt_times_c(x), rtol=1e-10, atol=1e-10)
     dx = np.random.default_rng(2).standard_normal(problem.layout.n_columns)
@@ -81,19 +74,8 @@ def test_fused_schur_pieces_equal_the_generic_ones(numba_small):
 
 def test_fused_gradient_is_the_finite_difference_gradient_of_the_cost(numba_small):
     problem = _problem(n=8, obs=60, seed=5)
-    lay, state = problem.layout, problem.state
-    system = problem.linearize(state)
-    rng = np.random.default_rng(3)
-    cols = np.concatenate([lay.station_cols[rng.integers(0, 8, 3)].ravel(),
-                           np.concatenate([lay.camera_cols[k] for k in (0, 5)]),
-                           lay.point_cols[rng.integers(0, lay.n_eliminated, 4)].ravel()])
-    for c in cols:
-        h = 1e-6 * max(1.0, abs(state.io[0][0])) if c < lay.n_camera_columns else 1e-6
-        e = np.zeros(lay.n_columns)
-        e[c] = h
-        fd = (problem.cost(state.updated(lay, e)) - problem.cost(state.updated(lay, -e))) / (2 * h)
-        # g = J^T r with r = observed - computed: d(0.5 |r|^2)/dx = g
-        assert system.g[c] == pytest.approx(fd, rel=1e-5, abs=1e-6 * np.abs(system.g).max())
+    system = problem.linearize(problem.state)
+    check_gradient(problem, system, np.random.default_rng(3))
 
 
 def test_fused_path_steps_aside(numba_small):

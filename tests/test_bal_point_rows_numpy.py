@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import bal_real
+from bal_checks import assert_same_normal_equations, check_gradient
 from photogram.adjust import _numpy_point, kernels, point_rows, rcs_iterative, schur
 from photogram.adjust.normal import assemble
 from photogram.bundle.bal import bal_options, build_bal_problem, solve_bal
@@ -44,15 +45,8 @@ def _generic(problem, state):
 
 
 def _assert_same_system(twin, ref, problem, state):
-    assert isinstance(twin, point_rows.PointSystem) and twin.Wg is not None
-    assert not isinstance(ref, point_rows.PointSystem)
-    scale = np.abs(ref.Ncc.toarray()).max()
-    np.testing.assert_allclose(twin.Ncc.toarray(), ref.Ncc.toarray(), rtol=0, atol=1e-12 * scale)
-    np.testing.assert_allclose(twin.A, ref.A, rtol=1e-12, atol=1e-12 * np.abs(ref.A).max())
-    np.testing.assert_allclose(twin.g, ref.g, rtol=0, atol=1e-11 * np.abs(ref.g).max())
-    np.testing.assert_allclose(twin.WT, ref.WT, rtol=0, atol=1e-12 * np.abs(ref.WT).max())
-    assert twin.cost == pytest.approx(ref.cost, rel=1e-12)
-    assert problem.cost(state) == pytest.approx(ref.cost, rel=1e-12)
+    assert_same_normal_equations(twin, ref, problem, state)
+    assert twin.Wg is not None
     n_r = problem.layout.n_reduced
     x = np.random.default_rng(1).standard_normal(n_r)
     np.testing.assert_allclose(twin.wt_times_c(x), ref.wt_times_c(x), rtol=1e-10,
@@ -117,15 +111,7 @@ def test_twin_jacobians_are_finite_differences_of_the_model(numpy_path):
     system = problem.linearize(state)
     assert system.Wg is not None
     rng = np.random.default_rng(3)
-    cols = np.concatenate([lay.station_cols[rng.integers(0, 8, 3)].ravel(),
-                           np.concatenate([lay.camera_cols[k] for k in (0, 5)]),
-                           lay.point_cols[rng.integers(0, lay.n_eliminated, 4)].ravel()])
-    for c in cols:
-        h = 1e-6 * max(1.0, abs(state.io[0][0])) if c < lay.n_camera_columns else 1e-6
-        e = np.zeros(lay.n_columns)
-        e[c] = h
-        fd = (problem.cost(state.updated(lay, e)) - problem.cost(state.updated(lay, -e))) / (2 * h)
-        assert system.g[c] == pytest.approx(fd, rel=1e-5, abs=1e-6 * np.abs(system.g).max())
+    check_gradient(problem, system, rng)
     # scale of each column: a step that moves the image by about a pixel
     scale = 1.0 / np.sqrt(np.maximum(np.r_[system.Ncc.diagonal(),
                                            np.einsum("nii->ni", system.A).ravel()], 1e-300))

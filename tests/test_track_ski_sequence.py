@@ -23,6 +23,17 @@ def _axes(angles, lengths, sigma, station="S1", line="L1", n=15):
     return pd.DataFrame(rows, columns=["exposure", "station", "line", "x", "y", "sigma"])
 
 
+def _two_skis(n=20):
+    """20 exposures of two skis whose image directions differ by 4 deg (the
+    V), axes of 15 samples at 0.2 px: ``n``, the direction sigma of one
+    axis, the exposure names and the two skis' angles."""
+    tc = np.linspace(-30, 30, 15)
+    s_angle = 0.2 / np.sqrt((tc ** 2).sum())
+    names = [f"{i + 1:03d}" for i in range(n)]
+    a1 = 0.3 + 0.004 * np.arange(n)
+    return n, s_angle, names, a1, a1 + np.radians(4.0)
+
+
 def test_axis_directions_angle_sigma_and_length():
     t = _axes([0.3], [60.0], 0.2)
     d = axis_directions(t).iloc[0]
@@ -87,12 +98,7 @@ def test_pending_views_are_decided_by_the_two_sequences_or_flagged():
     the other ski's sequence, and flagged where the two directions are too
     close to tell."""
     rng = np.random.default_rng(2)
-    n = 20
-    tc = np.linspace(-30, 30, 15)
-    s_angle = 0.2 / np.sqrt((tc ** 2).sum())
-    names = [f"{i + 1:03d}" for i in range(n)]
-    a1 = 0.3 + 0.004 * np.arange(n)
-    a2 = a1 + np.radians(4.0)
+    n, s_angle, names, a1, a2 = _two_skis()
     t1 = _axes(a1 + rng.normal(0, s_angle, n), np.full(n, 60.0), 0.2, line="L1")
     t2 = _axes(a2 + rng.normal(0, s_angle, n), np.full(n, 60.0), 0.2, line="L2")
     t = pd.concat([t1, t2], ignore_index=True)
@@ -122,12 +128,7 @@ def test_an_axis_its_own_direction_does_not_identify_is_flagged():
     ski onto the other) and is flagged, not labelled by its partner; the
     clear axis keeps its label (harsh set, exposure 011 in S2)."""
     rng = np.random.default_rng(3)
-    n = 20
-    tc = np.linspace(-30, 30, 15)
-    s_angle = 0.2 / np.sqrt((tc ** 2).sum())
-    names = [f"{i + 1:03d}" for i in range(n)]
-    a1 = 0.3 + 0.004 * np.arange(n)
-    a2 = a1 + np.radians(4.0)
+    n, s_angle, names, a1, a2 = _two_skis()
     a2_bad = a2.copy()
     a2_bad[10] = 0.5 * (a1[10] + a2[10])          # exposure 011: halfway between
     t1 = _axes(a1 + rng.normal(0, s_angle, n), np.full(n, 60.0), 0.2, line="L1")
