@@ -214,3 +214,27 @@ def test_numba_and_numpy_twins_agree():
     assert np.abs(A - B).max() <= 1e-12 * np.abs(A).max()
     r = np.random.default_rng(1).standard_normal(op.n_r)
     np.testing.assert_allclose(b(r), a(r), rtol=1e-9, atol=1e-12 * np.abs(a(r)).max())
+
+
+def test_fused_coarse_pass_equals_the_separate_passes(kernel_path):
+    """The Schur-Jacobi blocks, the reduced right-hand side and the
+    coarse coupling blocks ``W A^-1 W^T P`` of the fused pass (numba:
+    one stream over ``W_o^T``) equal those of the separate passes, and
+    the coupling equals ``S P`` formed from the dense RCS."""
+    _, system, op, S, jacobi = _operator(n=50, obs=100, seed=5)
+    if not hasattr(system, "schur_parts"):
+        pytest.skip("not the point-ordered path")
+    pat = rcs_coarse.pattern_of(op, 8)
+    blocks, rhs = system.schur_parts(op.Ncc, op.Ainv_o, ordered=True)
+    fb, frhs, coupling = system.schur_parts(op.Ncc, op.Ainv_o, ordered=True, coarse=pat)
+    assert np.abs(fb - blocks).max() <= 1e-12 * np.abs(blocks).max()
+    assert np.abs(frhs - rhs).max() <= 1e-12 * np.abs(rhs).max()
+    separate = rcs_coarse.two_level(op, jacobi, 8)
+    fused = rcs_coarse.two_level(op, jacobi, 8, coupling=coupling)
+    A, B = separate.SP.toarray(), fused.SP.toarray()
+    assert np.abs(A - B).max() <= 1e-12 * np.abs(A).max()
+    SP = S @ pat.P.toarray()
+    assert np.abs(B - SP).max() <= 1e-9 * np.abs(SP).max()
+    r = np.random.default_rng(2).standard_normal(op.n_r)
+    np.testing.assert_allclose(fused(r), separate(r), rtol=1e-9,
+                               atol=1e-12 * np.abs(separate(r)).max())

@@ -46,8 +46,8 @@ import scipy.sparse as sp
 from photogram.adjust import kernels
 from photogram.adjust.rcs_iterative import schur_jacobi
 
-__all__ = ["PRECONDITIONERS", "applicable", "cluster_groups", "preconditioner",
-           "TwoLevel"]
+__all__ = ["PRECONDITIONERS", "applicable", "cluster_groups", "pattern_of",
+           "preconditioner", "TwoLevel", "two_level"]
 
 PRECONDITIONERS = ("auto", "schur_jacobi", "two_level")
 # coarse modes whose eigenvalue of the unit-diagonal S_c is below this are
@@ -322,14 +322,7 @@ def _rows(op):
     return WT, op.grp, st.pt_ptr, op.Ainv, st
 
 
-def two_level(op, jacobi, cluster_size=64, compiled=None, floor=None, slots=None):
-    """The two-level preconditioner of a
-    :class:`~photogram.adjust.rcs_iterative.SchurOperator` with smoother
-    ``jacobi``; ``compiled``: use the numba kernel (None: when the
-    kernels are active); ``floor``: the eigenvalue of the unit-diagonal
-    ``S_c`` below which coarse modes are left out (None: ``FLOOR``);
-    ``slots``: the columns of a group that the coarse space aggregates
-    (None: ``COARSE_SLOTS``; "all": every column)."""
+def _setup(op, cluster_size, compiled, slots):
     st = op.system.structure
     WT, group, ptr, Ainv_seg, owner = _rows(op)
     group = np.ascontiguousarray(group, dtype=np.int64)
@@ -343,10 +336,31 @@ def two_level(op, jacobi, cluster_size=64, compiled=None, floor=None, slots=None
     if compiled is None:
         compiled = kernels.active(len(group)) and _have_numba()
     pat = pattern(owner, st.group_cols, st.n_r, group, ptr, int(cluster_size), slots, compiled)
-    if compiled:
-        coupling = _coupling_numba(pat, WT, group, ptr, Ainv_seg)
-    else:
-        coupling = _coupling_numpy(pat, WT, Ainv_seg)
+    return pat, WT, group, ptr, Ainv_seg, compiled
+
+
+def pattern_of(op, cluster_size=64, slots=None, compiled=None):
+    """The cached :class:`_Pattern` that :func:`two_level` uses for
+    ``op`` (for a caller that forms the coupling blocks itself, as the
+    fused pass of :meth:`photogram.adjust.point_rows.PointSystem.schur_parts`)."""
+    return _setup(op, cluster_size, compiled, slots)[0]
+
+
+def two_level(op, jacobi, cluster_size=64, compiled=None, floor=None, slots=None,
+              coupling=None):
+    """The two-level preconditioner of a
+    :class:`~photogram.adjust.rcs_iterative.SchurOperator` with smoother
+    ``jacobi``; ``compiled``: use the numba kernel (None: when the
+    kernels are active); ``floor``: the eigenvalue of the unit-diagonal
+    ``S_c`` below which coarse modes are left out (None: ``FLOOR``);
+    ``slots``: the columns of a group that the coarse space aggregates
+    (None: ``COARSE_SLOTS``; "all": every column); ``coupling``: the
+    blocks ``W A^-1 W^T P`` of :func:`pattern_of`'s pattern when already
+    formed (the fused pass), else they are formed here."""
+    pat, WT, group, ptr, Ainv_seg, compiled = _setup(op, cluster_size, compiled, slots)
+    if coupling is None:
+        coupling = (_coupling_numba(pat, WT, group, ptr, Ainv_seg) if compiled
+                    else _coupling_numpy(pat, WT, Ainv_seg))
     return TwoLevel(op.Ncc, jacobi, pat, coupling, floor)
 
 
@@ -358,13 +372,14 @@ def _have_numba():
     return True
 
 
-def preconditioner(op, kind="schur_jacobi", cluster_size=64, coupling=None):
+def preconditioner(op, kind="schur_jacobi", cluster_size=64, coupling=None, coarse=None):
     """``z = M^-1 r`` for PCG on ``op``: ``"schur_jacobi"`` or
     ``"two_level"`` (``coupling``: the Schur-Jacobi blocks' summed
-    ``-W A^-1 W^T`` part when known)."""
+    ``-W A^-1 W^T`` part when known; ``coarse``: the two-level coupling
+    blocks when known, see :func:`two_level`)."""
     jacobi = schur_jacobi(op, coupling)
     if kind == "schur_jacobi":
         return jacobi
     if kind != "two_level":
         raise ValueError(f"unknown CG preconditioner {kind!r} (schur_jacobi or two_level)")
-    return two_level(op, jacobi, cluster_size)
+    return two_level(op, jacobi, cluster_size, coupling=coarse)
