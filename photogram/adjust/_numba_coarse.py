@@ -87,7 +87,6 @@ def jacobi_rhs_coupling(WT, group, ptr, Ainv, g_e, blocks, rhs_g, cluster, looku
     Y = np.zeros((max(kmax, 1), 3, nsl))
     Z = np.zeros((max(kmax, 1), 3, nsl))
     cl = np.empty(max(kmax, 1), dtype=np.int64)
-    bk = np.empty(max(kmax, 1), dtype=np.int64)
     R = np.empty((3, s))
     for i in range(len(ptr) - 1):
         lo, hi = ptr[i], ptr[i + 1]
@@ -121,8 +120,6 @@ def jacobi_rhs_coupling(WT, group, ptr, Ainv, g_e, blocks, rhs_g, cluster, looku
                 Z[m, 2, j] = b20 * y0 + b21 * y1 + b22 * y2
         for k in range(lo, hi):
             g = group[k]
-            for m in range(nk):
-                bk[m] = lookup[g, cl[m]]
             for j in range(s):
                 w0, w1, w2 = WT[k, 0, j], WT[k, 1, j], WT[k, 2, j]
                 y0 = b00 * w0 + b01 * w1 + b02 * w2
@@ -134,7 +131,11 @@ def jacobi_rhs_coupling(WT, group, ptr, Ainv, g_e, blocks, rhs_g, cluster, looku
                 w0, w1, w2 = WT[k, 0, a], WT[k, 1, a], WT[k, 2, a]
                 for b in range(a, s):
                     blocks[g, a, b] -= w0 * R[0, b] + w1 * R[1, b] + w2 * R[2, b]
-                for m in range(nk):
-                    bb = bk[m]
+        for k in range(lo, hi):
+            g = group[k]
+            for m in range(nk):
+                bb = lookup[g, cl[m]]
+                for u in range(s):
+                    w0, w1, w2 = WT[k, 0, u], WT[k, 1, u], WT[k, 2, u]
                     for j in range(nsl):
-                        out[bb, a, j] += w0 * Z[m, 0, j] + w1 * Z[m, 1, j] + w2 * Z[m, 2, j]
+                        out[bb, u, j] += w0 * Z[m, 0, j] + w1 * Z[m, 1, j] + w2 * Z[m, 2, j]
