@@ -143,7 +143,7 @@ def test_step_through_schur_solve_equals_the_dense_step(kernel_path):
 def test_full_solve_same_final_cost_and_reported(kernel_path):
     sb = sphere_bal(60, obs_per_camera=100, seed=4)
     out = {}
-    for kind in ("schur_jacobi", "two_level"):
+    for kind in ("schur_jacobi", "two_level", "adaptive"):
         built = build_bal_problem(sb.problem, behind="keep")
         s = solve_bal(built, bal_options(linear_solver="iterative", cg_preconditioner=kind,
                                          coarse_cluster_size=8))
@@ -151,6 +151,7 @@ def test_full_solve_same_final_cost_and_reported(kernel_path):
         assert built.problem.rcs["cg_preconditioner"] == "schur_jacobi"   # restored
         out[kind] = s.final_cost
     assert out["two_level"] == pytest.approx(out["schur_jacobi"], rel=1e-6)
+    assert out["adaptive"] == pytest.approx(out["schur_jacobi"], rel=1e-6)
     dense = solve_bal(build_bal_problem(sb.problem, behind="keep"),
                       bal_options(linear_solver="dense"))
     assert dense.cg_preconditioner == ""
@@ -238,3 +239,24 @@ def test_fused_coarse_pass_equals_the_separate_passes(kernel_path):
     r = np.random.default_rng(2).standard_normal(op.n_r)
     np.testing.assert_allclose(fused(r), separate(r), rtol=1e-9,
                                atol=1e-12 * np.abs(separate(r)).max())
+
+
+def test_adaptive_switches_on_after_a_long_solve(kernel_path):
+    """``"adaptive"``: Schur-Jacobi while the previous solve on the
+    structure took at most ``ADAPTIVE_STEPS`` CG steps, two-level after
+    one that took more; the recorded count is the one PCG returned."""
+    problem, system, op, _, _ = _operator(n=40, obs=100, seed=6)
+    assert rcs_coarse.resolve(op, "adaptive") == "schur_jacobi"          # no solve yet
+    assert rcs_coarse.resolve(op, "two_level") == "two_level"
+    apply = rcs_coarse.preconditioner(op, "adaptive", 8)
+    assert not isinstance(apply, rcs_coarse.TwoLevel)
+    rcs_coarse.record(op, rcs_coarse.ADAPTIVE_STEPS)
+    assert rcs_coarse.resolve(op, "adaptive") == "schur_jacobi"
+    rcs_coarse.record(op, rcs_coarse.ADAPTIVE_STEPS + 1)
+    assert isinstance(rcs_coarse.preconditioner(op, "adaptive", 8), rcs_coarse.TwoLevel)
+    # through schur.solve: the count of the last solve is recorded
+    schur.solve(system, problem.layout, 1e-3, method="iterative",
+                cg_tolerance=1e-12, cg_max_iterations=5000,
+                cg_preconditioner="schur_jacobi", coarse_cluster_size=8)
+    owner = op.point if op.point is not None else system.structure
+    assert owner._last_cg_steps > rcs_coarse.ADAPTIVE_STEPS

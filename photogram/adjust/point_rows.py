@@ -419,7 +419,7 @@ class PointSystem(NormalSystem):
         Ncc, Ainv_o = self.damped_inverse(layout, damping, point_labels)
         op = rcs_iterative.SchurOperator(self, Ncc, Ainv_o, ordered=True)
         coarse = None
-        if precond[0] == "two_level" and pl.unique:
+        if rcs_coarse.resolve(op, precond[0]) == "two_level" and pl.unique:
             coarse = rcs_coarse.pattern_of(op, precond[1])
         parts = self.schur_parts(Ncc, Ainv_o, ordered=True, coarse=coarse)
         if parts is None:
@@ -431,7 +431,8 @@ class PointSystem(NormalSystem):
             apply = rcs_coarse.preconditioner(op, *precond, coupling=parts[0],
                                               coarse=parts[2] if coarse is not None else None)
         rhs_c[~layout.free[:n_r]] = 0.0
-        dx_c, _ = rcs_iterative.pcg(op, rhs_c, apply, tolerance, max_iterations, criterion)
+        dx_c, steps = rcs_iterative.pcg(op, rhs_c, apply, tolerance, max_iterations, criterion)
+        rcs_coarse.record(op, steps)
         rhs_o = -self.g_o - self.back_o(dx_c)
         dx = np.empty(layout.n_columns)
         dx[:n_r] = dx_c

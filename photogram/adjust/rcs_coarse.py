@@ -47,9 +47,14 @@ from photogram.adjust import kernels
 from photogram.adjust.rcs_iterative import schur_jacobi
 
 __all__ = ["PRECONDITIONERS", "applicable", "cluster_groups", "pattern_of",
-           "preconditioner", "TwoLevel", "two_level"]
+           "preconditioner", "record", "resolve", "TwoLevel", "two_level"]
 
-PRECONDITIONERS = ("auto", "schur_jacobi", "two_level")
+PRECONDITIONERS = ("auto", "schur_jacobi", "two_level", "adaptive")
+# "adaptive": the two-level preconditioner only for a solve whose previous
+# solve (same structure: the last LM step) took more than this many CG
+# steps; Schur-Jacobi otherwise (the first LM steps need 2-5 steps, too
+# few for the coarse pass to pay)
+ADAPTIVE_STEPS = 4
 # coarse modes whose eigenvalue of the unit-diagonal S_c is below this are
 # left out of the coarse correction: the (damped) gauge freedom
 FLOOR = 3e-2
@@ -372,12 +377,34 @@ def _have_numba():
     return True
 
 
+def _owner(op):
+    return op.point if op.point is not None else op.system.structure
+
+
+def resolve(op, kind):
+    """The preconditioner that runs for ``kind`` on ``op``: ``kind``
+    itself, or for ``"adaptive"`` ``"two_level"`` when the previous
+    solve on the same structure (:func:`record`) took more than
+    ``ADAPTIVE_STEPS`` CG steps, else ``"schur_jacobi"``."""
+    if kind != "adaptive":
+        return kind
+    last = _owner(op).__dict__.get("_last_cg_steps", 0)
+    return "two_level" if last > ADAPTIVE_STEPS else "schur_jacobi"
+
+
+def record(op, steps):
+    """Remember the CG steps of a solve on ``op``'s structure (for
+    ``"adaptive"``)."""
+    _owner(op).__dict__["_last_cg_steps"] = int(steps)
+
+
 def preconditioner(op, kind="schur_jacobi", cluster_size=64, coupling=None, coarse=None):
     """``z = M^-1 r`` for PCG on ``op``: ``"schur_jacobi"`` or
-    ``"two_level"`` (``coupling``: the Schur-Jacobi blocks' summed
+    ``"two_level"``, or ``"adaptive"`` (:func:`resolve`; ``coupling``: the Schur-Jacobi blocks' summed
     ``-W A^-1 W^T`` part when known; ``coarse``: the two-level coupling
     blocks when known, see :func:`two_level`)."""
     jacobi = schur_jacobi(op, coupling)
+    kind = resolve(op, kind)
     if kind == "schur_jacobi":
         return jacobi
     if kind != "two_level":

@@ -303,8 +303,8 @@ def cg_preconditioner(problem: Problem, options: SolverOptions, method: str) -> 
     if method != "iterative":
         return ""
     ok = rcs_coarse.applicable(problem.structure)
-    if choice == "two_level" and not ok:
-        raise ValueError("cg_preconditioner='two_level' needs at least two row groups and "
+    if choice in ("two_level", "adaptive") and not ok:
+        raise ValueError(f"cg_preconditioner={choice!r} needs at least two row groups and "
                          "every reduced column in at most one group; use 'schur_jacobi'")
     if choice == "auto":
         st = problem.structure
