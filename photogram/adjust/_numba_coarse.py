@@ -1,7 +1,8 @@
 """numba kernel of the two-level preconditioner
 (:mod:`photogram.adjust.rcs_coarse`): the (group, cluster) blocks of
 ``W A^-1 W^T P`` in one pass over the point-ordered E-rows (the numpy twin
-is :func:`photogram.adjust.rcs_coarse._coupling_numpy`)."""
+is :func:`photogram.adjust.rcs_coarse._coupling_numpy`), alone or fused
+with the Schur-Jacobi pass (:func:`jacobi_rhs_coupling`)."""
 
 import numba as _numba
 import numpy as np

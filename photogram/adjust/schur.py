@@ -205,7 +205,7 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
         ``cg_tolerance`` by ``cg_criterion``, see
         :func:`photogram.adjust.rcs_iterative.pcg`; not with datum conditions ``G``, no
         factorization: ``fact`` is None).
-    cg_preconditioner : "schur_jacobi" or "two_level"
+    cg_preconditioner : "schur_jacobi", "two_level" or "adaptive"
         With ``coarse_cluster_size``: the preconditioner of the iterative
         solve (:func:`photogram.adjust.rcs_coarse.preconditioner`).
 

@@ -75,7 +75,9 @@ class SolverOptions:
     after ``cg_max_iterations`` steps. ``cg_preconditioner``:
     ``"schur_jacobi"``, ``"two_level"`` (Schur-Jacobi plus a coarse
     correction on clusters of about ``coarse_cluster_size`` cameras,
-    :mod:`photogram.adjust.rcs_coarse`) or ``"auto"`` (two-level from
+    :mod:`photogram.adjust.rcs_coarse`), ``"adaptive"`` (two-level only
+    after a solve of more than ``rcs_coarse.ADAPTIVE_STEPS`` CG steps,
+    :func:`photogram.adjust.rcs_coarse.resolve`) or ``"auto"`` (two-level from
     ``TWO_LEVEL_MIN_GROUPS`` row groups on with the numba kernels, where
     it was measured to pay, when it applies). ``Summary.cg_preconditioner`` says which one ran.
     """
@@ -102,7 +104,7 @@ class SolverOptions:
     cg_tolerance: float = 0.1         # Ceres' eta (ITERATIVE_SCHUR)
     cg_max_iterations: int = 500
     cg_criterion: str = "residual"    # residual | model (Ceres' LM test, rcs_iterative.pcg)
-    cg_preconditioner: str = "auto"   # auto | schur_jacobi | two_level (rcs_coarse)
+    cg_preconditioner: str = "auto"   # auto | schur_jacobi | two_level | adaptive (rcs_coarse)
     coarse_cluster_size: int = 64     # row groups (cameras) per coarse cluster (two_level)
 
 
@@ -123,7 +125,7 @@ class Summary:
     successful_steps: int = 0
     unsuccessful_steps: int = 0
     linear_solver: str = ""             # dense | iterative (the RCS solve used)
-    cg_preconditioner: str = ""         # schur_jacobi | two_level (iterative RCS only)
+    cg_preconditioner: str = ""         # schur_jacobi | two_level | adaptive (iterative RCS only)
 
     def to_dict(self) -> dict:
         return {k: v for k, v in self.__dict__.items()}
