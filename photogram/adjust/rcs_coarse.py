@@ -400,7 +400,8 @@ def record(op, steps):
 
 def preconditioner(op, kind="schur_jacobi", cluster_size=64, coupling=None, coarse=None):
     """``z = M^-1 r`` for PCG on ``op``: ``"schur_jacobi"`` or
-    ``"two_level"``, or ``"adaptive"`` (:func:`resolve`; ``coupling``: the Schur-Jacobi blocks' summed
+    ``"two_level"``, or ``"adaptive"`` (:func:`resolve`; ``coupling``:
+    the Schur-Jacobi blocks' summed
     ``-W A^-1 W^T`` part when known; ``coarse``: the two-level coupling
     blocks when known, see :func:`two_level`)."""
     jacobi = schur_jacobi(op, coupling)
