@@ -169,7 +169,9 @@ def test_automatic_choice_and_validation(kernel_path, monkeypatch):
     monkeypatch.setattr(solver, "TWO_LEVEL_MIN_GROUPS", 12)
     # measured to pay with the compiled kernels only
     assert cg_preconditioner(small, opt, "iterative") == (
-        "two_level" if kernel_path == "numba" else "schur_jacobi")
+        "adaptive" if kernel_path == "numba" else "schur_jacobi")
+    assert cg_preconditioner(small, SolverOptions(cg_preconditioner="adaptive"),
+                             "iterative") == "adaptive"
     assert cg_preconditioner(small, SolverOptions(cg_preconditioner="two_level"),
                              "iterative") == "two_level"
     assert cg_preconditioner(small, SolverOptions(cg_preconditioner="schur_jacobi"),
@@ -185,8 +187,9 @@ def test_automatic_choice_and_validation(kernel_path, monkeypatch):
     assert not rcs_coarse.applicable(shared.structure)
     assert rcs_method(shared, SolverOptions(linear_solver="iterative")) == "iterative"
     assert cg_preconditioner(shared, opt, "iterative") == "schur_jacobi"
-    with pytest.raises(ValueError):
-        cg_preconditioner(shared, SolverOptions(cg_preconditioner="two_level"), "iterative")
+    for kind in ("two_level", "adaptive"):
+        with pytest.raises(ValueError):
+            cg_preconditioner(shared, SolverOptions(cg_preconditioner=kind), "iterative")
     gc = np.array([[0, 1], [2, 3]])
     assert rcs_coarse.applicable(SimpleNamespace(group_cols=gc, n_r=4, n_e_rows=5))
     assert not rcs_coarse.applicable(SimpleNamespace(group_cols=np.array([[0, 1], [1, 2]]),

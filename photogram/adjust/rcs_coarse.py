@@ -409,5 +409,6 @@ def preconditioner(op, kind="schur_jacobi", cluster_size=64, coupling=None, coar
     if kind == "schur_jacobi":
         return jacobi
     if kind != "two_level":
-        raise ValueError(f"unknown CG preconditioner {kind!r} (schur_jacobi or two_level)")
+        raise ValueError(f"unknown CG preconditioner {kind!r} "
+                         "(schur_jacobi, two_level or adaptive)")
     return two_level(op, jacobi, cluster_size, coupling=coarse)

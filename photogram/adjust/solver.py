@@ -33,12 +33,14 @@ DAMPINGS = ("none", "lm", "armijo", "trust_region")
 # reduced columns from which "auto" solves the RCS iteratively: {numba: n;
 # "fused": point_rows' fused BAL linearization, numba or its numpy twin}
 ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000, "fused": 500}
-# row groups (cameras) from which "auto" preconditions CG with two levels:
-# up to 3333 cameras (10^7 observations, the largest measured) it did not
-# pay (it halves the CG steps, its coarse pass costs as much as they
-# saved; docs/benchmarks.md, "Follow-up 4"); 10000 is an extrapolation of
-# the growing Schur-Jacobi step counts, not a measurement
-TWO_LEVEL_MIN_GROUPS = 10000
+# row groups (cameras) from which "auto" preconditions CG adaptively with
+# two levels ("adaptive": two-level after a solve of more than
+# rcs_coarse.ADAPTIVE_STEPS CG steps). Measured on seed 0 of the simulated
+# sphere problems (docs/benchmarks.md, "Follow-up 4", "Fused coarse
+# pass"): 3-8 % less CPU per iteration than Schur-Jacobi at 3333 cameras
+# (10^7 observations, three pairs), 2-18 % more at 1000 cameras (two
+# pairs); plain two-level paid at neither. 3000 lies between the two.
+TWO_LEVEL_MIN_GROUPS = 3000
 
 
 @dataclass
@@ -77,7 +79,7 @@ class SolverOptions:
     correction on clusters of about ``coarse_cluster_size`` cameras,
     :mod:`photogram.adjust.rcs_coarse`), ``"adaptive"`` (two-level only
     after a solve of more than ``rcs_coarse.ADAPTIVE_STEPS`` CG steps,
-    :func:`photogram.adjust.rcs_coarse.resolve`) or ``"auto"`` (two-level from
+    :func:`photogram.adjust.rcs_coarse.resolve`) or ``"auto"`` (adaptive from
     ``TWO_LEVEL_MIN_GROUPS`` row groups on with the numba kernels, where
     it was measured to pay, when it applies). ``Summary.cg_preconditioner`` says which one ran.
     """
@@ -294,7 +296,7 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
 def cg_preconditioner(problem: Problem, options: SolverOptions, method: str) -> str:
     """The CG preconditioner of the iterative RCS solve that
     ``options.cg_preconditioner`` asks for ("" with the dense solve;
-    ``"auto"``: two-level from ``TWO_LEVEL_MIN_GROUPS`` row groups on, with
+    ``"auto"``: adaptive from ``TWO_LEVEL_MIN_GROUPS`` row groups on, with
     the compiled kernels active, when
     :func:`photogram.adjust.rcs_coarse.applicable`)."""
     from photogram.adjust import rcs_coarse
@@ -311,7 +313,7 @@ def cg_preconditioner(problem: Problem, options: SolverOptions, method: str) -> 
     if choice == "auto":
         st = problem.structure
         big = st.group_cols.shape[0] >= TWO_LEVEL_MIN_GROUPS and kernels.active(st.n_e_rows)
-        return "two_level" if big and ok else "schur_jacobi"
+        return "adaptive" if big and ok else "schur_jacobi"
     return choice
 
 
