@@ -168,7 +168,7 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-numpy", action="store_true", help="skip the pure-numpy path")
     ap.add_argument("--preconditioner", default="auto",
-                    choices=("auto", "schur_jacobi", "two_level"),
+                    choices=("auto", "schur_jacobi", "two_level", "adaptive"),
                     help="SolverOptions.cg_preconditioner of photogram's iterative RCS solve")
     ap.add_argument("--cluster-size", type=int, default=None,
                     help="SolverOptions.coarse_cluster_size (default: the option's default)")

@@ -143,7 +143,7 @@ def test_step_through_schur_solve_equals_the_dense_step(kernel_path):
 def test_full_solve_same_final_cost_and_reported(kernel_path):
     sb = sphere_bal(60, obs_per_camera=100, seed=4)
     out = {}
-    for kind in ("schur_jacobi", "two_level"):
+    for kind in ("schur_jacobi", "two_level", "adaptive"):
         built = build_bal_problem(sb.problem, behind="keep")
         s = solve_bal(built, bal_options(linear_solver="iterative", cg_preconditioner=kind,
                                          coarse_cluster_size=8))
@@ -151,6 +151,7 @@ def test_full_solve_same_final_cost_and_reported(kernel_path):
         assert built.problem.rcs["cg_preconditioner"] == "schur_jacobi"   # restored
         out[kind] = s.final_cost
     assert out["two_level"] == pytest.approx(out["schur_jacobi"], rel=1e-6)
+    assert out["adaptive"] == pytest.approx(out["schur_jacobi"], rel=1e-6)
     dense = solve_bal(build_bal_problem(sb.problem, behind="keep"),
                       bal_options(linear_solver="dense"))
     assert dense.cg_preconditioner == ""
@@ -168,7 +169,9 @@ def test_automatic_choice_and_validation(kernel_path, monkeypatch):
     monkeypatch.setattr(solver, "TWO_LEVEL_MIN_GROUPS", 12)
     # measured to pay with the compiled kernels only
     assert cg_preconditioner(small, opt, "iterative") == (
-        "two_level" if kernel_path == "numba" else "schur_jacobi")
+        "adaptive" if kernel_path == "numba" else "schur_jacobi")
+    assert cg_preconditioner(small, SolverOptions(cg_preconditioner="adaptive"),
+                             "iterative") == "adaptive"
     assert cg_preconditioner(small, SolverOptions(cg_preconditioner="two_level"),
                              "iterative") == "two_level"
     assert cg_preconditioner(small, SolverOptions(cg_preconditioner="schur_jacobi"),
@@ -184,8 +187,9 @@ def test_automatic_choice_and_validation(kernel_path, monkeypatch):
     assert not rcs_coarse.applicable(shared.structure)
     assert rcs_method(shared, SolverOptions(linear_solver="iterative")) == "iterative"
     assert cg_preconditioner(shared, opt, "iterative") == "schur_jacobi"
-    with pytest.raises(ValueError):
-        cg_preconditioner(shared, SolverOptions(cg_preconditioner="two_level"), "iterative")
+    for kind in ("two_level", "adaptive"):
+        with pytest.raises(ValueError):
+            cg_preconditioner(shared, SolverOptions(cg_preconditioner=kind), "iterative")
     gc = np.array([[0, 1], [2, 3]])
     assert rcs_coarse.applicable(SimpleNamespace(group_cols=gc, n_r=4, n_e_rows=5))
     assert not rcs_coarse.applicable(SimpleNamespace(group_cols=np.array([[0, 1], [1, 2]]),
@@ -214,3 +218,48 @@ def test_numba_and_numpy_twins_agree():
     assert np.abs(A - B).max() <= 1e-12 * np.abs(A).max()
     r = np.random.default_rng(1).standard_normal(op.n_r)
     np.testing.assert_allclose(b(r), a(r), rtol=1e-9, atol=1e-12 * np.abs(a(r)).max())
+
+
+def test_fused_coarse_pass_equals_the_separate_passes(kernel_path):
+    """The Schur-Jacobi blocks, the reduced right-hand side and the
+    coarse coupling blocks ``W A^-1 W^T P`` of the fused pass (numba:
+    one stream over ``W_o^T``) equal those of the separate passes, and
+    the coupling equals ``S P`` formed from the dense RCS."""
+    _, system, op, S, jacobi = _operator(n=50, obs=100, seed=5)
+    if not hasattr(system, "schur_parts"):
+        pytest.skip("not the point-ordered path")
+    pat = rcs_coarse.pattern_of(op, 8)
+    blocks, rhs = system.schur_parts(op.Ncc, op.Ainv_o, ordered=True)
+    fb, frhs, coupling = system.schur_parts(op.Ncc, op.Ainv_o, ordered=True, coarse=pat)
+    assert np.abs(fb - blocks).max() <= 1e-12 * np.abs(blocks).max()
+    assert np.abs(frhs - rhs).max() <= 1e-12 * np.abs(rhs).max()
+    separate = rcs_coarse.two_level(op, jacobi, 8)
+    fused = rcs_coarse.two_level(op, jacobi, 8, coupling=coupling)
+    A, B = separate.SP.toarray(), fused.SP.toarray()
+    assert np.abs(A - B).max() <= 1e-12 * np.abs(A).max()
+    SP = S @ pat.P.toarray()
+    assert np.abs(B - SP).max() <= 1e-9 * np.abs(SP).max()
+    r = np.random.default_rng(2).standard_normal(op.n_r)
+    np.testing.assert_allclose(fused(r), separate(r), rtol=1e-9,
+                               atol=1e-12 * np.abs(separate(r)).max())
+
+
+def test_adaptive_switches_on_after_a_long_solve(kernel_path):
+    """``"adaptive"``: Schur-Jacobi while the previous solve on the
+    structure took at most ``ADAPTIVE_STEPS`` CG steps, two-level after
+    one that took more; the recorded count is the one PCG returned."""
+    problem, system, op, _, _ = _operator(n=40, obs=100, seed=6)
+    assert rcs_coarse.resolve(op, "adaptive") == "schur_jacobi"          # no solve yet
+    assert rcs_coarse.resolve(op, "two_level") == "two_level"
+    apply = rcs_coarse.preconditioner(op, "adaptive", 8)
+    assert not isinstance(apply, rcs_coarse.TwoLevel)
+    rcs_coarse.record(op, rcs_coarse.ADAPTIVE_STEPS)
+    assert rcs_coarse.resolve(op, "adaptive") == "schur_jacobi"
+    rcs_coarse.record(op, rcs_coarse.ADAPTIVE_STEPS + 1)
+    assert isinstance(rcs_coarse.preconditioner(op, "adaptive", 8), rcs_coarse.TwoLevel)
+    # through schur.solve: the count of the last solve is recorded
+    schur.solve(system, problem.layout, 1e-3, method="iterative",
+                cg_tolerance=1e-12, cg_max_iterations=5000,
+                cg_preconditioner="schur_jacobi", coarse_cluster_size=8)
+    owner = op.point if op.point is not None else system.structure
+    assert owner._last_cg_steps > rcs_coarse.ADAPTIVE_STEPS

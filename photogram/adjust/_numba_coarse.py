@@ -1,7 +1,8 @@
 """numba kernel of the two-level preconditioner
 (:mod:`photogram.adjust.rcs_coarse`): the (group, cluster) blocks of
 ``W A^-1 W^T P`` in one pass over the point-ordered E-rows (the numpy twin
-is :func:`photogram.adjust.rcs_coarse._coupling_numpy`)."""
+is :func:`photogram.adjust.rcs_coarse._coupling_numpy`), alone or fused
+with the Schur-Jacobi pass (:func:`jacobi_rhs_coupling`)."""
 
 import numba as _numba
 import numpy as np
@@ -68,3 +69,74 @@ def mark_blocks(group, ptr, cluster, seen):
             c = cluster[group[k]]
             for q in range(ptr[i], ptr[i + 1]):
                 seen[group[q], c] = True
+
+
+@njit
+def jacobi_rhs_coupling(WT, group, ptr, Ainv, g_e, blocks, rhs_g, cluster, lookup, slots,
+                        out):
+    """The fused pass: :func:`photogram.adjust._numba_point.jacobi_rhs`
+    (``blocks[g] -= W_k A_p^-1 W_k^T``, upper triangle, and ``rhs_g[g] +=
+    W_k A_p^-1 g_e[p]``) and :func:`coupling_blocks` (``out``) in one
+    stream over ``W_o^T``: a point's rows are read once from memory for
+    the cluster sums ``Y_pc`` and once more from cache for the per-row
+    products of both."""
+    s = WT.shape[2]
+    nsl = len(slots)
+    kmax = 0
+    for i in range(len(ptr) - 1):
+        kmax = max(kmax, ptr[i + 1] - ptr[i])
+    Y = np.zeros((max(kmax, 1), 3, nsl))
+    Z = np.zeros((max(kmax, 1), 3, nsl))
+    cl = np.empty(max(kmax, 1), dtype=np.int64)
+    R = np.empty((3, s))
+    for i in range(len(ptr) - 1):
+        lo, hi = ptr[i], ptr[i + 1]
+        nk = 0
+        for k in range(lo, hi):
+            c = cluster[group[k]]
+            m = -1
+            for q in range(nk):
+                if cl[q] == c:
+                    m = q
+                    break
+            if m < 0:
+                m = nk
+                cl[m] = c
+                nk += 1
+                for a in range(3):
+                    for j in range(nsl):
+                        Y[m, a, j] = 0.0
+            for a in range(3):
+                for j in range(nsl):
+                    Y[m, a, j] += WT[k, a, slots[j]]
+        b00, b01, b02 = Ainv[i, 0, 0], Ainv[i, 0, 1], Ainv[i, 0, 2]
+        b10, b11, b12 = Ainv[i, 1, 0], Ainv[i, 1, 1], Ainv[i, 1, 2]
+        b20, b21, b22 = Ainv[i, 2, 0], Ainv[i, 2, 1], Ainv[i, 2, 2]
+        e0, e1, e2 = g_e[i, 0], g_e[i, 1], g_e[i, 2]
+        for m in range(nk):
+            for j in range(nsl):
+                y0, y1, y2 = Y[m, 0, j], Y[m, 1, j], Y[m, 2, j]
+                Z[m, 0, j] = b00 * y0 + b01 * y1 + b02 * y2
+                Z[m, 1, j] = b10 * y0 + b11 * y1 + b12 * y2
+                Z[m, 2, j] = b20 * y0 + b21 * y1 + b22 * y2
+        for k in range(lo, hi):
+            g = group[k]
+            for j in range(s):
+                w0, w1, w2 = WT[k, 0, j], WT[k, 1, j], WT[k, 2, j]
+                y0 = b00 * w0 + b01 * w1 + b02 * w2
+                y1 = b10 * w0 + b11 * w1 + b12 * w2
+                y2 = b20 * w0 + b21 * w1 + b22 * w2
+                R[0, j], R[1, j], R[2, j] = y0, y1, y2
+                rhs_g[g, j] += y0 * e0 + y1 * e1 + y2 * e2
+            for a in range(s):
+                w0, w1, w2 = WT[k, 0, a], WT[k, 1, a], WT[k, 2, a]
+                for b in range(a, s):
+                    blocks[g, a, b] -= w0 * R[0, b] + w1 * R[1, b] + w2 * R[2, b]
+        for k in range(lo, hi):
+            g = group[k]
+            for m in range(nk):
+                bb = lookup[g, cl[m]]
+                for u in range(s):
+                    w0, w1, w2 = WT[k, 0, u], WT[k, 1, u], WT[k, 2, u]
+                    for j in range(nsl):
+                        out[bb, u, j] += w0 * Z[m, 0, j] + w1 * Z[m, 1, j] + w2 * Z[m, 2, j]

@@ -343,12 +343,17 @@ class PointSystem(NormalSystem):
         _compiled().matvec(self.WTp, pl.group, pl.gcols, pl.ptr, Ainv_o, np.append(x_c, 0.0), out)
         return out[:-1]
 
-    def schur_parts(self, Ncc, Ainv, ordered=False):
+    def schur_parts(self, Ncc, Ainv, ordered=False, coarse=None):
         """The Schur-Jacobi blocks before the ``N_cc`` part is added and
         ``W A^-1 g_e`` (n_r,), in one pass: ``(-sum W A^-1 W^T per group,
         rhs)`` (``Ainv`` in point-number order, or in the plan's with
         ``ordered``); None when a point has two rows in one group (the
-        generic pass merges them)."""
+        generic pass merges them). ``coarse``: a two-level pattern
+        (:func:`photogram.adjust.rcs_coarse.pattern_of`); then the
+        coarse coupling blocks ``W A^-1 W^T P`` come third, from the same
+        pass over ``W_o^T`` on the compiled path
+        (``_numba_coarse.jacobi_rhs_coupling``; numpy: the two separate
+        passes)."""
         st, pl = self.structure, self.plan
         if not pl.unique:
             return None
@@ -357,14 +362,27 @@ class PointSystem(NormalSystem):
         if self.Wg is not None:
             blocks = -_numpy_point.jacobi_blocks(self.Wg, Ainv_o, pl, n_g)
             z = _numpy_point.apply_blocks(Ainv_o, self.g_o)
-            return blocks, self._from_groups(self.bsr()[1] @ z.ravel())
+            parts = blocks, self._from_groups(self.bsr()[1] @ z.ravel())
+            if coarse is None:
+                return parts
+            from photogram.adjust.rcs_coarse import _coupling_numpy
+            return parts + (_coupling_numpy(coarse, self.WTp, Ainv_o),)
         blocks = np.zeros((n_g, s, s))
         rhs_g = np.zeros((n_g, s))
-        _compiled().jacobi_rhs(self.WTp, pl.group, pl.ptr, Ainv_o, self.g_o, blocks, rhs_g)
+        if coarse is None:
+            _compiled().jacobi_rhs(self.WTp, pl.group, pl.ptr, Ainv_o, self.g_o, blocks, rhs_g)
+        else:
+            from photogram.adjust import _numba_coarse
+            coupling = np.zeros((coarse.n_blocks, s, coarse.k))
+            _numba_coarse.jacobi_rhs_coupling(self.WTp, pl.group, pl.ptr, Ainv_o, self.g_o,
+                                              blocks, rhs_g, coarse.cluster, coarse.lookup,
+                                              coarse.slots, coupling)
         iu = np.triu_indices(s, 1)
         blocks[:, iu[1], iu[0]] = blocks[:, iu[0], iu[1]]
         rhs = np.bincount(st.group_cols.ravel(), weights=rhs_g.ravel(), minlength=st.n_r + 1)
-        return blocks, rhs[:st.n_r]
+        if coarse is None:
+            return blocks, rhs[:st.n_r]
+        return blocks, rhs[:st.n_r], coupling
 
     def damped_inverse(self, layout, damping, point_labels=None):
         """``(N_cc, A^-1)`` of the damped normal equations (as
@@ -400,16 +418,21 @@ class PointSystem(NormalSystem):
         pl = self.plan
         Ncc, Ainv_o = self.damped_inverse(layout, damping, point_labels)
         op = rcs_iterative.SchurOperator(self, Ncc, Ainv_o, ordered=True)
-        parts = self.schur_parts(Ncc, Ainv_o, ordered=True)
+        coarse = None
+        if rcs_coarse.resolve(op, precond[0]) == "two_level" and pl.unique:
+            coarse = rcs_coarse.pattern_of(op, precond[1])
+        parts = self.schur_parts(Ncc, Ainv_o, ordered=True, coarse=coarse)
         if parts is None:
             rhs_c = -self.g[:n_r] + op.w_times_e(
                 np.einsum("nij,nj->ni", op.Ainv, self.g[n_r:].reshape(-1, 3)))
             apply = rcs_coarse.preconditioner(op, *precond)
         else:
             rhs_c = -self.g[:n_r] + parts[1]
-            apply = rcs_coarse.preconditioner(op, *precond, coupling=parts[0])
+            apply = rcs_coarse.preconditioner(op, *precond, coupling=parts[0],
+                                              coarse=parts[2] if coarse is not None else None)
         rhs_c[~layout.free[:n_r]] = 0.0
-        dx_c, _ = rcs_iterative.pcg(op, rhs_c, apply, tolerance, max_iterations, criterion)
+        dx_c, steps = rcs_iterative.pcg(op, rhs_c, apply, tolerance, max_iterations, criterion)
+        rcs_coarse.record(op, steps)
         rhs_o = -self.g_o - self.back_o(dx_c)
         dx = np.empty(layout.n_columns)
         dx[:n_r] = dx_c

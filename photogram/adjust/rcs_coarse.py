@@ -46,10 +46,15 @@ import scipy.sparse as sp
 from photogram.adjust import kernels
 from photogram.adjust.rcs_iterative import schur_jacobi
 
-__all__ = ["PRECONDITIONERS", "applicable", "cluster_groups", "preconditioner",
-           "TwoLevel"]
+__all__ = ["PRECONDITIONERS", "applicable", "cluster_groups", "pattern_of",
+           "preconditioner", "record", "resolve", "TwoLevel", "two_level"]
 
-PRECONDITIONERS = ("auto", "schur_jacobi", "two_level")
+PRECONDITIONERS = ("auto", "schur_jacobi", "two_level", "adaptive")
+# "adaptive": the two-level preconditioner only for a solve whose previous
+# solve (same structure: the last LM step) took more than this many CG
+# steps; Schur-Jacobi otherwise (the first LM steps need 2-5 steps, too
+# few for the coarse pass to pay)
+ADAPTIVE_STEPS = 4
 # coarse modes whose eigenvalue of the unit-diagonal S_c is below this are
 # left out of the coarse correction: the (damped) gauge freedom
 FLOOR = 3e-2
@@ -322,14 +327,7 @@ def _rows(op):
     return WT, op.grp, st.pt_ptr, op.Ainv, st
 
 
-def two_level(op, jacobi, cluster_size=64, compiled=None, floor=None, slots=None):
-    """The two-level preconditioner of a
-    :class:`~photogram.adjust.rcs_iterative.SchurOperator` with smoother
-    ``jacobi``; ``compiled``: use the numba kernel (None: when the
-    kernels are active); ``floor``: the eigenvalue of the unit-diagonal
-    ``S_c`` below which coarse modes are left out (None: ``FLOOR``);
-    ``slots``: the columns of a group that the coarse space aggregates
-    (None: ``COARSE_SLOTS``; "all": every column)."""
+def _setup(op, cluster_size, compiled, slots):
     st = op.system.structure
     WT, group, ptr, Ainv_seg, owner = _rows(op)
     group = np.ascontiguousarray(group, dtype=np.int64)
@@ -343,10 +341,31 @@ def two_level(op, jacobi, cluster_size=64, compiled=None, floor=None, slots=None
     if compiled is None:
         compiled = kernels.active(len(group)) and _have_numba()
     pat = pattern(owner, st.group_cols, st.n_r, group, ptr, int(cluster_size), slots, compiled)
-    if compiled:
-        coupling = _coupling_numba(pat, WT, group, ptr, Ainv_seg)
-    else:
-        coupling = _coupling_numpy(pat, WT, Ainv_seg)
+    return pat, WT, group, ptr, Ainv_seg, compiled
+
+
+def pattern_of(op, cluster_size=64, slots=None, compiled=None):
+    """The cached :class:`_Pattern` that :func:`two_level` uses for
+    ``op`` (for a caller that forms the coupling blocks itself, as the
+    fused pass of :meth:`photogram.adjust.point_rows.PointSystem.schur_parts`)."""
+    return _setup(op, cluster_size, compiled, slots)[0]
+
+
+def two_level(op, jacobi, cluster_size=64, compiled=None, floor=None, slots=None,
+              coupling=None):
+    """The two-level preconditioner of a
+    :class:`~photogram.adjust.rcs_iterative.SchurOperator` with smoother
+    ``jacobi``; ``compiled``: use the numba kernel (None: when the
+    kernels are active); ``floor``: the eigenvalue of the unit-diagonal
+    ``S_c`` below which coarse modes are left out (None: ``FLOOR``);
+    ``slots``: the columns of a group that the coarse space aggregates
+    (None: ``COARSE_SLOTS``; "all": every column); ``coupling``: the
+    blocks ``W A^-1 W^T P`` of :func:`pattern_of`'s pattern when already
+    formed (the fused pass), else they are formed here."""
+    pat, WT, group, ptr, Ainv_seg, compiled = _setup(op, cluster_size, compiled, slots)
+    if coupling is None:
+        coupling = (_coupling_numba(pat, WT, group, ptr, Ainv_seg) if compiled
+                    else _coupling_numpy(pat, WT, Ainv_seg))
     return TwoLevel(op.Ncc, jacobi, pat, coupling, floor)
 
 
@@ -358,13 +377,38 @@ def _have_numba():
     return True
 
 
-def preconditioner(op, kind="schur_jacobi", cluster_size=64, coupling=None):
+def _owner(op):
+    return op.point if op.point is not None else op.system.structure
+
+
+def resolve(op, kind):
+    """The preconditioner that runs for ``kind`` on ``op``: ``kind``
+    itself, or for ``"adaptive"`` ``"two_level"`` when the previous
+    solve on the same structure (:func:`record`) took more than
+    ``ADAPTIVE_STEPS`` CG steps, else ``"schur_jacobi"``."""
+    if kind != "adaptive":
+        return kind
+    last = _owner(op).__dict__.get("_last_cg_steps", 0)
+    return "two_level" if last > ADAPTIVE_STEPS else "schur_jacobi"
+
+
+def record(op, steps):
+    """Remember the CG steps of a solve on ``op``'s structure (for
+    ``"adaptive"``)."""
+    _owner(op).__dict__["_last_cg_steps"] = int(steps)
+
+
+def preconditioner(op, kind="schur_jacobi", cluster_size=64, coupling=None, coarse=None):
     """``z = M^-1 r`` for PCG on ``op``: ``"schur_jacobi"`` or
-    ``"two_level"`` (``coupling``: the Schur-Jacobi blocks' summed
-    ``-W A^-1 W^T`` part when known)."""
+    ``"two_level"``, or ``"adaptive"`` (:func:`resolve`; ``coupling``:
+    the Schur-Jacobi blocks' summed
+    ``-W A^-1 W^T`` part when known; ``coarse``: the two-level coupling
+    blocks when known, see :func:`two_level`)."""
     jacobi = schur_jacobi(op, coupling)
+    kind = resolve(op, kind)
     if kind == "schur_jacobi":
         return jacobi
     if kind != "two_level":
-        raise ValueError(f"unknown CG preconditioner {kind!r} (schur_jacobi or two_level)")
-    return two_level(op, jacobi, cluster_size)
+        raise ValueError(f"unknown CG preconditioner {kind!r} "
+                         "(schur_jacobi, two_level or adaptive)")
+    return two_level(op, jacobi, cluster_size, coupling=coarse)

@@ -205,7 +205,7 @@ def solve(system, layout, damping=0.0, G=None, point_labels=None, method="dense"
         ``cg_tolerance`` by ``cg_criterion``, see
         :func:`photogram.adjust.rcs_iterative.pcg`; not with datum conditions ``G``, no
         factorization: ``fact`` is None).
-    cg_preconditioner : "schur_jacobi" or "two_level"
+    cg_preconditioner : "schur_jacobi", "two_level" or "adaptive"
         With ``coarse_cluster_size``: the preconditioner of the iterative
         solve (:func:`photogram.adjust.rcs_coarse.preconditioner`).
 
@@ -292,8 +292,9 @@ def _solve_iterative(system, Ncc, Ainv, layout, tolerance, max_iterations, crite
     op = rcs_iterative.SchurOperator(system, Ncc, Ainv)
     rhs_c = -g_c + op.w_times_e(np.einsum("nij,nj->ni", Ainv, g_e))
     rhs_c[~layout.free[:n_r]] = 0.0
-    dx_c, _ = rcs_iterative.pcg(op, rhs_c, rcs_coarse.preconditioner(op, *precond),
-                                tolerance, max_iterations, criterion)
+    dx_c, steps = rcs_iterative.pcg(op, rhs_c, rcs_coarse.preconditioner(op, *precond),
+                                    tolerance, max_iterations, criterion)
+    rcs_coarse.record(op, steps)
     rhs_e = -g_e - system.wt_times_c(dx_c)
     dx_e = np.matmul(Ainv, rhs_e[:, :, None])[:, :, 0].ravel()
     dx = np.concatenate([dx_c, dx_e])

@@ -33,12 +33,14 @@ DAMPINGS = ("none", "lm", "armijo", "trust_region")
 # reduced columns from which "auto" solves the RCS iteratively: {numba: n;
 # "fused": point_rows' fused BAL linearization, numba or its numpy twin}
 ITERATIVE_MIN_COLUMNS = {True: 1500, False: 4000, "fused": 500}
-# row groups (cameras) from which "auto" preconditions CG with two levels:
-# up to 3333 cameras (10^7 observations, the largest measured) it did not
-# pay (it halves the CG steps, its coarse pass costs as much as they
-# saved; docs/benchmarks.md, "Follow-up 4"); 10000 is an extrapolation of
-# the growing Schur-Jacobi step counts, not a measurement
-TWO_LEVEL_MIN_GROUPS = 10000
+# row groups (cameras) from which "auto" preconditions CG adaptively with
+# two levels ("adaptive": two-level after a solve of more than
+# rcs_coarse.ADAPTIVE_STEPS CG steps). Measured on seed 0 of the simulated
+# sphere problems (docs/benchmarks.md, "Follow-up 4", "Fused coarse
+# pass"): 3-8 % less CPU per iteration than Schur-Jacobi at 3333 cameras
+# (10^7 observations, three pairs), 2-18 % more at 1000 cameras (two
+# pairs); plain two-level paid at neither. 3000 lies between the two.
+TWO_LEVEL_MIN_GROUPS = 3000
 
 
 @dataclass
@@ -75,7 +77,9 @@ class SolverOptions:
     after ``cg_max_iterations`` steps. ``cg_preconditioner``:
     ``"schur_jacobi"``, ``"two_level"`` (Schur-Jacobi plus a coarse
     correction on clusters of about ``coarse_cluster_size`` cameras,
-    :mod:`photogram.adjust.rcs_coarse`) or ``"auto"`` (two-level from
+    :mod:`photogram.adjust.rcs_coarse`), ``"adaptive"`` (two-level only
+    after a solve of more than ``rcs_coarse.ADAPTIVE_STEPS`` CG steps,
+    :func:`photogram.adjust.rcs_coarse.resolve`) or ``"auto"`` (adaptive from
     ``TWO_LEVEL_MIN_GROUPS`` row groups on with the numba kernels, where
     it was measured to pay, when it applies). ``Summary.cg_preconditioner`` says which one ran.
     """
@@ -102,7 +106,7 @@ class SolverOptions:
     cg_tolerance: float = 0.1         # Ceres' eta (ITERATIVE_SCHUR)
     cg_max_iterations: int = 500
     cg_criterion: str = "residual"    # residual | model (Ceres' LM test, rcs_iterative.pcg)
-    cg_preconditioner: str = "auto"   # auto | schur_jacobi | two_level (rcs_coarse)
+    cg_preconditioner: str = "auto"   # auto | schur_jacobi | two_level | adaptive (rcs_coarse)
     coarse_cluster_size: int = 64     # row groups (cameras) per coarse cluster (two_level)
 
 
@@ -123,7 +127,7 @@ class Summary:
     successful_steps: int = 0
     unsuccessful_steps: int = 0
     linear_solver: str = ""             # dense | iterative (the RCS solve used)
-    cg_preconditioner: str = ""         # schur_jacobi | two_level (iterative RCS only)
+    cg_preconditioner: str = ""         # schur_jacobi | two_level | adaptive (iterative RCS only)
 
     def to_dict(self) -> dict:
         return {k: v for k, v in self.__dict__.items()}
@@ -292,7 +296,7 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
 def cg_preconditioner(problem: Problem, options: SolverOptions, method: str) -> str:
     """The CG preconditioner of the iterative RCS solve that
     ``options.cg_preconditioner`` asks for ("" with the dense solve;
-    ``"auto"``: two-level from ``TWO_LEVEL_MIN_GROUPS`` row groups on, with
+    ``"auto"``: adaptive from ``TWO_LEVEL_MIN_GROUPS`` row groups on, with
     the compiled kernels active, when
     :func:`photogram.adjust.rcs_coarse.applicable`)."""
     from photogram.adjust import rcs_coarse
@@ -303,13 +307,13 @@ def cg_preconditioner(problem: Problem, options: SolverOptions, method: str) -> 
     if method != "iterative":
         return ""
     ok = rcs_coarse.applicable(problem.structure)
-    if choice == "two_level" and not ok:
-        raise ValueError("cg_preconditioner='two_level' needs at least two row groups and "
+    if choice in ("two_level", "adaptive") and not ok:
+        raise ValueError(f"cg_preconditioner={choice!r} needs at least two row groups and "
                          "every reduced column in at most one group; use 'schur_jacobi'")
     if choice == "auto":
         st = problem.structure
         big = st.group_cols.shape[0] >= TWO_LEVEL_MIN_GROUPS and kernels.active(st.n_e_rows)
-        return "two_level" if big and ok else "schur_jacobi"
+        return "adaptive" if big and ok else "schur_jacobi"
     return choice
 
 
