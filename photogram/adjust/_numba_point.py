@@ -20,6 +20,9 @@ from photogram.adjust._numba_kernels import bal_frame_jacobian, camera_frame
 
 njit = _numba.njit(cache=True, nogil=True,
                    fastmath={"reassoc", "contract", "nsz", "arcp"})
+# a kernel's piece shared by two kernels, inlined into each (numba IR)
+njit_inline = _numba.njit(cache=True, nogil=True, inline="always",
+                          fastmath={"reassoc", "contract", "nsz", "arcp"})
 
 
 @njit
@@ -182,27 +185,33 @@ def jacobi_rhs(WT, group, ptr, Ainv, g_e, blocks, rhs_g):
     side: ``blocks[g] -= W_k A_p^-1 W_k^T`` (s x s) and ``rhs_g[g] +=
     W_k A_i^-1 g_e[i]`` (s) for every row k of segment i (one row per
     group and point; ``Ainv`` and ``g_e`` in segment order)."""
-    s = WT.shape[2]
-    Y = np.empty((3, s))
+    Y = np.empty((3, WT.shape[2]))
     for i in range(len(ptr) - 1):
-        p = i
-        b00, b01, b02 = Ainv[p, 0, 0], Ainv[p, 0, 1], Ainv[p, 0, 2]
-        b10, b11, b12 = Ainv[p, 1, 0], Ainv[p, 1, 1], Ainv[p, 1, 2]
-        b20, b21, b22 = Ainv[p, 2, 0], Ainv[p, 2, 1], Ainv[p, 2, 2]
-        e0, e1, e2 = g_e[p, 0], g_e[p, 1], g_e[p, 2]
-        for k in range(ptr[i], ptr[i + 1]):
-            g = group[k]
-            for j in range(s):
-                w0, w1, w2 = WT[k, 0, j], WT[k, 1, j], WT[k, 2, j]
-                y0 = b00 * w0 + b01 * w1 + b02 * w2
-                y1 = b10 * w0 + b11 * w1 + b12 * w2
-                y2 = b20 * w0 + b21 * w1 + b22 * w2
-                Y[0, j], Y[1, j], Y[2, j] = y0, y1, y2
-                rhs_g[g, j] += y0 * e0 + y1 * e1 + y2 * e2
-            for a in range(s):
-                w0, w1, w2 = WT[k, 0, a], WT[k, 1, a], WT[k, 2, a]
-                for b in range(a, s):
-                    blocks[g, a, b] -= w0 * Y[0, b] + w1 * Y[1, b] + w2 * Y[2, b]
+        jacobi_rows(WT, group, ptr[i], ptr[i + 1], Ainv, g_e, i, Y, blocks, rhs_g)
+
+
+@njit_inline
+def jacobi_rows(WT, group, lo, hi, Ainv, g_e, p, Y, blocks, rhs_g):
+    """:func:`jacobi_rhs` for the rows ``lo:hi`` of point ``p`` (``Y``: a
+    3 x s work array)."""
+    s = WT.shape[2]
+    b00, b01, b02 = Ainv[p, 0, 0], Ainv[p, 0, 1], Ainv[p, 0, 2]
+    b10, b11, b12 = Ainv[p, 1, 0], Ainv[p, 1, 1], Ainv[p, 1, 2]
+    b20, b21, b22 = Ainv[p, 2, 0], Ainv[p, 2, 1], Ainv[p, 2, 2]
+    e0, e1, e2 = g_e[p, 0], g_e[p, 1], g_e[p, 2]
+    for k in range(lo, hi):
+        g = group[k]
+        for j in range(s):
+            w0, w1, w2 = WT[k, 0, j], WT[k, 1, j], WT[k, 2, j]
+            y0 = b00 * w0 + b01 * w1 + b02 * w2
+            y1 = b10 * w0 + b11 * w1 + b12 * w2
+            y2 = b20 * w0 + b21 * w1 + b22 * w2
+            Y[0, j], Y[1, j], Y[2, j] = y0, y1, y2
+            rhs_g[g, j] += y0 * e0 + y1 * e1 + y2 * e2
+        for a in range(s):
+            w0, w1, w2 = WT[k, 0, a], WT[k, 1, a], WT[k, 2, a]
+            for b in range(a, s):
+                blocks[g, a, b] -= w0 * Y[0, b] + w1 * Y[1, b] + w2 * Y[2, b]
 
 
 @njit
