@@ -765,12 +765,22 @@ def staged_base() -> Path:
     if "base" not in _STAGED:
         import atexit
         import tempfile
-        shm = "/dev/shm"
-        top = Path(tempfile.mkdtemp(prefix="fuzz-", dir=shm if os.path.isdir(shm) and
-                                    os.access(shm, os.W_OK | os.X_OK) else None))
+        top = Path(tempfile.mkdtemp(prefix="fuzz-", dir=_memory_folder()))
         atexit.register(shutil.rmtree, top, ignore_errors=True)
         _STAGED["base"] = stage(top / "base")
     return _STAGED["base"]
+
+
+def _memory_folder(path="/dev/shm", need=1 << 30):
+    """``path`` if it is a writable folder with ``need`` bytes free (a
+    container's /dev/shm is often 64 MB, too small for the staged projects
+    and the cases' outputs), else None (the default temporary folder)."""
+    try:
+        st = os.statvfs(path)
+    except OSError:
+        return None
+    free = st.f_bavail * st.f_frsize
+    return path if free >= need and os.access(path, os.W_OK | os.X_OK) else None
 
 
 _STAGED: dict = {}
