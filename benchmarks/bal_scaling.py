@@ -31,12 +31,15 @@ Run: /work/venv-bal/bin/python benchmarks/bal_scaling.py
      [--preconditioner auto|schur_jacobi|two_level] [--cluster-size 64]
      [--ceres-settings ITERATIVE_SCHUR:1,...]
      [--ceres-from earlier_output.txt]
-Prints a table and ``RESULT key=value ...``.
+Prints a table and ``RESULT key=value ...``; per photogram row also the
+user and system CPU seconds and minor page faults per iteration
+(``getrusage``, same span).
 """
 
 import argparse
 import math
 import re
+import resource
 import sys
 import time
 from pathlib import Path
@@ -90,15 +93,25 @@ def _photogram_run(bal, iterations, precond):
     marks = []
     opt = bal_options(max_iterations=iterations, **precond,
                       callback=lambda i, c, lam: marks.append((i, time.process_time(),
-                                                               time.perf_counter())))
-    c0, w0 = time.process_time(), time.perf_counter()
+                                                               time.perf_counter(), _usage())))
+    c0, w0, u0 = time.process_time(), time.perf_counter(), _usage()
     s = solve_bal(built, opt)
-    c1, w1 = time.process_time(), time.perf_counter()
+    c1, w1, u1 = time.process_time(), time.perf_counter(), _usage()
     it, cpu, wall = s.iterations, c1 - c0, w1 - w0
     if s.status == "max_iterations" and marks:
-        it, cpu, wall = marks[-1][0], marks[-1][1] - c0, marks[-1][2] - w0
+        it, cpu, wall, u1 = marks[-1][0], marks[-1][1] - c0, marks[-1][2] - w0, marks[-1][3]
+    user, system, faults = (u1 - u0) / it
     return {"cpu": cpu / it, "wall": wall / it, "iterations": it, "final": s.final_cost,
-            "solver": s.linear_solver, "precond": s.cg_preconditioner}
+            "solver": s.linear_solver, "precond": s.cg_preconditioner,
+            "user": user, "sys": system, "minflt": faults}
+
+
+def _usage():
+    """User and system CPU seconds and minor page faults of the process
+    so far (``getrusage``): the system time is mostly the kernel zeroing
+    the pages of freshly allocated arrays."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return np.array([r.ru_utime, r.ru_stime, r.ru_minflt], dtype=float)
 
 
 def ceres_run(bal, iterations, kind, threads):
@@ -236,6 +249,9 @@ def report(row):
             solver = r["solver"] + (f", {r['precond']}" if r.get("precond") else "")
             print(f"  photogram {key:<6} ({solver:<9}) {r['cpu']:8.3f} ({r['wall']:7.3f})  "
                   f"{r['iterations']} it, cost {r['final']:.6g}{cg}")
+            if "user" in r:
+                print(f"    per iteration: user {r['user']:.3f} s, system {r['sys']:.3f} s, "
+                      f"{r['minflt']:.0f} minor page faults")
     for (kind, threads), r in row["ceres"].items():
         if r is None:
             print(f"  Ceres {kind:<15} {threads} thr   skipped (extrapolated beyond the limit)")

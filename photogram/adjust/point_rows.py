@@ -33,13 +33,12 @@ formulas; sums in another order).
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 import scipy.sparse as sp
 
 from photogram.adjust import _numpy_point, kernels
 from photogram.adjust.normal import NormalSystem, _NccSum
+from photogram.adjust.point_plan import Plan as _Plan
 
 __all__ = ["PointSystem", "plan", "linearize", "cost"]
 
@@ -48,76 +47,6 @@ def _compiled():
     """The point-ordered kernels (:mod:`photogram.adjust._numba_point`)."""
     from photogram.adjust import _numba_point
     return _numba_point
-
-
-class _Plan:
-    """Row indices of the fused path (fixed per structure): the E-rows
-    point by point, the points ordered by the first row group (camera)
-    that sees them, so that consecutive points share cameras and the
-    per-camera sums stay in cache (the order does not change any sum of
-    a point; the per-camera sums are taken in another order)."""
-
-    def __init__(self, block, st):
-        cls = st.e_classes[0]
-        ptr0 = st.pt_ptr
-        cnt = np.diff(ptr0)
-        grp0 = st.e_group[st.pt_rows]
-        first = np.full(len(cnt), np.iinfo(np.int64).max)
-        seen = cnt > 0
-        if seen.any():
-            first[seen] = np.minimum.reduceat(grp0, ptr0[:-1][seen])
-        order = np.argsort(first, kind="stable")
-        cnt = cnt[order]
-        ptr = np.concatenate([[0], np.cumsum(cnt)]).astype(np.int64)
-        idx = np.repeat(ptr0[order] - ptr[:-1], cnt) + np.arange(ptr[-1])
-        self.erows = st.pt_rows[idx]                        # E-row of each processed row
-        self.point = order.astype(np.int64)                 # point of each segment
-        self.ptr = ptr
-        rows = cls.rows[self.erows]                         # block row of each processed row
-        self.block = block
-        self.rows = rows
-        self.station = np.ascontiguousarray(block.station[rows], dtype=np.int64)
-        self.camera = np.ascontiguousarray(block.camera[rows], dtype=np.int64)
-        self.group = np.ascontiguousarray(st.e_group[self.erows], dtype=np.int64)
-        self.gcols = np.ascontiguousarray(st.group_cols, dtype=np.int64)
-        seg = np.repeat(np.arange(len(cnt)), cnt)
-        # at most one row per (point, group): the Schur-Jacobi pass needs no merging
-        self.unique = not np.any((seg[1:] == seg[:-1]) & (self.group[1:] == self.group[:-1]))
-        self._xy = (None, None)
-        self.buffers = []                                   # [(arrays, weakref to owner)]
-
-    def row_points(self):
-        """The point of every processed row."""
-        return np.repeat(self.point, np.diff(self.ptr))
-
-    def xy(self):
-        """The block's observations in point order (copied again when the
-        block's array is replaced, e.g. by ``set_observations``)."""
-        src, copy = self._xy
-        if src is not self.block.xy:
-            copy = np.ascontiguousarray(self.block.xy[self.rows])
-            self._xy = (self.block.xy, copy)
-        return copy
-
-    def buffers_for(self, shapes):
-        """Float arrays of ``shapes`` that no live :class:`PointSystem`
-        uses (reused between iterations: fresh memory costs page faults
-        as much as the kernel's work): ``(k, arrays)``; ``own(k, system)``
-        marks them used."""
-        for k, (arrs, owner) in enumerate(self.buffers):
-            if owner() is None and [a.shape for a in arrs] == list(shapes):
-                self.buffers[k] = (arrs, _taken)
-                return k, arrs
-        self.buffers.append(([np.empty(sh) for sh in shapes], _taken))
-        return len(self.buffers) - 1, self.buffers[-1][0]
-
-    def own(self, k, system):
-        self.buffers[k] = (self.buffers[k][0], weakref.ref(system))
-
-
-def _taken():
-    """Owner of a buffer handed out and not yet given to a system."""
-    return True
 
 
 def _eligible(problem):
@@ -172,7 +101,9 @@ def _unit_weights(problem):
 
 def _model_arrays(pl, state):
     io = np.ascontiguousarray(np.stack([state.io[k] for k in pl.block.cameras]), dtype=float)
-    return (pl.xy(), np.ascontiguousarray(state.points[pl.point], dtype=float),
+    pts = np.take(np.asarray(state.points, dtype=float), pl.point, axis=0,
+                  out=pl.scratch("points", (len(pl.point), 3)))
+    return (pl.xy(), pts,
             np.ascontiguousarray(state.R, dtype=float),
             np.ascontiguousarray(state.X0, dtype=float), io)
 
@@ -199,7 +130,8 @@ def linearize(problem, state):
     n_r, n_e, s, n_g = st.n_r, st.layout.n_eliminated, st.s, st.n_groups
     xy, pts, R, X0, io = _model_arrays(pl, state)
     if compiled_for(problem):
-        k, (WTp, A_o, g_o) = pl.buffers_for([(st.n_e_rows, 3, s), (n_e, 3, 3), (n_e, 3)])
+        k, (WTp, A_o, g_o, g, back) = pl.buffers_for([(st.n_e_rows, 3, s), (n_e, 3, 3),
+                                                      (n_e, 3), (n_r + 3 * n_e,), (n_e, 3)])
         g_grp = np.zeros((n_g, s))
         G = np.zeros((n_g, s, s))
         ssq = _compiled().bal_linearize(xy, pts, R, X0, io, pl.ptr, pl.station, pl.camera,
@@ -209,8 +141,9 @@ def linearize(problem, state):
         Wg = None
     else:
         _numpy_order(pl, st)
-        k, (WTp, Wg, Qp) = pl.buffers_for([(st.n_e_rows, 3, s), (st.n_e_rows, s, 3),
-                                           (9, st.n_e_rows)])
+        k, (WTp, Wg, Qp, g) = pl.buffers_for([(st.n_e_rows, 3, s), (st.n_e_rows, s, 3),
+                                              (9, st.n_e_rows), (n_r + 3 * n_e,)])
+        back = None
         Gr = np.zeros((n_g, s + 1, s + 1))
         A_o, g_o = _numpy_point.linearize(xy, pts, R, X0, io, pl, WTp, Wg, Qp, Gr)
         G, g_grp, ssq = Gr[:, :s, :s], Gr[:, :s, s], float(Gr[:, s, s].sum())
@@ -218,10 +151,10 @@ def linearize(problem, state):
     Ncc = _NccSum(m, True)
     Ncc.add(st._g_scatter, G.ravel())
     g_c = np.bincount(st.group_cols.ravel(), weights=g_grp.ravel(), minlength=m)
-    g = np.empty(n_r + 3 * n_e)
     g[:n_r] = g_c[:n_r]
     g[n_r:].reshape(n_e, 3)[pl.point] = g_o
     system = PointSystem(Ncc.matrix(), A_o, g_o, g, 0.5 * ssq, WTp, st, pl, Wg)
+    system._back = back
     pl.own(k, system)
     return system
 
@@ -257,6 +190,7 @@ class PointSystem(NormalSystem):
         self.plan = point_plan
         self._W = self._WT = self._A = None
         self._last_back = None
+        self._back = None          # the compiled back_o's output (a buffer of the plan)
         self._bsr = None
 
     def bsr(self):
@@ -296,7 +230,8 @@ class PointSystem(NormalSystem):
     def back_o(self, x_c):
         """``W^T x_c`` (n_e, 3) in the plan's point order; the last product
         is kept (the trust region's model decrease asks again for the
-        step's back-substitution product)."""
+        step's back-substitution product; compiled: in a buffer of the
+        system that the next product overwrites)."""
         last = self._last_back
         if last is not None and np.array_equal(last[0], x_c):
             return last[1]
@@ -304,7 +239,7 @@ class PointSystem(NormalSystem):
         if self.Wg is not None:
             out = (self.bsr()[0] @ self._to_groups(x_c)).reshape(-1, 3)
         else:
-            out = np.empty((len(pl.point), 3))
+            out = self._back if self._back is not None else np.empty((len(pl.point), 3))
             _compiled().back(self.WTp, pl.group, pl.gcols, pl.ptr, np.append(x_c, 0.0), out)
         self._last_back = (np.array(x_c, dtype=float), out)
         return out
@@ -317,11 +252,13 @@ class PointSystem(NormalSystem):
 
     def quadratic(self, dx):
         """``dx^T N dx`` (= |J dx|^2) of the undamped normal equations."""
-        n_r = self.structure.n_r
+        n_r, pl = self.structure.n_r, self.plan
         dc = dx[:n_r]
-        de = dx[n_r:].reshape(-1, 3)[self.plan.point]
+        de = np.take(dx[n_r:].reshape(-1, 3), pl.point, axis=0,
+                     out=pl.scratch("quadratic_e", (len(pl.point), 3)))
         q = float(dc @ (self.Ncc @ dc)) + float(np.einsum("ni,nij,nj->", de, self.A_o, de))
-        return q + 2.0 * float(np.sum(self.back_o(dc) * de))
+        wde = np.multiply(self.back_o(dc), de, out=pl.scratch("quadratic_w", de.shape))
+        return q + 2.0 * float(np.sum(wde))
 
     def w_times_e(self, x_e):
         """``W x_e`` (n_r,) for x_e (n_e, 3)."""
@@ -387,12 +324,16 @@ class PointSystem(NormalSystem):
     def damped_inverse(self, layout, damping, point_labels=None):
         """``(N_cc, A^-1)`` of the damped normal equations (as
         ``schur.damped`` and ``schur.invert_point_blocks``; one compiled
-        pass for the point blocks, ``A^-1`` in the plan's point order)."""
+        pass for the point blocks, ``A^-1`` in the plan's point order; on
+        the compiled path ``A^-1`` is the plan's work array, valid until the
+        next call)."""
         n_r = layout.n_reduced
         fixed = ~layout.free
         d = self.Ncc.diagonal()
         Ncc = (self.Ncc + sp.diags(d * damping + fixed[:n_r])).tocsr()
-        fix_e = np.ascontiguousarray(fixed[n_r:].reshape(-1, 3)[self.plan.point], dtype=float)
+        pl, n_e = self.plan, len(self.A_o)
+        fix_e = pl.scratch("fix", (n_e, 3))
+        fix_e[...] = fixed[n_r:].reshape(-1, 3)[pl.point]
         if self.Wg is not None:
             from photogram.adjust.schur import invert_point_blocks
             Ad = self.A_o.copy()
@@ -400,7 +341,7 @@ class PointSystem(NormalSystem):
             Ad[:, i3, i3] = Ad[:, i3, i3] * (1.0 + damping) + fix_e
             labels = None if point_labels is None else np.asarray(point_labels)[self.plan.point]
             return Ncc, invert_point_blocks(Ad, labels)
-        Ainv = np.empty_like(self.A_o)
+        Ainv = pl.scratch("Ainv", self.A_o.shape)
         if _compiled().damped_inverse(self.A_o, float(damping), fix_e, Ainv):
             from photogram.adjust.schur import damped, invert_point_blocks
             invert_point_blocks(damped(self, layout, damping)[1], point_labels)   # raises
@@ -433,10 +374,12 @@ class PointSystem(NormalSystem):
         rhs_c[~layout.free[:n_r]] = 0.0
         dx_c, steps = rcs_iterative.pcg(op, rhs_c, apply, tolerance, max_iterations, criterion)
         rcs_coarse.record(op, steps)
-        rhs_o = -self.g_o - self.back_o(dx_c)
+        rhs_o = np.negative(self.g_o, out=pl.scratch("rhs", self.g_o.shape))
+        rhs_o -= self.back_o(dx_c)
         dx = np.empty(layout.n_columns)
         dx[:n_r] = dx_c
-        dx[n_r:].reshape(-1, 3)[pl.point] = np.einsum("nij,nj->ni", Ainv_o, rhs_o)
+        dx[n_r:].reshape(-1, 3)[pl.point] = np.einsum("nij,nj->ni", Ainv_o, rhs_o,
+                                                      out=pl.scratch("dx_e", rhs_o.shape))
         dx[~layout.free] = 0.0
         if not np.all(np.isfinite(dx)):
             raise GeometryError("the adjustment produced a non-finite step (divergence)",

@@ -358,7 +358,9 @@ def _solve(problem: Problem, options: SolverOptions | None = None) -> Summary:
     t0 = time.perf_counter()
     s = Summary(n_unknowns=problem.layout.n_free, n_conditions=problem.n_conditions())
     s.n_observations = problem.n_observations()
-    s.redundancy = problem.redundancy()
+    # problem.redundancy() without a second pass over the weights (at 10^7
+    # observations about 1 GB of fresh temporaries)
+    s.redundancy = s.n_observations - problem.layout.n_free + s.n_conditions
     state = problem.state
     cost = problem.cost(state)
     if not np.isfinite(cost):

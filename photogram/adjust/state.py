@@ -47,7 +47,9 @@ class State:
             R = self.R.copy()
             if len(turned):
                 R[turned] = small_rotation(st[turned, 3:]) @ self.R[turned]
-        out = State(self.points + dx[layout.point_cols], R, self.X0 + st[:, :3], io)
+        points = dx[layout.point_cols]         # a fresh array: the sum goes into it
+        points += self.points
+        out = State(points, R, self.X0 + st[:, :3], io)
         if layout.derived is not None:
             out.compose(layout.derived)
         return out
