@@ -25,7 +25,8 @@ import numpy as np
 from photogram.adjust import kernels, point_rows
 from photogram.adjust.diagnostics import worst_observations
 from photogram.adjust.lm_loops import gauss_newton, trust_region
-from photogram.adjust.normal import Structure, assemble
+from photogram.adjust.normal import assemble
+from photogram.adjust.structure import Structure
 from photogram.adjust.schur import RCS_METHODS, solve as schur_solve
 from photogram.errors import GeometryError
 

@@ -35,7 +35,7 @@ class PointBlocks:
 
     Parameters
     ----------
-    st : Structure (:class:`photogram.adjust.normal.Structure`)
+    st : Structure (:class:`photogram.adjust.structure.Structure`)
     WT : (n_e_rows, 3, s) ``W_a^T`` of every E-row
     Ainv : (n_e, 3, 3) inverse point blocks
     ext : (n_r + 1 + m, n_r + 1 + m) extended inverse of M (module doc)
