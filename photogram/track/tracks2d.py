@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from photogram.errors import InputError
+from photogram.stats.small_samples import median_of_few
 from photogram.track.markers import Candidates
 
 __all__ = ["TrackSettings", "Track2D", "track_station", "neighbour_distance", "OK", "LOST",
@@ -282,7 +283,7 @@ def _pass(cands, snapped, markers, direction, s, xy, sig, status, reason, cidx, 
         for a, i in enumerate(ids):
             inside = np.nonzero(D[a] < gate[i])[0]
             # blobs far fainter than the marker are not it (not even partly)
-            bright = inside[c.flux[inside] >= s.low_flux * _median_of_few(fluxes[i][-10:])]
+            bright = inside[c.flux[inside] >= s.low_flux * median_of_few(fluxes[i][-10:])]
             if not len(bright):
                 status[t, i] = LOST
                 reason[t, i] = (f"no blob within {gate[i]:.1f} px of the prediction"
@@ -307,7 +308,7 @@ def _pass(cands, snapped, markers, direction, s, xy, sig, status, reason, cidx, 
                 continue
             others = [markers[ids[b]] for b in range(len(ids)) if b != a and best[b] == j]
             xy[t, i], sig[t, i], cidx[t, i] = c.xy[j], c.sigma[j], j
-            ratio = c.flux[j] / _median_of_few(fluxes[i][-10:])
+            ratio = c.flux[j] / median_of_few(fluxes[i][-10:])
             dn = neighbour_distance(c, j, s.neighbour_flux)
             if others:
                 status[t, i] = AMBIGUOUS
@@ -334,18 +335,6 @@ def _pass(cands, snapped, markers, direction, s, xy, sig, status, reason, cidx, 
     for i in snapped:
         flux[i] = np.median(fluxes[i])
 
-
-def _median_of_few(values) -> float:
-    """``np.median`` of a short list of numbers, the same value bit for bit
-    (the middle one, or the mean ``(a + b) / 2`` of the two middle ones, as
-    np.mean takes it), without its array overhead (~20 us a call, called
-    per marker and frame); empty or NaN-holding lists go to np.median."""
-    v = sorted(values)
-    n = len(v)
-    if n == 0 or any(x != x for x in v):
-        return np.median(values)
-    h = n // 2
-    return np.float64(v[h]) if n % 2 else (np.float64(v[h - 1]) + np.float64(v[h])) / 2
 
 
 def scatter_sigma(xy: np.ndarray, ok: np.ndarray, half: int = 3,

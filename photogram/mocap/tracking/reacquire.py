@@ -62,6 +62,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from photogram.mocap.tracking.detections import CameraDetections
+from photogram.stats.small_samples import median_of_few
 
 __all__ = ["PersonTrack", "follow_person", "candidate_states", "TRACKED", "ACQUIRED", "LOST",
            "LINK_GAP", "SIZE_RATIO", "CHAIN_SIZE_RATIO", "GATE_GROWTH", "LINK_COST",
@@ -216,16 +217,7 @@ def _end_state(rows, frames, centre, size, tail: bool):
         mean = c.mean(0)
         v = t @ (c - mean) / (t @ t)
         at = mean + v * t[end]
-    return at, _median(size[k].tolist()), v, int(frames[k[end]])
-
-
-def _median(values: list) -> float:
-    """``float(np.median(values))`` of a few finite floats (the same bits:
-    the middle one, or the mean ``(a + b) / 2`` of the middle two) without
-    numpy's overhead per call (a call per tracklet and frame)."""
-    s = sorted(values)
-    h = len(s) // 2
-    return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2
+    return at, float(median_of_few(size[k].tolist())), v, int(frames[k[end]])
 
 
 def _segments(tracks, frames):
