@@ -195,13 +195,9 @@ def read_table(path: Path, *, required: Iterable[str], optional: Iterable[str] =
         _check_header(table, required, optional, what)
         for row, line in zip(rows, records):
             if len(row) != len(header):
-                raise InputError(f"this record has {len(row)} fields but the header has "
-                                 f"{len(header)}", file=path, line=line,
-                                 hint="every row needs one cell per column; "
-                                      "empty cells are allowed")
+                raise _field_count_error(path, line, len(row), len(header))
         if not rows:
-            raise InputError(f"the {what} has a header but no rows", file=path,
-                             line=numbers[0], hint="add at least one row below the header")
+            raise _no_rows_error(path, numbers[0], what)
         table.rows, table.records = rows, np.array(records, dtype=int)
         return table
     reader = csv.reader(lines, delimiter=delimiter)
@@ -212,17 +208,26 @@ def read_table(path: Path, *, required: Iterable[str], optional: Iterable[str] =
     for row in csv_records(reader, numbers, path):
         line = numbers[reader.line_num - 1]
         if len(row) != len(header):
-            raise InputError(f"this record has {len(row)} fields but the header has "
-                             f"{len(header)}", file=path, line=line,
-                             hint="every row needs one cell per column; empty cells are allowed")
+            raise _field_count_error(path, line, len(row), len(header))
         rows.append([c.strip() for c in row])
         records.append(line)
     if not rows:
-        raise InputError(f"the {what} has a header but no rows", file=path,
-                         line=numbers[0], hint="add at least one row below the header")
+        raise _no_rows_error(path, numbers[0], what)
     table.rows, table.records = rows, np.array(records, dtype=int)
     return table
 
+
+def _field_count_error(path: Path, line: int, n: int, n_header: int) -> InputError:
+    """A record whose number of fields is not the header's."""
+    return InputError(f"this record has {n} fields but the header has {n_header}",
+                      file=path, line=line,
+                      hint="every row needs one cell per column; empty cells are allowed")
+
+
+def _no_rows_error(path: Path, line: int, what: str) -> InputError:
+    """A table with a header and nothing below it."""
+    return InputError(f"the {what} has a header but no rows", file=path, line=line,
+                      hint="add at least one row below the header")
 
 def _read_unquoted(lines: list[str], numbers: list[int], delimiter: str):
     """The fast path of :func:`read_table`: without a quote character every
