@@ -33,7 +33,14 @@ Run: /work/venv-bal/bin/python benchmarks/bal_scaling.py
      [--ceres-from earlier_output.txt]
 Prints a table and ``RESULT key=value ...``; per photogram row also the
 user and system CPU seconds and minor page faults per iteration
-(``getrusage``, same span).
+(``getrusage``, same span), the user + system CPU of every LM iteration
+(``getrusage`` in the solver's iteration callback) and a second figure,
+the steady-state CPU per iteration: the mean over LM iterations 2..N,
+what an iteration costs once the one-off setup of the first
+linearization (allocation and first touch of the work arrays, the plan)
+is paid; the setup is iteration 1 minus that mean. ``exponent_numba`` (whole
+solve / iterations) stays the main figure; ``exponent_steady_numba`` is
+the fit of the steady figure (explanatory).
 """
 
 import argparse
@@ -101,9 +108,53 @@ def _photogram_run(bal, iterations, precond):
     if s.status == "max_iterations" and marks:
         it, cpu, wall, u1 = marks[-1][0], marks[-1][1] - c0, marks[-1][2] - w0, marks[-1][3]
     user, system, faults = (u1 - u0) / it
+    spans = iteration_spans([(m[0], m[3][0] - u0[0], m[3][1] - u0[1]) for m in marks])
+    steady, setup = steady_and_setup([m[0] for m in marks],
+                                     [m[3][0] + m[3][1] - u0[0] - u0[1] for m in marks])
     return {"cpu": cpu / it, "wall": wall / it, "iterations": it, "final": s.final_cost,
             "solver": s.linear_solver, "precond": s.cg_preconditioner,
-            "user": user, "sys": system, "minflt": faults}
+            "user": user, "sys": system, "minflt": faults, "status": s.status,
+            "spans": spans, "steady": steady, "setup": setup}
+
+
+def iteration_spans(marks):
+    """Per accepted LM iteration: ``(first, last, user, system)``, the CPU
+    seconds from the previous accepted iteration's callback (the start of
+    the solve for the first) to this one's. ``marks`` holds ``(iteration,
+    user, system)`` at each callback, cumulative from the start of the
+    solve; ``first < last`` when rejected steps lie in the span."""
+    out, prev = [], (0, 0.0, 0.0)
+    for it, user, system in marks:
+        out.append((prev[0] + 1, it, user - prev[1], system - prev[2]))
+        prev = (it, user, system)
+    return out
+
+
+def steady_and_setup(iterations, cpu):
+    """Steady-state CPU per LM iteration and the one-off setup cost.
+
+    Parameters
+    ----------
+    iterations : sequence of int
+        The LM iteration number at each accepted iteration's callback.
+    cpu : sequence of float
+        CPU seconds from the start of the solve to each callback.
+
+    Returns
+    -------
+    steady : float
+        ``(cpu[-1] - cpu[0]) / (iterations[-1] - iterations[0])``: the mean
+        over the iterations after the first (NaN with fewer than two).
+    setup : float
+        ``cpu[0] - iterations[0] * steady``: what the first iteration costs
+        beyond a steady one (the first linearization's allocation and first
+        touch of the work arrays, the plan). ``setup + n * steady`` is the
+        CPU of the first ``n = iterations[-1]`` iterations.
+    """
+    if len(iterations) < 2 or iterations[-1] == iterations[0]:
+        return math.nan, math.nan
+    steady = (cpu[-1] - cpu[0]) / (iterations[-1] - iterations[0])
+    return steady, cpu[0] - iterations[0] * steady
 
 
 def _usage():
@@ -252,6 +303,8 @@ def report(row):
             if "user" in r:
                 print(f"    per iteration: user {r['user']:.3f} s, system {r['sys']:.3f} s, "
                       f"{r['minflt']:.0f} minor page faults")
+            if r.get("spans"):
+                print_spans(r)
     for (kind, threads), r in row["ceres"].items():
         if r is None:
             print(f"  Ceres {kind:<15} {threads} thr   skipped (extrapolated beyond the limit)")
@@ -261,7 +314,21 @@ def report(row):
     sys.stdout.flush()
 
 
+def print_spans(r):
+    """Per LM iteration user + system CPU (getrusage), the steady mean and the setup."""
+    words = [(f"{a}" if a == b else f"{a}-{b}") + f": {u:.3f}+{y:.3f}"
+             for a, b, u, y in r["spans"]]
+    print("    per LM iteration, user+system CPU s: " + ", ".join(words))
+    last = r["spans"][-1][1]
+    print(f"    steady (iterations {r['spans'][0][1] + 1}-{last}) {r['steady']:.3f} s/it, "
+          f"setup (iteration 1 - steady) {r['setup']:.3f} s")
+    if r["status"] != "max_iterations" or last < 4:
+        print(f"    NOTE: the solve stopped after {r['iterations']} iterations "
+              f"({r['status']})")
+
+
 def summary(rows):
+    steady_table(rows)
     print(f"\n{'cameras':>7} {'obs':>9} {'numba s/it':>10} {'numpy s/it':>10} "
           f"{'Ceres best':>26} {'numba/C':>8} {'numpy/C':>8}")
     res = {}
@@ -283,6 +350,10 @@ def summary(rows):
         have = [(r["obs"], r[key]["cpu"]) for r in rows if r.get(key)]
         if len(have) > 1:
             res[f"exponent_{key}"] = f"{fit_exponent(*zip(*have)):.2f}"
+        steady = [(r["obs"], r[key]["steady"]) for r in rows
+                  if r.get(key) and math.isfinite(r[key].get("steady", math.nan))]
+        if len(steady) > 1:
+            res[f"exponent_steady_{key}"] = f"{fit_exponent(*zip(*steady)):.2f}"
     res["max_obs"] = max(obs)
     compared = any(any(r["ceres"].values()) for r in rows)
     res["max_ratio_numba_ceres"] = f"{worst_nb:.2f}" if compared and worst_nb else "n/a"
@@ -290,6 +361,20 @@ def summary(rows):
     res["ceres_max_obs"] = max((r["obs"] for r in rows if any(r["ceres"].values())), default=0)
     res["data"] = "SIMULATED"
     print("RESULT " + " ".join(f"{k}={v}" for k, v in res.items()))
+
+
+def steady_table(rows):
+    """Whole solve / iterations against the steady mean of iterations 2..N."""
+    for key in ("numba", "numpy"):
+        have = [r for r in rows if r.get(key) and "steady" in r[key]]
+        if not have:
+            continue
+        print(f"\n{key}: {'cameras':>7} {'obs':>9} {'total s/it':>10} {'steady s/it':>11} "
+              f"{'setup s':>8} {'it':>3}")
+        for r in have:
+            p = r[key]
+            print(f"{'':{len(key) + 2}}{r['cameras']:>7} {r['obs']:>9} {p['cpu']:10.3f} "
+                  f"{p['steady']:11.3f} {p['setup']:8.3f} {p['iterations']:>3}")
 
 
 if __name__ == "__main__":
