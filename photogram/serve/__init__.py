@@ -19,7 +19,7 @@ __all__ = ["serve"]
 
 
 def serve(project, *, field=None, images=None, port: int = 0, open_browser: bool = False,
-          announce=print) -> int:
+          announce=print, run_argv=None) -> int:
     """Serve the page for ``project`` until interrupted (Ctrl+C); returns 0.
 
     Parameters
@@ -34,6 +34,9 @@ def serve(project, *, field=None, images=None, port: int = 0, open_browser: bool
         Open the URL in the default browser.
     announce : callable
         Receives the one line with the URL.
+    run_argv : list of str, optional
+        How to run a photogram command (the run button), e.g.
+        ``[sys.executable, "-m", FRONT_END]``; None: the button answers 400.
 
     Raises
     ------
@@ -42,7 +45,7 @@ def serve(project, *, field=None, images=None, port: int = 0, open_browser: bool
     """
     from photogram.serve.server import make_server
     from photogram.serve.session import Session
-    session = Session(project, field=field, images=images)
+    session = Session(project, field=field, images=images, run_argv=run_argv)
     try:
         server = make_server(session, port)
         try:

@@ -40,6 +40,9 @@ class Session:
         ``images/`` beside the project).
     lock : bool
         Take the project's editor lock (:meth:`close` releases it).
+    run_argv : list of str, optional
+        The command line that runs a photogram command (``POST /api/run``;
+        given by the command-line layer); None: no run button.
 
     Raises
     ------
@@ -48,8 +51,10 @@ class Session:
         editor holds the lock (one line each).
     """
 
-    def __init__(self, project_path, *, field=None, images=None, lock: bool = True):
+    def __init__(self, project_path, *, field=None, images=None, lock: bool = True,
+                 run_argv=None):
         from photogram.project import read_project
+        self.run_argv = list(run_argv) if run_argv else None
         self.project = read_project(project_path)
         self.field = None
         if field is not None:
@@ -76,10 +81,9 @@ class Session:
     def _tables(self) -> list[EditableTable]:
         src = self.project.sources
         if self.project.track is not None:
-            raise InputError("photogram measure --serve: video projects ([track]) are not "
-                             "supported yet", file=self.project.path,
-                             hint="open the intersect project that reads the tracked "
-                                  "observations")
+            from photogram.serve.video import track_tables
+            points, lines = track_tables(self.project)
+            src = {"image_points": points, "image_lines": lines}
         path = src.get("image_points")
         if path is None:
             raise InputError("the project has no image points table ([observations] points)",
@@ -112,6 +116,11 @@ class Session:
             self._filelock = None
 
     def _views(self, images):
+        self.exposures = None
+        if self.project.track is not None:
+            from photogram.serve.video import video_views
+            views, self.exposures = video_views(self.project)
+            return views
         folder = images
         if folder is None and self.field is not None and self.field.images is not None:
             folder = self.field.images
@@ -152,6 +161,13 @@ class Session:
                 return r.oid
         return None
 
+    def _labels(self) -> list[str]:
+        """The point ids for the label chooser: the points table's, or the
+        markers of a video project."""
+        if self.project.track is not None:
+            return list(self.project.track.markers)
+        return list(self.project.points.ids)
+
     # ------------------------------------------------------------------ JSON
     def body(self) -> dict:
         """The JSON of ``GET /api/project``."""
@@ -162,11 +178,11 @@ class Session:
             residuals, worst = residual_rows(self.orientation, self._oid_of)
             return {"name": self.project.name, "project": str(self.project.path),
                     "table": str(pt.path), "lines_table": str(lt.path) if lt else None,
-                    "exposures": None,
+                    "exposures": self.exposures,
                     "views": [v.json() for v in self.views],
                     "oriented": self.orientation.oriented,
                     "orientation_note": self.orientation.note,
-                    "points": list(self.project.points.ids),
+                    "points": self._labels(),
                     "observations": obs, "lines": lines,
                     "residuals": residuals, "worst": worst,
                     "dirty": self.dirty,
