@@ -62,6 +62,7 @@ class Session:
             self.field = read_field(field)
         self.messages: list[str] = list(self.project.warnings)[:20]
         self._edit_lock = threading.RLock()
+        self._edits: list[EditableTable] = []    # the table of each edit, for undo
         self._filelock = None
         self.tables = self._tables()
         self.points_table = self.tables[0]
@@ -103,7 +104,7 @@ class Session:
         except filelock.Timeout:
             raise InputError(f"another photogram measure --serve is editing "
                              f"{self.points_table.path} (lock {path} held)",
-                             hint="stop that server first (Ctrl+C in its terminal)") from None
+                             hint="stop that server first with Ctrl+C in its terminal") from None
         except OSError as exc:
             raise InputError(f"cannot create the lock file {path}: {exc.strerror}",
                              hint="check that the folder is writable") from None
@@ -208,7 +209,7 @@ class Session:
                 label = req.get("line") if table is not self.points_table else req.get("point")
                 table.add(v.station, label, req.get("x"), req.get("y"), req.get("sigma"),
                           manual=bool(req.get("manual")), exposure=v.exposure or "")
-                self._order.append(table)
+                self._edits.append(table)
             elif op in ("move", "delete", "relabel"):
                 oid = _int(req.get("oid"))
                 table = self.table_of(oid)
@@ -220,24 +221,17 @@ class Session:
                 else:
                     table.relabel(oid, req.get("point") if req.get("point") is not None
                                   else req.get("line"))
-                self._order.append(table)
+                self._edits.append(table)
             else:
                 raise BadEdit(f"unknown edit op {op!r}: add, move, delete or relabel")
             return self.body()
 
-    @property
-    def _order(self) -> list:
-        """The tables in the order of their edits (for undo across tables)."""
-        if not hasattr(self, "_edits"):
-            self._edits = []
-        return self._edits
-
     def undo(self) -> dict:
         """``POST /api/undo``: undo the last edit; returns :meth:`body`."""
         with self._edit_lock:
-            if not self._order:
+            if not self._edits:
                 raise BadEdit("nothing to undo")
-            self._order.pop().undo()
+            self._edits.pop().undo()
             return self.body()
 
     def save(self) -> dict:
