@@ -166,3 +166,20 @@ def test_image_cache_keeps_only_recent_images(lab, monkeypatch):
     assert list(store._bgr.items) == ["K1c", "K2a"]
     first = store.bgr("K1a")               # read again, the same pixels
     assert first.shape == (480, 640, 3) and list(store._bgr.items)[-1] == "K1a"
+
+
+def test_save_over_a_table_changed_on_disk_keeps_that_version(lab):
+    """Another program (photogram measure again) wrote the table while the
+    page had it open: the save still writes, the other version is the
+    backup and the page is told."""
+    session, table = lab
+    session.edit({"op": "delete", "oid": 0})
+    other = table.read_text(encoding="utf-8").replace("K1a,T02,", "K1a,T02X,")
+    table.write_text(other, encoding="utf-8")
+    out = session.save()
+    assert (table.parent / "lab_image_points.csv.~1~").read_text(encoding="utf-8") == other
+    assert session.body()["messages"][-1] == (f"{table} had changed on disk since it was read "
+                                              f"(another program wrote it); that version is "
+                                              f"kept as {out['backup']}")
+    session.save()                 # our own last save is not "another program"
+    assert len(session.body()["messages"]) == 1

@@ -241,6 +241,10 @@ class Session:
             for t in self.tables:
                 if t is self.points_table or t.dirty:
                     path, backup = t.save()
+                    if t.changed_on_disk:
+                        self.messages.append(
+                            f"{path} had changed on disk since it was read (another program "
+                            f"wrote it); that version is kept as {backup}")
                     if t is self.points_table:
                         out = {"saved": str(path), "backup": str(backup) if backup else None,
                                "rows": len(t.rows)}
