@@ -17,7 +17,7 @@ const DRAG_PX = 3;        // a press that moves further is a drag, not a click
 // the state tests read (tests/test_serve_browser.py)
 const state = {
   ready: false, selected: null, lastRefine: null, pending: 0, error: null,
-  project: null, epipolar: null, lastSave: null, lastRun: null,
+  project: null, epipolar: null, lastSave: null, lastRun: null, predictedLines: [],
 };
 window.photogramState = state;
 
@@ -523,8 +523,8 @@ function attachMouse(v) {
     const pan = evt.button === 1 || (evt.button === 0 && (evt.shiftKey || spaceDown));
     if (evt.button !== 0 && !pan) return;
     evt.preventDefault();
-    if (document.activeElement && document.activeElement !== document.body &&
-        document.activeElement !== ui.label) document.activeElement.blur();
+    // keys (Delete, Ctrl+Z) go to the page after a click in a view
+    if (document.activeElement && document.activeElement !== document.body) document.activeElement.blur();
     const start = {cx: evt.clientX, cy: evt.clientY, vb: {...v.vb}, p: toImage(v, evt)};
     const hit = pan || evt.altKey ? null : nearest(v, start.p.x, start.p.y);
     let dragging = false;

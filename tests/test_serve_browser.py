@@ -1,0 +1,329 @@
+"""The measuring page of ``photogram measure --serve`` in a real browser
+(issue 24): headless Chromium from the distribution's packages (Debian's
+``chromium`` and ``chromium-driver``, installed by .ci/run) driven through
+WebDriver by selenium (the test extra of setup.cfg).
+
+One browser session and one server for the module (a copy of the lab
+example, its rendered photographs measured and calibrated as `make demo`
+does), the steps in order:
+
+* the page loads with its nine views, every observation of the table drawn,
+  the orientation note and the list of the largest standardized residuals;
+* an observation is selected by a real mouse click and deleted with the
+  Delete key, then re-added by a real click a few pixels off the target
+  (ActionChains at the screen position of an image coordinate from the
+  SVG's ``getScreenCTM``): the server refines the centre, *save* writes the
+  table and keeps the original as ``image_points.csv.~1~`` (byte for byte);
+  the saved centre is within 0.05 px of the truth: ``truth/image_points.csv``,
+  the true projections of the target centres (the rendering's noise-free
+  image coordinates; the refinement corrects the eccentricity with the
+  field ``frame.toml``);
+* Ctrl+Z undoes the addition: the cross disappears from the page and the
+  next save has no such row (and keeps the first save as ``.~2~``);
+* selecting an observation draws its epipolar polylines in the other views:
+  every vertex lies on the projection, computed here with photogram's own
+  camera model (:class:`photogram.lines.views.ViewCamera`) from the
+  oriented results (results/stations.csv + cameras.toml), of the ray of
+  that observation; the line passes through the point's true image in the
+  other view, and the predicted positions (the point's rays triangulated)
+  agree with the truth;
+* the run button runs ``photogram calibrate`` on the saved table and the
+  page shows sigma0 and the worst residuals.
+
+Skipped with the reason when selenium, chromium or chromedriver is missing.
+"""
+
+from __future__ import annotations
+
+import csv
+import shutil
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.slow
+
+INSTALL = "apt-get install chromium chromium-driver; pip install selenium"
+WAIT_S = 20.0           # generous: a loaded 2-core machine
+
+
+def _browser_paths():
+    """(chromium, chromedriver) or skip naming what is missing."""
+    missing = []
+    try:
+        import selenium  # noqa: F401
+    except ImportError:
+        missing.append("selenium")
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    driver = shutil.which("chromedriver")
+    if chromium is None:
+        missing.append("chromium")
+    if driver is None:
+        missing.append("chromedriver")
+    if missing:
+        pytest.skip(f"no chromium/chromedriver ({', '.join(missing)} missing): {INSTALL}")
+    return chromium, driver
+
+
+def _read_csv(path: Path) -> list[dict]:
+    with open(path, encoding="utf-8", newline="") as f:
+        return list(csv.DictReader(line for line in f if not line.startswith("#")))
+
+
+def _truth(lab: Path) -> dict:
+    return {(r["station"], r["point"]): (float(r["x"]), float(r["y"]))
+            for r in _read_csv(lab / "truth" / "image_points.csv")}
+
+
+class Page:
+    """The browser on the page: small helpers over the WebDriver."""
+
+    def __init__(self, driver, lab: Path, url: str):
+        self.d, self.lab, self.url = driver, lab, url
+
+    def js(self, script, *args):
+        return self.d.execute_script(script, *args)
+
+    def wait(self, script, *args, what="the page"):
+        """Until ``script`` returns a true value and no request is pending."""
+        end = time.monotonic() + WAIT_S
+        while time.monotonic() < end:
+            value = self.js("const s = window.photogramState;"
+                            "if (!s || !s.ready || s.pending) return null;" + script, *args)
+            if value:
+                return value
+            time.sleep(0.05)
+        raise AssertionError(f"timed out waiting for {what}; status: {self.status()!r}")
+
+    def settle(self):
+        self.wait("return true;", what="pending requests")
+
+    def status(self) -> str:
+        from selenium.webdriver.common.by import By
+        return self.d.find_element(By.ID, "status").text
+
+    def observation(self, view, point):
+        return self.js("return window.photogramState.project.observations.find("
+                       "o => o.view === arguments[0] && o.point === arguments[1]) || null;",
+                       view, point)
+
+    def screen(self, view, x, y):
+        """Viewport (CSS px) position of image coordinate (x, y) in a view."""
+        return self.js("""
+            const svg = document.querySelector(`svg.view[data-view="${arguments[0]}"]`);
+            const p = svg.createSVGPoint(); p.x = arguments[1]; p.y = arguments[2];
+            const q = p.matrixTransform(svg.getScreenCTM());
+            return [q.x, q.y];""", view, x, y)
+
+    def click_image(self, view, x, y):
+        """A real left click (WebDriver pointer actions) at image (x, y)."""
+        from selenium.webdriver.common.action_chains import ActionChains
+        sx, sy = self.screen(view, x, y)
+        actions = ActionChains(self.d)
+        actions.w3c_actions.pointer_action.move_to_location(round(sx), round(sy))
+        actions.w3c_actions.pointer_action.click()
+        actions.perform()
+
+    def keys(self, *keys, ctrl=False):
+        from selenium.webdriver.common.action_chains import ActionChains
+        from selenium.webdriver.common.keys import Keys
+        a = ActionChains(self.d)
+        if ctrl:
+            a.key_down(Keys.CONTROL)
+        a.send_keys(*keys)
+        if ctrl:
+            a.key_up(Keys.CONTROL)
+        a.perform()
+
+    def button(self, element_id):
+        from selenium.webdriver.common.by import By
+        self.d.find_element(By.ID, element_id).click()
+
+    def crosses(self, view, point) -> int:
+        return self.js("return document.querySelectorAll("
+                       "`svg.view[data-view=\"${arguments[0]}\"] g.ob[data-point=\"${arguments[1]}\"]`"
+                       ").length;", view, point)
+
+
+@pytest.fixture(scope="module")
+def page(oriented_projects, tmp_path_factory):
+    """The server (in this process, port 0) over a copy of the measured and
+    calibrated lab, and one headless Chromium on its page."""
+    chromium, driver_path = _browser_paths()
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    from photogram.serve.server import make_server
+    from photogram.serve.session import Session
+
+    lab = tmp_path_factory.mktemp("serve") / "lab"
+    shutil.copytree(oriented_projects / "lab", lab)
+    session = Session(lab / "lab.prj", field=lab / "frame.toml")
+    server = make_server(session, port=0)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    options = webdriver.ChromeOptions()
+    options.binary_location = chromium
+    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
+                "--disable-gpu", "--window-size=1400,1000", "--disable-extensions"):
+        options.add_argument(arg)
+    driver = webdriver.Chrome(service=Service(driver_path), options=options)
+    try:
+        driver.get(server.url)
+        p = Page(driver, lab, server.url)
+        p.wait("return true;", what="window.photogramState.ready")
+        yield p
+    finally:
+        driver.quit()
+        server.shutdown()
+        server.server_close()
+        session.close()
+
+
+def test_page_shows_the_project(page):
+    table = _read_csv(page.lab / "results-measure" / "image_points.csv")
+    assert page.js("return document.querySelectorAll('svg.view').length") == 9
+    # every row of the table drawn as a cross with its label
+    assert page.js("return document.querySelectorAll('g.obs g.ob').length") == len(table)
+    first = table[0]
+    assert page.crosses(first["station"], first["point"]) == 1
+    note = page.d.find_element("id", "note").text
+    assert "oriented" in note and "not oriented" not in note, note
+    # the calibration's residuals: the list and the vectors
+    worst = page.js("return [...document.querySelectorAll('#worst li[data-oid]')]"
+                    ".map(li => li.textContent)")
+    assert 1 <= len(worst) <= 20, worst
+    residuals = _read_csv(page.lab / "results" / "residuals.csv")
+    w_max = max(max(abs(float(r["wx"])), abs(float(r["wy"]))) for r in residuals)
+    assert f"w {w_max:.2f}" in worst[0], (worst[0], w_max)
+    assert page.js("return document.querySelectorAll('line.res').length") > 0.9 * len(table)
+
+
+def test_click_refines_saves_with_backup_and_undo(page):
+    view, point = "K1a", "T19"
+    table = page.lab / "results-measure" / "image_points.csv"
+    original = table.read_bytes()
+    truth = _truth(page.lab)[(view, point)]
+    ob = page.observation(view, point)
+    assert ob is not None
+    # select it by a click on its cross, delete it with the Delete key
+    page.click_image(view, ob["x"], ob["y"])
+    page.wait("return s.selected === arguments[0];", ob["oid"], what="the selection")
+    page.keys("\ue017")                                     # Keys.DELETE
+    page.wait("return !s.project.observations.some(o => o.oid === arguments[0]);",
+              ob["oid"], what="the deletion")
+    assert page.crosses(view, point) == 0
+    # re-add it: type the label, click 2.2 px right and 1.6 px above the target
+    label = page.d.find_element("id", "label")
+    label.clear()
+    label.send_keys(point)
+    page.click_image(view, truth[0] + 2.2, truth[1] - 1.6)
+    added = page.wait("return s.project.observations.find(o => o.view === arguments[0]"
+                      " && o.point === arguments[1]);", view, point, what="the new observation")
+    refine = page.js("return window.photogramState.lastRefine;")
+    assert refine["refined"] and not added["manual"], refine
+    assert page.crosses(view, point) == 1
+    page.button("save")
+    page.wait("return s.lastSave && !s.project.dirty;", what="the save")
+    rows = {(r["station"], r["point"]): r for r in _read_csv(table)}
+    x, y = float(rows[view, point]["x"]), float(rows[view, point]["y"])
+    assert abs(x - truth[0]) < 0.05 and abs(y - truth[1]) < 0.05, ((x, y), truth, refine)
+    assert len(rows) == len(_read_csv(Path(str(table) + ".~1~")))
+    assert Path(str(table) + ".~1~").read_bytes() == original
+    first_save = table.read_bytes()
+    # undo the addition (Ctrl+Z on the page): gone from the page and the next save
+    page.d.find_element("tag name", "body").click()       # focus off the label box
+    page.keys("z", ctrl=True)
+    page.wait("return !s.project.observations.some(o => o.view === arguments[0]"
+              " && o.point === arguments[1]);", view, point, what="the undo")
+    assert page.crosses(view, point) == 0
+    page.button("save")
+    page.wait("return !s.project.dirty && s.lastSave.backup.endsWith('.~2~');",
+              what="the second save")
+    assert (view, point) not in {(r["station"], r["point"]) for r in _read_csv(table)}
+    assert Path(str(table) + ".~2~").read_bytes() == first_save
+    assert Path(str(table) + ".~1~").read_bytes() == original
+
+
+def _cameras(lab: Path) -> dict:
+    """ViewCameras of the oriented stations (results/stations.csv +
+    cameras.toml), with photogram's own camera model."""
+    from photogram.geometry import to_radians
+    from photogram.lines.views import ViewCamera
+    from photogram.project import read_results
+    res = read_results(lab / "results")
+    unit = (res.summary.get("project") or {}).get("angle_unit", "gon")
+    out = {}
+    for r in res.stations.itertuples():
+        cam = res.cameras[r.camera]
+        angles = to_radians(np.array([r.omega, r.phi, r.kappa], dtype=float), unit)
+        out[r.station] = ViewCamera.from_angles(angles, [r.X0, r.Y0, r.Z0], cam.values(),
+                                                cam.model, r.station)
+    return out
+
+
+def _distance_to_curve(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
+    """Distance of each point (n, 2) to the polyline ``curve`` (m, 2)."""
+    a, b = curve[:-1], curve[1:]
+    ab = b - a
+    t = np.einsum("mk,nmk->nm", ab, points[:, None] - a) / np.einsum("mk,mk->m", ab, ab)
+    foot = a + np.clip(t, 0, 1)[..., None] * ab
+    return np.linalg.norm(points[:, None] - foot, axis=2).min(axis=1)
+
+
+def test_epipolar_lines_where_geometry_says(page):
+    view, point = "K1a", "T45"
+    page.js("window.photogramState.epipolar = null;")
+    ob = page.observation(view, point)
+    page.click_image(view, ob["x"], ob["y"])
+    page.wait("return s.selected === arguments[0] && s.epipolar;", ob["oid"],
+              what="the epipolar lines")
+    lines = page.js("""return [...document.querySelectorAll('polyline.epi')].map(p =>
+        [p.closest('svg.view').dataset.view, p.dataset.view, p.getAttribute('points')]);""")
+    assert len(lines) >= 6, lines                # every other view (of 8) that sees the ray
+    cams = _cameras(page.lab)
+    a = cams[view]
+    ray = a.rays(a.ideal(np.array([[ob["x"], ob["y"]]])))[0]
+    depth = np.geomspace(0.02, 1e4, 20000)      # from just before the lens to the horizon
+    truth = _truth(page.lab)
+    checked = 0
+    for svg_view, line_view, text in lines:
+        assert svg_view == line_view
+        xy = np.array([[float(c) for c in pair.split(",")] for pair in text.split()])
+        assert len(xy) >= 20
+        b = cams[line_view]
+        curve = b.project(a.X0 + depth[:, None] * ray)
+        Xc = (a.X0 + depth[:, None] * ray - b.X0) @ b.R.T
+        curve = curve[Xc[:, 2] < 0]                # in front of camera b (it looks along -z)
+        d = _distance_to_curve(xy, curve)
+        assert d.max() < 0.05, (line_view, d.max())
+        inside = (xy >= -1).all(axis=1) & (xy[:, 0] <= 641) & (xy[:, 1] <= 481)
+        assert inside.all(), line_view            # clipped to the image
+        if (line_view, point) in truth:           # passes through the point's true image
+            t = np.array([truth[line_view, point]])
+            assert _distance_to_curve(t, xy)[0] < 0.3, line_view
+            checked += 1
+    assert checked >= 3
+    predicted = page.js("return [...document.querySelectorAll('circle.pred')].map(c =>"
+                        "[c.dataset.view, +c.getAttribute('cx'), +c.getAttribute('cy')]);")
+    assert predicted, "T45 has several rays: predicted positions expected"
+    for pview, cx, cy in predicted:
+        if (pview, point) in truth:
+            tx, ty = truth[pview, point]
+            assert np.hypot(cx - tx, cy - ty) < 0.2, (pview, (cx, cy), (tx, ty))
+
+
+def test_run_button_shows_sigma0_and_worst(page):
+    page.js("document.getElementById('worst').innerHTML = '';"
+            "window.photogramState.lastRun = null;")
+    from selenium.webdriver.support.ui import Select
+    Select(page.d.find_element("id", "run-command")).select_by_value("calibrate")
+    page.button("run")
+    run = page.wait("return s.lastRun;", what="photogram calibrate")
+    assert run["rc"] == 0, run
+    assert 0.5 < run["sigma0"] < 2.0, run
+    assert f"sigma0 {run['sigma0']:.3f}" in page.status()
+    assert page.js("return document.querySelectorAll('#worst li').length") >= 1
