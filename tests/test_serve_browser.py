@@ -92,7 +92,11 @@ class Page:
         end = time.monotonic() + WAIT_S
         while time.monotonic() < end:
             value = self.js("const s = window.photogramState;"
-                            "if (!s || !s.ready || s.pending) return null;" + script, *args)
+                            "if (!s || !s.ready || s.pending) return null;"
+                            "if (s.error) return {pageError: s.error};" + script, *args)
+            if isinstance(value, dict) and "pageError" in value:
+                raise AssertionError(f"the page says: {value['pageError']} "
+                                     f"(waiting for {what})")
             if value:
                 return value
             time.sleep(0.05)
@@ -122,6 +126,7 @@ class Page:
         """A real left click (WebDriver pointer actions) at image (x, y)."""
         from selenium.webdriver.common.action_chains import ActionChains
         sx, sy = self.screen(view, x, y)
+        self.js("window.photogramState.error = null;")
         actions = ActionChains(self.d)
         actions.w3c_actions.pointer_action.move_to_location(round(sx), round(sy))
         actions.w3c_actions.pointer_action.click()
@@ -130,6 +135,7 @@ class Page:
     def keys(self, *keys, ctrl=False):
         from selenium.webdriver.common.action_chains import ActionChains
         from selenium.webdriver.common.keys import Keys
+        self.js("window.photogramState.error = null;")
         a = ActionChains(self.d)
         if ctrl:
             a.key_down(Keys.CONTROL)
@@ -140,6 +146,7 @@ class Page:
 
     def button(self, element_id):
         from selenium.webdriver.common.by import By
+        self.js("window.photogramState.error = null;")
         self.d.find_element(By.ID, element_id).click()
 
     def crosses(self, view, point) -> int:
