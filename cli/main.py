@@ -179,6 +179,16 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
                               "PROJECT, predict the missing targets through the adjusted "
                               "cameras, measure them, repeat until nothing new "
                               "(-> results-guided/)")
+        sub.add_argument("--serve", type=Path, metavar="PROJECT",
+                         help="a local web page to inspect, correct and add the image "
+                              "measurements of PROJECT, with epipolar help (docs/measure-serve.md)")
+        sub.add_argument("--field", dest="serve_field", type=Path, metavar="FIELD",
+                         help="--serve: the target-field description (detector settings, "
+                              "eccentricity, images folder)")
+        sub.add_argument("--port", type=int, default=0,
+                         help="--serve: the port on 127.0.0.1 (default 0: a free one)")
+        sub.add_argument("--open-browser", action="store_true",
+                         help="--serve: open the page in the default browser")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -199,7 +209,12 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def load_command(name: str):
+#: ``photogram measure --serve``: its own function, the same error handling
+SERVE = Command("photogram.commands.measure_serve:run", "the measuring page",
+                "a local web page over a project's image measurements", needs_project=False)
+
+
+def load_command(name: str, cmd: Command | None = None):
     """Import the function of subcommand ``name``.
 
     Raises
@@ -209,7 +224,7 @@ def load_command(name: str):
     PhotogramError
         A third-party package it needs is not installed.
     """
-    cmd = COMMANDS[name]
+    cmd = cmd or COMMANDS[name]
     module_name, _, attr = cmd.target.partition(":")
     not_built = NotBuiltError(f"photogram {name}: {cmd.engine} is not built yet")
     try:
@@ -233,6 +248,8 @@ def run_command(args: argparse.Namespace) -> int:
     if getattr(args, "output", None) is not None:
         from photogram.project.limits import check_output_path
         check_output_path(args.output)
+    if args.command == "measure" and getattr(args, "serve", None) is not None:
+        return int(load_command("measure", SERVE)(args) or 0)
     if not cmd.needs_project:
         return int(load_command(args.command)(args) or 0)
     from photogram.project import read_project
