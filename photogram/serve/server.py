@@ -152,8 +152,8 @@ class Handler(BaseHTTPRequestHandler):
             return self._json(200, result)
         except ApiError as exc:
             return self._error(exc.status, str(exc))
-        except BadEdit as exc:
-            return self._error(400, str(exc))
+        except BadEdit as exc:          # (NotSaved: 409)
+            return self._error(getattr(exc, "status", 400), str(exc))
         except PhotogramError as exc:
             return self._error(400, exc.one_line())
         except Exception as exc:       # a bug: one line to the log and the client

@@ -1,0 +1,249 @@
+"""Epipolar help of ``photogram measure --serve``: epipolar curves,
+predicted points and predicted ski lines in the oriented views.
+
+**Epipolar curve.** The epipolar line of an image point in another view is
+the image of its ray (Hartley & Zisserman 2003, sec. 9.1): the points
+``X(lambda) = X0 + lambda d`` (``lambda >= 0``) of the ray from projection
+centre ``X0`` in direction ``d``. In homogeneous ideal coordinates of the
+other view, ``x(s) = (1 - s) P (X0, 1) + s P (d, 0)`` for ``s in [0, 1)``
+runs from the epipole to the vanishing point of ``d``
+(``lambda = s / (1 - s)``); only points in front of that camera are kept.
+With lens distortion the image of the ray is a curve: the ideal points
+are sampled along the segment and distorted by the camera model
+(:meth:`photogram.lines.views.ViewCamera.measured`), then clipped to the
+image as a polyline of at least 20 vertices. Ideal points far outside the
+format (beyond 1.5 times the corrected corners' radius) are dropped, so a
+distortion polynomial never folds them back into the picture.
+
+**Predicted point.** A label with two or more rays among the table's
+observations of the exposure (and the click) is triangulated
+(:func:`photogram.track.rays.triangulate`, the midpoint of k rays) and
+projected into the other views.
+
+**Predicted ski line.** A line measured in two or more views (two or more
+points each) is fitted per view in ideal coordinates
+(:func:`photogram.lines.views.fit_view_line`), its planes intersected
+(:func:`photogram.lines.initial.initial_line_homogeneous`, appendix C.3 of
+the ski-jump paper), and the 3D line drawn into the views that do not
+measure it, as a curve like the epipolar one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from photogram.errors import PhotogramError
+from photogram.lines.views import ViewCamera
+from photogram.serve.results import NOT_ORIENTED
+from photogram.track.rays import triangulate
+
+__all__ = ["image_of_ray", "epipolar_help", "predicted_line", "MIN_VERTICES"]
+
+MIN_VERTICES = 20
+
+
+def _ideal_limit(camera: ViewCamera, width: float, height: float) -> float:
+    """1.5 x the largest ideal radius of the image's border points."""
+    t = np.linspace(0, 1, 9)
+    border = np.concatenate([np.column_stack([t * width, np.zeros(9)]),
+                             np.column_stack([t * width, np.full(9, height)]),
+                             np.column_stack([np.zeros(9), t * height]),
+                             np.column_stack([np.full(9, width), t * height])])
+    ideal = camera.ideal(border)
+    return 1.5 * float(np.max(np.hypot(ideal[:, 0], ideal[:, 1])))
+
+
+def _points(camera, start_h, end_h, s, limit):
+    """Measured image points (n, 2) at parameters s of the homogeneous
+    segment, NaN behind the camera or beyond the ideal radius ``limit``."""
+    xh = (1 - s)[:, None] * start_h + s[:, None] * end_h
+    w = xh[:, 2]
+    front = w < -1e-12                       # the camera looks along -z
+    out = np.full((len(s), 2), np.nan)
+    if front.any():
+        ideal = xh[front, :2] / w[front, None]
+        ok = np.hypot(ideal[:, 0], ideal[:, 1]) < limit
+        idx = np.flatnonzero(front)[ok]
+        if len(idx):
+            out[idx] = camera.measured(ideal[ok])
+    return out
+
+
+def image_of_ray(camera: ViewCamera, X0, d, width: float, height: float,
+                 n: int = 64) -> list[list[float]]:
+    """The image of the half-line ``X0 + lambda d`` (``lambda >= 0``) in
+    ``camera``, clipped to the image ``[0, width] x [0, height]`` (corner
+    convention), as a polyline of ``n`` vertices (module doc); [] if it
+    does not cross the image."""
+    P = camera.matrix
+    start_h = P @ np.append(np.asarray(X0, float), 1.0)
+    end_h = P @ np.append(np.asarray(d, float), 0.0)
+    limit = _ideal_limit(camera, width, height)
+
+    def inside(xy):
+        return np.isfinite(xy).all(axis=1) & (xy[:, 0] >= 0) & (xy[:, 0] <= width) & \
+            (xy[:, 1] >= 0) & (xy[:, 1] <= height)
+
+    s = np.linspace(0.0, 1.0, 4001)[:-1]
+    ins = inside(_points(camera, start_h, end_h, s, limit))
+    if not ins.any():
+        return []
+    i0, i1 = np.flatnonzero(ins)[[0, -1]]
+    lo, hi = s[i0], s[i1]
+    # the border crossings by bisection between the last outside and first inside sample
+    for k, sign in ((i0, -1), (i1, 1)):
+        j = k + sign
+        if 0 <= j < len(s):
+            a, b = s[k], s[j]          # a inside, b outside
+            for _ in range(40):
+                m = 0.5 * (a + b)
+                if inside(_points(camera, start_h, end_h, np.array([m]), limit))[0]:
+                    a = m
+                else:
+                    b = m
+            if sign < 0:
+                lo = a
+            else:
+                hi = a
+    xy = _points(camera, start_h, end_h, np.linspace(lo, hi, max(n, MIN_VERTICES)), limit)
+    xy = xy[inside(xy)]
+    return [[float(x), float(y)] for x, y in xy]
+
+
+def _exposure_views(session, exposure):
+    return [v for v in session.views if (v.exposure or "") == (exposure or "")]
+
+
+def _rays_of(session, point: str, exposure: str, skip_station: str | None = None):
+    """(cameras, xy) of the observations of ``point`` in oriented views of
+    the exposure (``skip_station``'s left out)."""
+    cams, xy = [], []
+    for r in session.points_table.rows:
+        c = r.cells
+        if c["point"] != point or c.get("exposure", "") != (exposure or "") or \
+                c["station"] == skip_station:
+            continue
+        cam = session.orientation.cameras.get(c["station"])
+        try:
+            p = [float(c["x"]), float(c["y"])]
+        except ValueError:
+            continue
+        if cam is not None:
+            cams.append(cam)
+            xy.append(p)
+    return cams, xy
+
+
+def _predict(session, cams, xy, views, exclude) -> list[dict]:
+    if len(cams) < 2:
+        return []
+    X, nv = triangulate(cams, np.asarray(xy, float)[:, None, :])
+    if not np.isfinite(X[0]).all():
+        return []
+    out = []
+    for v in views:
+        cam = session.orientation.cameras.get(v.station)
+        if cam is None or v.id in exclude:
+            continue
+        depth = (cam.R @ (X[0] - cam.X0))[2]
+        if depth >= 0:                        # behind the camera
+            continue
+        p = cam.project(X[0])[0]
+        if 0 <= p[0] <= v.width and 0 <= p[1] <= v.height:
+            out.append({"view": v.id, "x": float(p[0]), "y": float(p[1])})
+    return out
+
+
+def epipolar_help(session, *, oid=None, view=None, xy=None, point=None) -> dict:
+    """``GET /api/epipolar`` (docs/measure-serve.md): epipolar curves of
+    a point (an observation ``oid``, or a click ``xy`` in ``view``) in the
+    other oriented views of its exposure, and the predicted positions of
+    its label; with ``view`` and ``point`` only, the predictions of the
+    point from its existing rays in the views that do not measure it."""
+    if oid is not None:
+        table = session.table_of(oid)
+        if table is not session.points_table:
+            return {"lines": [], "predicted": [], "note": "epipolar help is for points"}
+        row = table.find(oid)
+        c = row.cells
+        view = session.view(f"{c['exposure']}/{c['station']}" if c.get("exposure")
+                            else c["station"])
+        xy, point = (float(c["x"]), float(c["y"])), c["point"]
+    if not session.orientation.oriented:
+        return {"lines": [], "predicted": [], "note": session.orientation.note or NOT_ORIENTED}
+    exposure = view.exposure or ""
+    views = _exposure_views(session, exposure)
+    src = session.orientation.cameras.get(view.station)
+    lines, notes = [], []
+    if xy is not None:
+        if src is None:
+            notes.append(f"view {view.id} is not oriented: no epipolar curves")
+        else:
+            d = src.rays(src.ideal(np.asarray([xy], float)))[0]
+            for v in views:
+                cam = session.orientation.cameras.get(v.station)
+                if v.id == view.id or cam is None or not v.width:
+                    continue
+                pts = image_of_ray(cam, src.X0, d, v.width, v.height)
+                if pts:
+                    lines.append({"view": v.id, "points": pts})
+    predicted = []
+    if point:
+        if xy is not None:
+            cams, rays = _rays_of(session, point, exposure, skip_station=view.station)
+            if src is not None:
+                cams, rays = cams + [src], rays + [list(xy)]
+            predicted = _predict(session, cams, rays, views, {view.id})
+        else:
+            cams, rays = _rays_of(session, point, exposure)
+            measured = {f"{exposure}/{r.cells['station']}" if exposure else r.cells["station"]
+                        for r in session.points_table.rows
+                        if r.cells["point"] == point and r.cells.get("exposure", "") == exposure}
+            predicted = _predict(session, cams, rays, views, measured)
+        if len(cams) < 2:
+            notes.append(f"{point}: fewer than 2 rays in oriented views, no prediction")
+    note = "; ".join(notes) or f"{len(lines)} epipolar curves, {len(predicted)} predictions"
+    return {"lines": lines, "predicted": predicted, "note": note}
+
+
+def predicted_line(session, exposure: str, line: str) -> dict:
+    """``GET /api/predict_line``: the 3D line of ski line ``line`` from the
+    views that measure it, drawn into the oriented views that do not."""
+    from photogram.lines.initial import initial_line_homogeneous
+    from photogram.lines.views import fit_view_line
+    table = session.lines_table
+    if table is None or not session.orientation.oriented:
+        return {"lines": []}
+    by_station: dict[str, list] = {}
+    for r in table.rows:
+        c = r.cells
+        if c["line"] == line and c.get("exposure", "") == (exposure or ""):
+            try:
+                by_station.setdefault(c["station"], []).append([float(c["x"]), float(c["y"])])
+            except ValueError:
+                continue
+    cams = session.orientation.cameras
+    fitted = {}
+    for st, pts in by_station.items():
+        if st in cams and len(pts) >= 2:
+            try:
+                fitted[st] = fit_view_line(np.asarray(pts), cams[st], label=line)
+            except PhotogramError:
+                continue
+    if len(fitted) < 2:
+        return {"lines": []}
+    try:
+        L = initial_line_homogeneous(fitted, {s: cams[s] for s in fitted}, label=line)
+    except PhotogramError:
+        return {"lines": []}
+    out = []
+    for v in _exposure_views(session, exposure):
+        cam = cams.get(v.station)
+        if cam is None or v.station in by_station or not v.width:
+            continue
+        back = image_of_ray(cam, L.point, -L.direction, v.width, v.height)
+        ahead = image_of_ray(cam, L.point, L.direction, v.width, v.height)
+        pts = back[::-1] + ahead
+        if len(pts) >= 2:
+            out.append({"view": v.id, "points": pts})
+    return {"lines": out}
