@@ -156,10 +156,11 @@ class Page:
 
 
 @pytest.fixture(scope="module")
-def page(oriented_projects, tmp_path_factory):
+def page(request, tmp_path_factory):
     """The server (in this process, port 0) over a copy of the measured and
     calibrated lab, and one headless Chromium on its page."""
-    chromium, driver_path = _browser_paths()
+    chromium, driver_path = _browser_paths()          # skip before any work
+    oriented_projects = request.getfixturevalue("oriented_projects")
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
 
@@ -174,8 +175,14 @@ def page(oriented_projects, tmp_path_factory):
     thread.start()
     options = webdriver.ChromeOptions()
     options.binary_location = chromium
-    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
-                "--disable-gpu", "--window-size=1400,1000", "--disable-extensions"):
+    # no sandbox (containers, root), no background services: the browser's
+    # CPU for the whole module 2.0 s instead of 2.35 s with the first line only
+    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-gpu",
+                "--in-process-gpu", "--renderer-process-limit=1", "--window-size=1400,1000",
+                "--disable-extensions", "--disable-background-networking",
+                "--disable-component-update", "--disable-sync", "--no-first-run",
+                "--mute-audio", "--disable-breakpad",
+                "--disable-features=Translate,MediaRouter,OptimizationHints"):
         options.add_argument(arg)
     driver = webdriver.Chrome(service=Service(driver_path), options=options)
     try:
@@ -242,7 +249,7 @@ def test_click_refines_saves_with_backup_and_undo(page):
     assert Path(str(table) + ".~1~").read_bytes() == original
     first_save = table.read_bytes()
     # undo the addition (Ctrl+Z on the page): gone from the page and the next save
-    page.d.find_element("tag name", "body").click()       # focus off the label box
+    assert page.js("return document.activeElement !== document.getElementById('label');")
     page.keys("z", ctrl=True)
     page.wait("return !s.project.observations.some(o => o.view === arguments[0]"
               " && o.point === arguments[1]);", view, point, what="the undo")
@@ -294,7 +301,7 @@ def test_epipolar_lines_where_geometry_says(page):
     cams = _cameras(page.lab)
     a = cams[view]
     ray = a.rays(a.ideal(np.array([[ob["x"], ob["y"]]])))[0]
-    depth = np.geomspace(0.02, 1e4, 20000)      # from just before the lens to the horizon
+    depth = np.geomspace(0.02, 1e4, 5000)      # from just before the lens to the horizon
     truth = _truth(page.lab)
     checked = 0
     for svg_view, line_view, text in lines:
@@ -302,25 +309,26 @@ def test_epipolar_lines_where_geometry_says(page):
         xy = np.array([[float(c) for c in pair.split(",")] for pair in text.split()])
         assert len(xy) >= 20
         b = cams[line_view]
-        curve = b.project(a.X0 + depth[:, None] * ray)
-        Xc = (a.X0 + depth[:, None] * ray - b.X0) @ b.R.T
-        curve = curve[Xc[:, 2] < 0]                # in front of camera b (it looks along -z)
+        X = a.X0 + depth[:, None] * ray
+        X = X[(X - b.X0) @ b.R[2] < 0]             # in front of camera b (it looks along -z)
+        ideal = b.project_ideal(X)
+        curve = b.measured(ideal[np.abs(ideal).max(axis=1) < 1000])   # near the format
         d = _distance_to_curve(xy, curve)
-        assert d.max() < 0.05, (line_view, d.max())
+        assert d.max() < 0.01, (line_view, d.max())     # measured: < 1e-4 px
         inside = (xy >= -1).all(axis=1) & (xy[:, 0] <= 641) & (xy[:, 1] <= 481)
         assert inside.all(), line_view            # clipped to the image
         if (line_view, point) in truth:           # passes through the point's true image
             t = np.array([truth[line_view, point]])
-            assert _distance_to_curve(t, xy)[0] < 0.3, line_view
+            assert _distance_to_curve(t, xy)[0] < 0.1, line_view   # measured: < 0.02 px
             checked += 1
-    assert checked >= 3
+    assert checked >= 6
     predicted = page.js("return [...document.querySelectorAll('circle.pred')].map(c =>"
                         "[c.dataset.view, +c.getAttribute('cx'), +c.getAttribute('cy')]);")
     assert predicted, "T45 has several rays: predicted positions expected"
     for pview, cx, cy in predicted:
         if (pview, point) in truth:
             tx, ty = truth[pview, point]
-            assert np.hypot(cx - tx, cy - ty) < 0.2, (pview, (cx, cy), (tx, ty))
+            assert np.hypot(cx - tx, cy - ty) < 0.1, (pview, (cx, cy), (tx, ty))  # < 0.02
 
 
 def test_run_button_shows_sigma0_and_worst(page):
