@@ -249,6 +249,8 @@ def run_command(args: argparse.Namespace) -> int:
         from photogram.project.limits import check_output_path
         check_output_path(args.output)
     if args.command == "measure" and getattr(args, "serve", None) is not None:
+        # the page's run button runs photogram commands as this front end does
+        args.run_argv = [sys.executable, "-m", __package__ or "photogram_cli"]
         return int(load_command("measure", SERVE)(args) or 0)
     if not cmd.needs_project:
         return int(load_command(args.command)(args) or 0)

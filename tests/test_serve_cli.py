@@ -4,7 +4,7 @@ second editor; a served page prints exactly the URL line."""
 
 from __future__ import annotations
 
-import threading
+import sys
 
 from photogram_cli.main import main
 
@@ -60,7 +60,7 @@ def test_serve_prints_the_url_and_stops_on_interrupt(tmp_path, monkeypatch, caps
 
     def interrupted(self, poll_interval=0.5):
         seen["address"] = self.server_address
-        seen["thread"] = threading.current_thread()
+        seen["run_argv"] = self.session.run_argv
         raise KeyboardInterrupt
 
     monkeypatch.setattr(ThreadingHTTPServer, "serve_forever", interrupted)
@@ -69,6 +69,8 @@ def test_serve_prints_the_url_and_stops_on_interrupt(tmp_path, monkeypatch, caps
     port = seen["address"][1]
     assert seen["address"][0] == "127.0.0.1" and port > 0
     assert len(out) == 1 and out[0].startswith(f"measure --serve: http://127.0.0.1:{port}/?token=")
+    # the run button runs commands through the same front end and interpreter
+    assert seen["run_argv"] == [sys.executable, "-m", "photogram_cli"]
     assert out[0].endswith(" (Ctrl+C to stop)") and len(out[0].split("token=")[1].split()[0]) == 32
     from photogram.serve.session import Session
     Session(prj).close()           # the lock was released

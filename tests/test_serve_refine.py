@@ -117,3 +117,18 @@ def test_same_centres_as_photogram_measure(tmp_path):
         assert np.percentile(diff, 50) < 0.005 and np.percentile(diff, 90) < 0.01
     finally:
         s.close()
+
+
+def test_no_correction_when_the_adjustment_models_eccentricity(lab):
+    """With [targets] (eccentricity in the adjustment) the table takes the
+    plain ellipse centre."""
+    session, truth = lab
+    from photogram.project.model import TargetSettings
+    from photogram.serve.refine import refine_click
+    xy = truth[("K2a", "T17")]
+    corrected = refine_click(session, session.view("K2a"), xy[0] + 1, xy[1], "T17")
+    session.project.targets = TargetSettings(eccentricity=True, diameter=0.016)
+    plain = refine_click(session, session.view("K2a"), xy[0] + 1, xy[1], "T17")
+    assert corrected["method"] == "ellipse+eccentricity" and plain["method"] == "ellipse"
+    assert "[targets] models it in the adjustment" in plain["note"]
+    assert 0.005 < np.hypot(plain["x"] - corrected["x"], plain["y"] - corrected["y"]) < 0.02

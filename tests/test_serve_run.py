@@ -6,6 +6,7 @@ results folder (sigma0, worst residuals)."""
 from __future__ import annotations
 
 import json
+import sys
 
 import pytest
 
@@ -15,7 +16,8 @@ from serve_fixtures import Running, lab_copy
 @pytest.fixture
 def session(tmp_path):
     from photogram.serve.session import Session
-    s = Session(lab_copy(tmp_path / "lab", oriented=False))
+    s = Session(lab_copy(tmp_path / "lab", oriented=False),
+                run_argv=[sys.executable, "-m", "photogram_cli"])   # as the CLI gives it
     yield s
     s.close()
 
@@ -28,6 +30,10 @@ def test_run_needs_a_saved_table_and_a_known_command(session):
         status, body = r.request("POST", "/api/run", {"command": "calibrate"})
         assert status == 409 and "save the observations first" in body["error"]
         assert not (session.project.folder / "results-typed").exists()
+        session.run_argv = None               # a session not started from the CLI
+        session.save()
+        status, body = r.request("POST", "/api/run", {"command": "orient"})
+        assert status == 400 and "needs the server started by" in body["error"]
 
 
 @pytest.mark.slow

@@ -133,3 +133,20 @@ def test_bad_field_is_one_line(tmp_path):
         Session(prj, field=bad)
     assert "bad.toml" in exc.value.one_line() and "\n" not in exc.value.one_line()
     Session(prj).close()        # the failed session left no lock behind
+
+
+def test_quoted_cells_survive_a_save(tmp_path):
+    """A note column with the delimiter inside quotes is written back quoted
+    (the saved table reads as the original); NaN in JSON is null."""
+    from photogram.serve.table import EditableTable
+    path = tmp_path / "t.csv"
+    path.write_text('# c\nstation,point,x,y,note\nK1a,T01,1.5,2.5,"left, top"\n'
+                    'K1a,T02,3,4,"say ""hi"""\n', encoding="utf-8")
+    t = EditableTable.read(path)
+    t.move(1, 5, 6)
+    t.save()
+    again = EditableTable.read(path)
+    assert [r.cells["note"] for r in again.rows] == ["left, top", 'say "hi"']
+    assert again.rows[1].cells["x"] == "5.0000"
+    from photogram.serve.server import _finite
+    assert _finite({"a": [float("nan"), 1.0], "b": float("inf")}) == {"a": [None, 1.0], "b": None}

@@ -18,4 +18,5 @@ def run(args) -> int:
     field = getattr(args, "serve_field", None) or getattr(args, "field", None)
     return serve(args.serve, field=field, images=getattr(args, "images", None), port=port,
                  open_browser=bool(getattr(args, "open_browser", False)),
-                 announce=lambda line: print(line, flush=True))
+                 announce=lambda line: print(line, flush=True),
+                 run_argv=getattr(args, "run_argv", None))

@@ -15,12 +15,35 @@ calibrate, intersect in a subprocess), :mod:`~photogram.serve.server` and
 
 from __future__ import annotations
 
+import contextlib
+
 __all__ = ["serve"]
 
 
+@contextlib.contextmanager
+def _stop_on_sigterm():
+    """SIGTERM (a service manager, ``kill``) stops the server as Ctrl+C
+    does (exit 0, lock released); only in the main thread, restored after."""
+    import signal
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
 def serve(project, *, field=None, images=None, port: int = 0, open_browser: bool = False,
-          announce=print) -> int:
-    """Serve the page for ``project`` until interrupted (Ctrl+C); returns 0.
+          announce=print, run_argv=None) -> int:
+    """Serve the page for ``project`` until interrupted (Ctrl+C or SIGTERM);
+    returns 0.
 
     Parameters
     ----------
@@ -34,6 +57,9 @@ def serve(project, *, field=None, images=None, port: int = 0, open_browser: bool
         Open the URL in the default browser.
     announce : callable
         Receives the one line with the URL.
+    run_argv : list of str, optional
+        How to run a photogram command (the run button), e.g.
+        ``[sys.executable, "-m", FRONT_END]``; None: the button answers 400.
 
     Raises
     ------
@@ -42,7 +68,7 @@ def serve(project, *, field=None, images=None, port: int = 0, open_browser: bool
     """
     from photogram.serve.server import make_server
     from photogram.serve.session import Session
-    session = Session(project, field=field, images=images)
+    session = Session(project, field=field, images=images, run_argv=run_argv)
     try:
         server = make_server(session, port)
         try:
@@ -50,10 +76,11 @@ def serve(project, *, field=None, images=None, port: int = 0, open_browser: bool
             if open_browser:
                 import webbrowser
                 webbrowser.open(server.url)
-            try:
-                server.serve_forever()
-            except KeyboardInterrupt:
-                pass
+            with _stop_on_sigterm():
+                try:
+                    server.serve_forever()
+                except KeyboardInterrupt:
+                    pass
         finally:
             server.server_close()
     finally:

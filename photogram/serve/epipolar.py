@@ -105,7 +105,15 @@ def image_of_ray(camera: ViewCamera, X0, d, width: float, height: float,
                 lo = a
             else:
                 hi = a
-    xy = _points(camera, start_h, end_h, np.linspace(lo, hi, max(n, MIN_VERTICES)), limit)
+    # vertices equally spaced along the curve (the parameter s is not)
+    fine = np.linspace(lo, hi, 4001)
+    pts = _points(camera, start_h, end_h, fine, limit)
+    ok = np.isfinite(pts).all(axis=1)
+    fine, pts = fine[ok], pts[ok]
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    s_at = np.interp(np.linspace(0.0, arc[-1], max(n, MIN_VERTICES)), arc, fine)
+    s_at[0], s_at[-1] = lo, hi
+    xy = _points(camera, start_h, end_h, s_at, limit)
     xy = xy[inside(xy)]
     return [[float(x), float(y)] for x, y in xy]
 
@@ -243,7 +251,7 @@ def predicted_line(session, exposure: str, line: str) -> dict:
             continue
         back = image_of_ray(cam, L.point, -L.direction, v.width, v.height)
         ahead = image_of_ray(cam, L.point, L.direction, v.width, v.height)
-        pts = back[::-1] + ahead
+        pts = back[::-1] + ahead[1:] if back and ahead else back[::-1] + ahead
         if len(pts) >= 2:
             out.append({"view": v.id, "points": pts})
     return {"lines": out}

@@ -21,7 +21,10 @@ the plane of the target is mapped into the view by
 (:class:`photogram.lines.views.ViewCamera`), as
 ``photogram.measure.pipeline._eccentricity_3d`` does with its DLT
 matrix, and the ellipse centre is corrected to the image of the circle's
-centre (method ``"ellipse+eccentricity"``).
+centre (method ``"ellipse+eccentricity"``). A project with ``[targets]``
+(eccentricity modelled by the adjustment, docs/adjustment.md) takes the
+uncorrected ellipse centres, as ``photogram measure --no-eccentricity``
+writes them.
 
 No target at the click: the point is kept as clicked (``refined`` false,
 method ``"clicked"``, sigma :data:`MANUAL_SIGMA`).
@@ -110,6 +113,10 @@ def detector_settings(field) -> dict:
 def target_plane(field, project, point):
     """(X, normal, radius) of a labelled circular target, or a reason (str)
     why its eccentricity cannot be corrected."""
+    targets = getattr(project, "targets", None)
+    if targets is not None and targets.eccentricity:
+        # the adjustment predicts ellipse centres: the table holds them uncorrected
+        return "the project's [targets] models it in the adjustment"
     if field is None:
         return "no --field (target diameter and normal unknown)"
     if not point:

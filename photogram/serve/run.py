@@ -1,8 +1,11 @@
 """The "run" button of ``photogram measure --serve``: ``photogram
 calibrate``, ``orient`` or ``intersect`` on the saved project, in a
-subprocess (``python -m photogram_cli COMMAND PROJECT --force --no-report
---quiet``; the same interpreter, a timeout of :data:`TIMEOUT` s), then the
-results folder read again (orientation, sigma0, worst residuals).
+subprocess (``PHOTOGRAM COMMAND PROJECT --force --no-report --quiet``, a
+timeout of :data:`TIMEOUT` s), then the results folder read again
+(orientation, sigma0, worst residuals). ``PHOTOGRAM`` is the command line
+that started the server, as the command-line layer gives it
+(``session.run_argv``: the same interpreter running the same front end;
+the library does not name the front end, docs/index.md).
 
 A subprocess rather than a call: the command runs exactly as on the
 command line (its own results-folder lock, its own error handling and exit
@@ -14,7 +17,6 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 from photogram.serve.results import read_orientation, residual_rows
@@ -58,8 +60,10 @@ def run_command(session, command, timeout: float = TIMEOUT) -> dict:
         raise BadEdit(f"cannot run {command!r}: choose {', '.join(COMMANDS)}")
     if session.dirty:
         raise NotSaved("save the observations first: the command reads the saved table")
-    args = [sys.executable, "-m", "photogram_cli", command, str(session.project.path),
-            "--force", "--no-report", "--quiet"]
+    prefix = getattr(session, "run_argv", None)
+    if not prefix:
+        raise BadEdit("running commands needs the server started by photogram measure --serve")
+    args = [*prefix, command, str(session.project.path), "--force", "--no-report", "--quiet"]
     try:
         proc = subprocess.run(args, capture_output=True, text=True, timeout=timeout,
                               env=_env(), cwd=str(session.project.folder), stdin=subprocess.DEVNULL)

@@ -27,6 +27,7 @@ from __future__ import annotations
 import hmac
 import json
 import logging
+import math
 import secrets
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -55,6 +56,17 @@ def static_files() -> dict[str, Path]:
     return {p.name: p for p in STATIC.iterdir() if p.is_file() and p.suffix in _TYPES}
 
 
+def _finite(obj):
+    """``obj`` with NaN and infinities as null (JSON has no NaN)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
+
+
 class Handler(BaseHTTPRequestHandler):
     """Request handler: checks, routing, JSON answers (module doc)."""
 
@@ -80,7 +92,7 @@ class Handler(BaseHTTPRequestHandler):
             self.wfile.write(body)
 
     def _json(self, status: int, obj) -> None:
-        self._send(status, json.dumps(obj, allow_nan=False).encode("utf-8"),
+        self._send(status, json.dumps(_finite(obj), allow_nan=False).encode("utf-8"),
                    "application/json; charset=utf-8")
 
     def _error(self, status: int, message: str) -> None:

@@ -40,6 +40,9 @@ class Session:
         ``images/`` beside the project).
     lock : bool
         Take the project's editor lock (:meth:`close` releases it).
+    run_argv : list of str, optional
+        The command line that runs a photogram command (``POST /api/run``;
+        given by the command-line layer); None: no run button.
 
     Raises
     ------
@@ -48,8 +51,10 @@ class Session:
         editor holds the lock (one line each).
     """
 
-    def __init__(self, project_path, *, field=None, images=None, lock: bool = True):
+    def __init__(self, project_path, *, field=None, images=None, lock: bool = True,
+                 run_argv=None):
         from photogram.project import read_project
+        self.run_argv = list(run_argv) if run_argv else None
         self.project = read_project(project_path)
         self.field = None
         if field is not None:
@@ -57,6 +62,7 @@ class Session:
             self.field = read_field(field)
         self.messages: list[str] = list(self.project.warnings)[:20]
         self._edit_lock = threading.RLock()
+        self._edits: list[EditableTable] = []    # the table of each edit, for undo
         self._filelock = None
         self.tables = self._tables()
         self.points_table = self.tables[0]
@@ -76,10 +82,9 @@ class Session:
     def _tables(self) -> list[EditableTable]:
         src = self.project.sources
         if self.project.track is not None:
-            raise InputError("photogram measure --serve: video projects ([track]) are not "
-                             "supported yet", file=self.project.path,
-                             hint="open the intersect project that reads the tracked "
-                                  "observations")
+            from photogram.serve.video import track_tables
+            points, lines = track_tables(self.project)
+            src = {"image_points": points, "image_lines": lines}
         path = src.get("image_points")
         if path is None:
             raise InputError("the project has no image points table ([observations] points)",
@@ -99,7 +104,7 @@ class Session:
         except filelock.Timeout:
             raise InputError(f"another photogram measure --serve is editing "
                              f"{self.points_table.path} (lock {path} held)",
-                             hint="stop that server first (Ctrl+C in its terminal)") from None
+                             hint="stop that server first with Ctrl+C in its terminal") from None
         except OSError as exc:
             raise InputError(f"cannot create the lock file {path}: {exc.strerror}",
                              hint="check that the folder is writable") from None
@@ -112,6 +117,11 @@ class Session:
             self._filelock = None
 
     def _views(self, images):
+        self.exposures = None
+        if self.project.track is not None:
+            from photogram.serve.video import video_views
+            views, self.exposures = video_views(self.project)
+            return views
         folder = images
         if folder is None and self.field is not None and self.field.images is not None:
             folder = self.field.images
@@ -152,6 +162,13 @@ class Session:
                 return r.oid
         return None
 
+    def _labels(self) -> list[str]:
+        """The point ids for the label chooser: the points table's, or the
+        markers of a video project."""
+        if self.project.track is not None:
+            return list(self.project.track.markers)
+        return list(self.project.points.ids)
+
     # ------------------------------------------------------------------ JSON
     def body(self) -> dict:
         """The JSON of ``GET /api/project``."""
@@ -162,11 +179,11 @@ class Session:
             residuals, worst = residual_rows(self.orientation, self._oid_of)
             return {"name": self.project.name, "project": str(self.project.path),
                     "table": str(pt.path), "lines_table": str(lt.path) if lt else None,
-                    "exposures": None,
+                    "exposures": self.exposures,
                     "views": [v.json() for v in self.views],
                     "oriented": self.orientation.oriented,
                     "orientation_note": self.orientation.note,
-                    "points": list(self.project.points.ids),
+                    "points": self._labels(),
                     "observations": obs, "lines": lines,
                     "residuals": residuals, "worst": worst,
                     "dirty": self.dirty,
@@ -192,7 +209,7 @@ class Session:
                 label = req.get("line") if table is not self.points_table else req.get("point")
                 table.add(v.station, label, req.get("x"), req.get("y"), req.get("sigma"),
                           manual=bool(req.get("manual")), exposure=v.exposure or "")
-                self._order.append(table)
+                self._edits.append(table)
             elif op in ("move", "delete", "relabel"):
                 oid = _int(req.get("oid"))
                 table = self.table_of(oid)
@@ -204,24 +221,17 @@ class Session:
                 else:
                     table.relabel(oid, req.get("point") if req.get("point") is not None
                                   else req.get("line"))
-                self._order.append(table)
+                self._edits.append(table)
             else:
                 raise BadEdit(f"unknown edit op {op!r}: add, move, delete or relabel")
             return self.body()
 
-    @property
-    def _order(self) -> list:
-        """The tables in the order of their edits (for undo across tables)."""
-        if not hasattr(self, "_edits"):
-            self._edits = []
-        return self._edits
-
     def undo(self) -> dict:
         """``POST /api/undo``: undo the last edit; returns :meth:`body`."""
         with self._edit_lock:
-            if not self._order:
+            if not self._edits:
                 raise BadEdit("nothing to undo")
-            self._order.pop().undo()
+            self._edits.pop().undo()
             return self.body()
 
     def save(self) -> dict:

@@ -25,7 +25,9 @@ import numpy as np
 from photogram.errors import InputError, PhotogramError
 from photogram.io.targets import IMAGE_SUFFIXES
 
-__all__ = ["View", "ImageStore", "still_views", "read_colour"]
+__all__ = ["View", "ImageStore", "still_views", "read_colour", "read_frame"]
+
+_FRAME_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm")
 
 _CHANNEL = {"blue": 0, "green": 1, "red": 2}
 
@@ -75,6 +77,34 @@ def read_colour(path: Path) -> np.ndarray:
     return img
 
 
+def read_frame(path, frame: int) -> np.ndarray:
+    """Frame ``frame`` (0-based) of a video file or an image folder as BGR
+    uint8 (h, w, 3); a one-line :class:`InputError` if it cannot be read."""
+    import cv2
+    path = Path(path)
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.suffix.lower() in _FRAME_SUFFIXES)
+        if not 0 <= frame < len(files):
+            raise InputError(f"cannot read frame {frame} of {path}: the folder has "
+                             f"{len(files)} frames")
+        return read_colour(files[frame])
+    cap = cv2.VideoCapture(str(path))
+    try:
+        if not cap.isOpened():
+            raise InputError(f"cannot read video {path}: OpenCV cannot open it",
+                             hint="convert it to AVI/MJPG or to a folder of PNG frames")
+        n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+        if frame < 0 or (n > 0 and frame >= n):
+            raise InputError(f"cannot read frame {frame} of video {path} ({n} frames)")
+        cap.set(cv2.CAP_PROP_POS_FRAMES, frame)
+        ok, img = cap.read()
+    finally:
+        cap.release()
+    if not ok or img is None:
+        raise InputError(f"cannot read frame {frame} of video {path}")
+    return img
+
+
 def still_views(stations, folder: Path, sizes: dict | None = None) -> list[View]:
     """A view per station whose image is in ``folder`` (by stem), in the
     stations' order; stations without an image get a view with the error.
@@ -111,8 +141,15 @@ class ImageStore:
         self._lock = threading.Lock()
 
     def check_all(self) -> None:
-        """Read every image once: sizes and errors of the views."""
+        """Read every image once: sizes and errors of the views (of a video
+        only the first view, so that a recording that cannot be opened is
+        said at once; the other frames are read when shown)."""
+        seen = set()
         for v in self.views.values():
+            if v.video is not None:
+                if v.video in seen:
+                    continue
+                seen.add(v.video)
             if v.ok:
                 try:
                     self.bgr(v.id)
@@ -128,7 +165,6 @@ class ImageStore:
         if v.error is not None:
             raise InputError(v.error)
         if v.video is not None:
-            from photogram.serve.video import read_frame
             img = read_frame(v.video, v.frame)
         else:
             img = read_colour(v.path)

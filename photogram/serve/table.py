@@ -5,7 +5,9 @@ or a lines table (``station, line, x, y`` ...) read once, edited in memory
 (add, move, delete, relabel) with an undo stack, and written back on save:
 
 * the comment lines before the header and the order of the columns are
-  kept; rows that were not edited keep their cells exactly as read; the
+  kept (comment lines between the rows are not; the backup has them);
+  rows that were not edited keep their cells as read (a cell holding the
+  delimiter or a quote is quoted as in RFC 4180); the
   coordinates of edited rows are written with 4 decimals, as
   ``photogram measure`` writes them;
 * a manual observation (kept as clicked, not refined) is flagged in the
@@ -194,13 +196,13 @@ class EditableTable:
         if any(r.manual for r in self.rows) and "_manual" not in header:
             header.append("_manual")
         d = self.delimiter
-        lines = list(self.comments) + [d.join(header)]
+        lines = list(self.comments) + [d.join(_quoted(h, d) for h in header)]
         for r in self.rows:
             cells = dict(r.cells)
             if "_manual" in header:
                 cells["_manual"] = "1" if r.manual else ("0" if r.edited else
                                                          cells.get("_manual", "") or "0")
-            lines.append(d.join(cells.get(h, "") for h in header))
+            lines.append(d.join(_quoted(cells.get(h, ""), d) for h in header))
         return "\n".join(lines) + "\n"
 
     def save(self) -> tuple[Path, Path | None]:
@@ -219,6 +221,14 @@ class EditableTable:
         for r in self.rows:
             r.edited = False
         return self.path, backup
+
+
+def _quoted(cell: str, delimiter: str) -> str:
+    """A cell as CSV text: quoted (RFC 4180) if it holds the delimiter, a
+    quote or a line break."""
+    if delimiter in cell or '"' in cell or "\n" in cell or "\r" in cell:
+        return '"' + cell.replace('"', '""') + '"'
+    return cell
 
 
 def next_backup(path) -> Path:

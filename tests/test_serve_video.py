@@ -1,0 +1,130 @@
+"""Video projects ([track]) in photogram measure --serve
+(photogram/serve/video.py): a small made-up track project with two
+stations whose recordings are folders of PNG frames (frame k is uniform
+grey level 10 k, so the frame shown is known exactly) and one AVI file;
+the tracked tables in results-track/."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+PRJ = """[project]
+name = "tiny-track"
+length_unit = "m"
+angle_unit = "gon"
+image_unit = "px"
+
+[cameras.K]
+model = "brown"
+image_size = [64, 48]
+pixel_size = [0.01, 0.01]
+c = 60.0
+x0 = 32.0
+y0 = 24.0
+
+[stations]
+file = "stations.csv"
+
+[track]
+videos = { S1 = "video/S1", S2 = "video/S2" }
+seeds = "seeds.csv"
+exposures = "frames.csv"
+offsets = { S2 = 2 }
+"""
+
+
+def _project(folder):
+    folder.mkdir()
+    (folder / "track.prj").write_text(PRJ, encoding="utf-8")
+    (folder / "stations.csv").write_text(
+        "station,camera,X0,Y0,Z0,omega,phi,kappa\nS1,K,0,0,10,0,0,0\nS2,K,2,0,10,0,0,0\n",
+        encoding="utf-8")
+    (folder / "seeds.csv").write_text("station,frame,marker,x,y\nS1,0,P1,10,10\n",
+                                      encoding="utf-8")
+    (folder / "frames.csv").write_text("exposure,frame\n001,3\n002,4\n", encoding="utf-8")
+    for st in ("S1", "S2"):
+        (folder / "video" / st).mkdir(parents=True)
+        for k in range(8):
+            img = np.full((48, 64, 3), 10 * k, np.uint8)
+            cv2.imwrite(str(folder / "video" / st / f"{k:06d}.png"), img)
+    out = folder / "results"
+    out.mkdir()
+    (out / "jumper_points.csv").write_text(
+        "# tracked\nexposure,station,point,x,y,sigma\n001,S1,P1,32.0,24.0,0.05\n"
+        "001,S2,P1,20.0,24.0,0.05\n002,S1,P1,33.0,24.0,0.05\n", encoding="utf-8")
+    (out / "ski_lines.csv").write_text(
+        "exposure,station,line,x,y,sigma\n001,S1,L1,10,30,0.2\n001,S1,L1,50,32,0.2\n",
+        encoding="utf-8")
+    return folder / "track.prj"
+
+
+@pytest.fixture
+def video(tmp_path):
+    from photogram.serve.session import Session
+    s = Session(_project(tmp_path / "tiny"))
+    yield s
+    s.close()
+
+
+def test_views_are_exposure_frames_with_offsets(video):
+    body = video.body()
+    assert body["exposures"] == ["001", "002"]
+    assert [v["id"] for v in body["views"]] == ["001/S1", "001/S2", "002/S1", "002/S2"]
+    assert body["points"] == ["P1", "P2", "P3", "P4"]
+    assert body["oriented"] and "oriented from the project" in body["orientation_note"]
+    assert [o["view"] for o in body["observations"]] == ["001/S1", "001/S2", "002/S1"]
+    assert body["lines"][0]["view"] == "001/S1" and body["lines"][0]["line"] == "L1"
+    # exposure 001 = synchronous frame 3: S1 shows its frame 3, S2 (2 late) its frame 1
+    for view, level in (("001/S1", 30), ("001/S2", 10), ("002/S1", 40), ("002/S2", 20)):
+        img = cv2.imdecode(np.frombuffer(video.images.png(view), np.uint8), cv2.IMREAD_COLOR)
+        assert img.shape == (48, 64, 3) and (img == level).all(), view
+
+
+def test_edits_keep_the_exposure_and_epipolar_stays_in_it(video):
+    body = video.edit({"op": "add", "view": "002/S2", "point": "P1", "x": 21, "y": 24})
+    assert body["observations"][-1]["view"] == "002/S2"
+    # P1 of exposure 002 may be added in S2, but not twice
+    from photogram.serve.table import BadEdit
+    with pytest.raises(BadEdit, match="already measured"):
+        video.edit({"op": "add", "view": "002/S2", "point": "P1", "x": 1, "y": 2})
+    video.save()
+    text = (video.points_table.path).read_text(encoding="utf-8").splitlines()
+    assert text[0] == "# tracked" and text[-1] == "002,S2,P1,21.0000,24.0000,"
+    from photogram.serve.epipolar import epipolar_help
+    out = epipolar_help(video, oid=0)              # 001/S1 P1
+    assert [c["view"] for c in out["lines"]] == ["001/S2"]
+    assert [p["view"] for p in out["predicted"]] == ["001/S2"]
+    # the two rays of P1 at 001 meet at the point in front of both cameras:
+    # S1 sees it at the principal point, so it lies on S1's axis, X = (0, 0, Z)
+    # with S2 at x 20 px: c * 2 / (10 - Z) = 12 -> 10 - Z = 10 m
+    p = out["predicted"][0]
+    assert p["x"] == pytest.approx(20.0, abs=1e-6) and p["y"] == pytest.approx(24.0, abs=1e-6)
+
+
+def test_missing_tracked_table_is_one_line(tmp_path):
+    from photogram.errors import InputError
+    from photogram.serve.session import Session
+    prj = _project(tmp_path / "tiny")
+    (prj.parent / "results" / "jumper_points.csv").unlink()
+    with pytest.raises(InputError) as exc:
+        Session(prj)
+    assert exc.value.one_line() == (f"no tracked observations "
+                                    f"{prj.parent / 'results' / 'jumper_points.csv'} "
+                                    f"(run photogram track {prj} first)")
+
+
+def test_video_file_frames(tmp_path):
+    """An AVI (MJPG) recording: the frame of the exposure, not another."""
+    from photogram.serve.sources import read_frame
+    path = tmp_path / "v.avi"
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30, (64, 48))
+    for k in range(6):
+        w.write(np.full((48, 64, 3), 40 * k, np.uint8))
+    w.release()
+    for k in (0, 3, 5):
+        assert abs(float(read_frame(path, k).mean()) - 40 * k) < 3
+    from photogram.errors import InputError
+    with pytest.raises(InputError, match="cannot read frame 9 of video"):
+        read_frame(path, 9)
