@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import csv
 import shutil
+import sys
 import threading
 import time
 from pathlib import Path
@@ -169,7 +170,9 @@ def page(request, tmp_path_factory):
 
     lab = tmp_path_factory.mktemp("serve") / "lab"
     shutil.copytree(oriented_projects / "lab", lab)
-    session = Session(lab / "lab.prj", field=lab / "frame.toml")
+    # the run button's command line (the CLI passes its own)
+    session = Session(lab / "lab.prj", field=lab / "frame.toml",
+                      run_argv=[sys.executable, "-m", "photogram_cli"])
     server = make_server(session, port=0)
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()

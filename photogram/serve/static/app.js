@@ -290,7 +290,8 @@ function renderWorst() {
     if (r.oid !== null && r.oid !== undefined) li.dataset.oid = r.oid;
     li.dataset.view = r.view;
     li.dataset.point = r.point;
-    li.textContent = `${r.view} ${r.point}  w ${fmt(r.w, 2)}  v (${fmt(r.vx, 3)}, ${fmt(r.vy, 3)})`;
+    li.textContent = `${r.view} ${r.point} w ${fmt(r.w, 2)}`;
+    li.title = `residual (${fmt(r.vx, 3)}, ${fmt(r.vy, 3)}) px, standardized ${fmt(r.w, 2)}`;
     if (r.oid === state.selected) li.classList.add("selected");
     li.addEventListener("click", () => showResidual(r));
     ui.worst.appendChild(li);
@@ -318,6 +319,7 @@ function setProject(body) {
   if (state.selected !== null && !observation(state.selected)) {
     state.selected = null;
     state.epipolar = null;
+    ui.epiNote.textContent = "";
   }
   if (first) {
     renderExposures();
@@ -329,33 +331,42 @@ function setProject(body) {
 
 // ---------------------------------------------------------------- actions
 
-async function select(oid) {
+async function select(oid, quiet) {
   state.selected = oid;
   predLabel = null;
   const o = observation(oid);
-  if (o) ui.label.value = o.point;
   drawAll();
   renderWorst();
-  if (o) await showEpipolar({oid});
+  if (!o) return;
+  if (!quiet) setStatus(`selected ${o.view} ${o.point} at ${fmt(o.x, 3)}, ${fmt(o.y, 3)}` +
+            (o.sigma !== null && o.sigma !== undefined ? `, sigma ${fmt(o.sigma, 3)} px` : "") +
+            (o.manual ? " (manual)" : "") + " \u2014 Delete deletes, drag moves, label + Enter relabels");
+  await showEpipolar({oid});
 }
 
 function deselect() {
   state.selected = null;
   state.epipolar = null;
+  ui.epiNote.textContent = "";
   drawAll();
   renderWorst();
 }
 
 async function showEpipolar(params) {
   epiSource = params;
-  if (!state.project.oriented) { state.epipolar = null; drawAll(); return; }
+  if (!state.project.oriented) {
+    state.epipolar = null;
+    ui.epiNote.textContent = "no epipolar help: the stations are not oriented";
+    drawAll();
+    return;
+  }
   try {
     const data = await api("GET", `/api/epipolar?${query(params)}`);
     if (epiSource !== params) return;          // a newer request replaced this one
     data.point = params.point || (params.oid !== undefined && observation(params.oid)
       ? observation(params.oid).point : null);
     state.epipolar = data;
-    if (data.note) setStatus(data.note);
+    ui.epiNote.textContent = data.note ? `epipolar: ${data.note}` : "";
   } catch (err) {
     state.epipolar = null;
     fail(err);
@@ -384,7 +395,7 @@ async function addAt(v, x, y) {
     setProject(body);
     const o = body.observations.find((q) => q.view === v.info.id && q.point === label);
     setStatus(`${v.info.id} ${label}: ${refineText(r)}${r.note ? " \u2014 " + r.note : ""}`);
-    if (o) await select(o.oid);
+    if (o) await select(o.oid, true);
   } catch (err) { fail(err); }
 }
 
@@ -395,7 +406,7 @@ async function moveTo(o, x, y) {
                                                  sigma: r.sigma, manual: !r.refined});
     setProject(body);
     setStatus(`${o.view} ${o.point} moved: ${refineText(r)}`);
-    if (observation(o.oid)) await select(o.oid);
+    if (observation(o.oid)) await select(o.oid, true);
   } catch (err) { fail(err); drawAll(); }
 }
 
@@ -417,7 +428,7 @@ async function relabelSelected() {
   try {
     setProject(await api("POST", "/api/edit", {op: "relabel", oid: o.oid, point: label}));
     setStatus(`${o.view}: ${o.point} relabelled ${label}`);
-    if (observation(o.oid)) await select(o.oid);
+    if (observation(o.oid)) await select(o.oid, true);
   } catch (err) { fail(err); }
 }
 
@@ -425,6 +436,7 @@ async function undo() {
   try {
     setProject(await api("POST", "/api/undo"));
     state.epipolar = null;
+    ui.epiNote.textContent = "";
     drawAll();
     setStatus("undone");
   } catch (err) { fail(err); }
@@ -602,6 +614,7 @@ async function start() {
   ui.runCommand = document.getElementById("run-command");
   ui.resScale = document.getElementById("res-scale");
   ui.worstEmpty = document.getElementById("worst-empty");
+  ui.epiNote = document.getElementById("epi-note");
   ui.exposureBox = document.getElementById("exposure-box");
   ui.save.addEventListener("click", save);
   ui.undo.addEventListener("click", undo);
