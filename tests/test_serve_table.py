@@ -150,3 +150,19 @@ def test_quoted_cells_survive_a_save(tmp_path):
     assert again.rows[1].cells["x"] == "5.0000"
     from photogram.serve.server import _finite
     assert _finite({"a": [float("nan"), 1.0], "b": float("inf")}) == {"a": [None, 1.0], "b": None}
+
+
+def test_image_cache_keeps_only_recent_images(lab, monkeypatch):
+    """The store keeps decoded images up to its byte budget (a project of
+    many large photographs does not fill the memory)."""
+    session, _ = lab
+    store = session.images
+    one = 640 * 480 * 3
+    assert len(store._bgr.items) == 9          # the 9 images read at the start (4 MB)
+    store._bgr.budget = int(2.5 * one)
+    store._bgr.items.clear()
+    for v in ("K1a", "K1b", "K1c", "K2a"):
+        store.bgr(v)
+    assert list(store._bgr.items) == ["K1c", "K2a"]
+    first = store.bgr("K1a")               # read again, the same pixels
+    assert first.shape == (480, 640, 3) and list(store._bgr.items)[-1] == "K1a"

@@ -17,6 +17,7 @@ with the one-line reason (shown on the page), not a failure of the server.
 from __future__ import annotations
 
 import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,6 +31,9 @@ __all__ = ["View", "ImageStore", "still_views", "read_colour", "read_frame"]
 _FRAME_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm")
 
 _CHANNEL = {"blue": 0, "green": 1, "red": 2}
+
+#: bytes of decoded images (and, separately, of PNG data) kept in memory
+CACHE_BYTES = 512 * 2 ** 20
 
 
 @dataclass
@@ -130,14 +134,36 @@ def still_views(stations, folder: Path, sizes: dict | None = None) -> list[View]
     return views
 
 
+class _Recent:
+    """The most recently used entries up to ``budget`` bytes (at least one)."""
+
+    def __init__(self, budget: int):
+        self.budget = budget
+        self.items: OrderedDict = OrderedDict()
+
+    def get(self, key):
+        value = self.items.get(key)
+        if value is not None:
+            self.items.move_to_end(key)
+        return value
+
+    def put(self, key, value) -> None:
+        self.items[key] = value
+        self.items.move_to_end(key)
+        while len(self.items) > 1 and sum(v.nbytes if hasattr(v, "nbytes") else len(v)
+                                          for v in self.items.values()) > self.budget:
+            self.items.popitem(last=False)
+
+
 class ImageStore:
     """Decoded images and their PNG bytes, per view id, read on first use
-    (thread-safe; the server has one thread per request)."""
+    and kept while they fit in :data:`CACHE_BYTES` each (the most recently
+    used; thread-safe: the server has one thread per request)."""
 
     def __init__(self, views: list[View]):
         self.views = {v.id: v for v in views}
-        self._bgr: dict[str, np.ndarray] = {}
-        self._png: dict[str, bytes] = {}
+        self._bgr = _Recent(CACHE_BYTES)
+        self._png = _Recent(CACHE_BYTES)
         self._lock = threading.Lock()
 
     def check_all(self) -> None:
@@ -159,8 +185,9 @@ class ImageStore:
     def bgr(self, view_id: str) -> np.ndarray:
         """The image of a view as BGR uint8 (h, w, 3)."""
         with self._lock:
-            if view_id in self._bgr:
-                return self._bgr[view_id]
+            img = self._bgr.get(view_id)
+        if img is not None:
+            return img
         v = self.views[view_id]
         if v.error is not None:
             raise InputError(v.error)
@@ -170,7 +197,7 @@ class ImageStore:
             img = read_colour(v.path)
         v.height, v.width = img.shape[:2]
         with self._lock:
-            self._bgr[view_id] = img
+            self._bgr.put(view_id, img)
         return img
 
     def gray(self, view_id: str, channel: str = "green") -> np.ndarray:
@@ -184,13 +211,14 @@ class ImageStore:
     def png(self, view_id: str) -> bytes:
         """PNG bytes of the full-resolution image (colour kept)."""
         with self._lock:
-            if view_id in self._png:
-                return self._png[view_id]
+            data = self._png.get(view_id)
+        if data is not None:
+            return data
         import cv2
         ok, buf = cv2.imencode(".png", self.bgr(view_id), [cv2.IMWRITE_PNG_COMPRESSION, 1])
         if not ok:
             raise InputError(f"cannot encode the image of view {view_id} as PNG")
         data = buf.tobytes()
         with self._lock:
-            self._png[view_id] = data
+            self._png.put(view_id, data)
         return data
