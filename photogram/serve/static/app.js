@@ -100,9 +100,21 @@ function shownViews() {
   return all.filter((v) => exposure === null || v.exposure === exposure);
 }
 
+/** A point of a line (ski edge) in the form of an observation: point = its line label. */
+function linePoint(p) { return {...p, point: p.line, isLine: true}; }
+
+/** The observation (or line point) with this oid, or null. */
 function observation(oid) {
   if (!state.project || oid === null) return null;
-  return state.project.observations.find((o) => o.oid === oid) || null;
+  const o = state.project.observations.find((q) => q.oid === oid);
+  if (o) return o;
+  const p = (state.project.lines || []).find((q) => q.oid === oid);
+  return p ? linePoint(p) : null;
+}
+
+/** The line labels of the project (the ski lines measured somewhere). */
+function lineLabels() {
+  return new Set((state.project.lines || []).map((p) => p.line));
 }
 
 // ---------------------------------------------------------------- building the views
@@ -222,7 +234,11 @@ function drawLines(v, k) {
   }
   for (const [label, pts] of byLabel) {
     el("polyline", {"data-line": label, points: pts.map((p) => `${p.x},${p.y}`).join(" ")}, g);
-    for (const p of pts) el("circle", {cx: p.x, cy: p.y, r: 2 * k}, g);
+    for (const p of pts) {
+      const sel = p.oid === state.selected;
+      el("circle", {cx: p.x, cy: p.y, r: (sel ? 4 : 2) * k, "data-oid": p.oid,
+                    class: sel ? "selected" : ""}, g);
+    }
     const t = el("text", {x: pts[0].x + 4 * k, y: pts[0].y - 4 * k, "font-size": 12 * k}, g);
     t.textContent = label;
   }
@@ -265,7 +281,7 @@ function renderInfo() {
   ui.save.classList.toggle("dirty", !!p.dirty);
   ui.undo.disabled = !p.can_undo;
   clear(ui.points);
-  for (const id of p.points) {
+  for (const id of p.points.concat([...lineLabels()].filter((l) => !p.points.includes(l)))) {
     const opt = document.createElement("option");
     opt.value = id;
     ui.points.appendChild(opt);
@@ -327,6 +343,7 @@ function setProject(body) {
   }
   renderInfo();
   drawAll();
+  if ((body.lines || []).length) predictLines();      // the ski lines may have changed
 }
 
 // ---------------------------------------------------------------- actions
@@ -338,6 +355,14 @@ async function select(oid, quiet) {
   drawAll();
   renderWorst();
   if (!o) return;
+  if (o.isLine) {
+    state.epipolar = null;
+    ui.epiNote.textContent = "";
+    drawAll();
+    if (!quiet) setStatus(`selected a point of line ${o.point} in ${o.view} at ${fmt(o.x, 2)}, ${fmt(o.y, 2)}` +
+                          " \u2014 Delete deletes, drag moves");
+    return;
+  }
   if (!quiet) setStatus(`selected ${o.view} ${o.point} at ${fmt(o.x, 3)}, ${fmt(o.y, 3)}` +
             (o.sigma !== null && o.sigma !== undefined ? `, sigma ${fmt(o.sigma, 3)} px` : "") +
             (o.manual ? " (manual)" : "") + " \u2014 Delete deletes, drag moves, label + Enter relabels");
@@ -388,6 +413,7 @@ function refineText(r) {
 async function addAt(v, x, y) {
   const label = ui.label.value.trim();
   if (!label) { setStatus("type a label first", true); return; }
+  if (lineLabels().has(label)) { addLinePoint(v, x, y, label); return; }
   try {
     const r = await refineAt(v.info.id, x, y, label);
     const body = await api("POST", "/api/edit", {op: "add", view: v.info.id, point: label,
@@ -399,7 +425,28 @@ async function addAt(v, x, y) {
   } catch (err) { fail(err); }
 }
 
+/** A point of a ski line, kept as clicked (an edge, not a target). */
+async function addLinePoint(v, x, y, label) {
+  try {
+    const body = await api("POST", "/api/edit", {op: "add", view: v.info.id, line: label,
+                                                 x, y, sigma: 0.5, manual: true});
+    setProject(body);
+    const mine = body.lines.filter((p) => p.view === v.info.id && p.line === label);
+    setStatus(`${v.info.id}: point of line ${label} added at ${fmt(x, 2)}, ${fmt(y, 2)}`);
+    if (mine.length) await select(Math.max(...mine.map((p) => p.oid)), true);
+  } catch (err) { fail(err); }
+}
+
 async function moveTo(o, x, y) {
+  if (o.isLine) {
+    try {
+      setProject(await api("POST", "/api/edit", {op: "move", oid: o.oid, x, y,
+                                                 sigma: o.sigma === undefined ? 0.5 : o.sigma,
+                                                 manual: true}));
+      setStatus(`${o.view}: point of line ${o.point} moved to ${fmt(x, 2)}, ${fmt(y, 2)}`);
+    } catch (err) { fail(err); drawAll(); }
+    return;
+  }
   try {
     const r = await refineAt(o.view, x, y, o.point);
     const body = await api("POST", "/api/edit", {op: "move", oid: o.oid, x: r.x, y: r.y,
@@ -426,7 +473,9 @@ async function relabelSelected() {
   const label = ui.label.value.trim();
   if (!o || !label || label === o.point) return;
   try {
-    setProject(await api("POST", "/api/edit", {op: "relabel", oid: o.oid, point: label}));
+    const req = {op: "relabel", oid: o.oid};
+    req[o.isLine ? "line" : "point"] = label;
+    setProject(await api("POST", "/api/edit", req));
     setStatus(`${o.view}: ${o.point} relabelled ${label}`);
     if (observation(o.oid)) await select(o.oid, true);
   } catch (err) { fail(err); }
@@ -491,18 +540,25 @@ async function showPredicted(label) {
   await showEpipolar({view: obs[0].view, point: label});
 }
 
+let predictGeneration = 0;
+
+/** The predicted ski lines of the exposure shown (drawn dashed). */
 async function predictLines() {
-  state.predictedLines = [];
-  if (!state.project.oriented) return;
+  const generation = ++predictGeneration;
+  const found = [];
   const labels = new Set();
   for (const p of state.project.lines || []) if (views.has(p.view)) labels.add(p.line);
-  for (const line of labels) {
-    try {
-      const params = exposure === null ? {line} : {exposure, line};
-      const data = await api("GET", `/api/predict_line?${query(params)}`);
-      for (const l of data.lines || []) state.predictedLines.push({...l, line});
-    } catch (err) { fail(err); }
+  if (state.project.oriented) {
+    for (const line of labels) {
+      try {
+        const params = exposure === null ? {line} : {exposure, line};
+        const data = await api("GET", `/api/predict_line?${query(params)}`);
+        for (const l of data.lines || []) found.push({...l, line});
+      } catch (err) { fail(err); }
+    }
   }
+  if (generation !== predictGeneration) return;        // a newer call took over
+  state.predictedLines = found;
   drawAll();
 }
 
@@ -511,8 +567,8 @@ async function predictLines() {
 function nearest(v, x, y) {
   const k = imagePerScreen(v);
   let best = null, bestD = PICK_PX * k;
-  for (const o of state.project.observations) {
-    if (o.view !== v.info.id) continue;
+  const lines = (state.project.lines || []).filter((p) => p.view === v.info.id).map(linePoint);
+  for (const o of state.project.observations.filter((q) => q.view === v.info.id).concat(lines)) {
     const d = Math.hypot(o.x - x, o.y - y);
     if (d <= bestD) { best = o; bestD = d; }
   }
@@ -552,7 +608,7 @@ function attachMouse(v) {
       if (hit && (dragging || Math.hypot(dx, dy) > DRAG_PX)) {
         dragging = true;
         const q = toImage(v, e);
-        const g = svg.querySelector(`g.ob[data-oid="${hit.oid}"]`);
+        const g = svg.querySelector(`[data-oid="${hit.oid}"]`);
         if (g) g.setAttribute("transform", `translate(${q.x - hit.x} ${q.y - hit.y})`);
       }
     };
@@ -641,7 +697,6 @@ async function start() {
     setProject(await api("GET", "/api/project"));
     setStatus(`${state.project.observations.length} observations in ${state.project.table}`);
     state.ready = true;
-    predictLines();
   } catch (err) { fail(err); }
 }
 
