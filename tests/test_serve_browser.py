@@ -345,3 +345,40 @@ def test_run_button_shows_sigma0_and_worst(page):
     assert 0.5 < run["sigma0"] < 2.0, run
     assert f"sigma0 {run['sigma0']:.3f}" in page.status()
     assert page.js("return document.querySelectorAll('#worst li').length") >= 1
+
+
+def test_unreadable_image_and_no_orientation_said_on_the_page(page, tmp_path):
+    """Bad input on the page (the same browser, a second server, last in
+    this module): a photograph that cannot be read shows its reason in its
+    view and the message list; without a results folder the page says the
+    stations are not oriented and draws no epipolar help."""
+    from photogram.serve.server import make_server
+    from photogram.serve.session import Session
+    lab = tmp_path / "lab"
+    shutil.copytree(page.lab, lab, ignore=shutil.ignore_patterns("results", ".*"))
+    (lab / "images" / "K2b.jpg").write_bytes(b"not a JPEG file")
+    session = Session(lab / "lab.prj", field=lab / "frame.toml")
+    server = make_server(session, port=0)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        page.d.get(server.url)
+        page.wait("return s.project && s.project.table.startsWith(arguments[0]);", str(lab),
+                  what="the second project")
+        note = page.d.find_element("id", "note").text
+        assert "not oriented" in note, note
+        error = page.js("const f = document.querySelector('svg.view[data-view=\"K2b\"]')"
+                        ".closest('figure'); const e = f.querySelector('.view-error');"
+                        "return e ? e.textContent : null;")
+        assert error and "K2b.jpg" in error, error
+        assert error in page.d.find_element("id", "messages").text
+        assert page.js("return document.querySelectorAll('svg.view image').length") == 8
+        ob = page.observation("K1a", "T45")
+        page.click_image("K1a", ob["x"], ob["y"])
+        page.wait("return s.selected === arguments[0];", ob["oid"], what="the selection")
+        assert "not oriented" in page.d.find_element("id", "epi-note").text
+        assert page.js("return document.querySelectorAll('polyline.epi, circle.pred').length") == 0
+    finally:
+        server.shutdown()
+        server.server_close()
+        session.close()
