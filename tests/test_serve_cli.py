@@ -74,3 +74,17 @@ def test_serve_prints_the_url_and_stops_on_interrupt(tmp_path, monkeypatch, caps
     assert out[0].endswith(" (Ctrl+C to stop)") and len(out[0].split("token=")[1].split()[0]) == 32
     from photogram.serve.session import Session
     Session(prj).close()           # the lock was released
+
+
+def test_stop_with_unsaved_edits_says_so(tmp_path, monkeypatch, caplog):
+    from http.server import ThreadingHTTPServer
+    prj = lab_copy(tmp_path / "lab", oriented=False)
+
+    def edit_then_stop(self, poll_interval=0.5):
+        self.session.edit({"op": "delete", "oid": 0})
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ThreadingHTTPServer, "serve_forever", edit_then_stop)
+    assert main(["measure", "--serve", str(prj), "-q"]) == 0
+    assert any("stopped with unsaved edits" in r.getMessage() for r in caplog.records)
+    assert "K1a,T01" in (prj.parent / "lab_image_points.csv").read_text()   # not saved

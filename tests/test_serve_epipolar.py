@@ -158,3 +158,24 @@ def test_predicted_ski_line_is_the_image_of_the_true_line(tmp_path):
         assert predicted_line(s, "", "nothing") == {"lines": []}
     finally:
         s.close()
+
+
+def test_http_predictions_by_label_and_line_errors(lab):
+    """GET /api/epipolar?view=..&point=.. and /api/predict_line through the
+    server: T17 is measured in all nine views (no prediction left to make)
+    until one observation is deleted; a line request without a name is 400."""
+    session, folder = lab
+    truth = truth_points(folder)
+    with Running(session) as r:
+        status, body = r.request("GET", "/api/epipolar?view=K2a&point=T17")
+        assert status == 200 and body["predicted"] == [] and body["lines"] == []
+        oid = next(o.oid for o in session.points_table.rows
+                   if o.cells["station"] == "K2a" and o.cells["point"] == "T17")
+        r.request("POST", "/api/edit", {"op": "delete", "oid": oid})
+        status, body = r.request("GET", "/api/epipolar?view=K2a&point=T17")
+        assert [p["view"] for p in body["predicted"]] == ["K2a"]
+        p = body["predicted"][0]
+        assert np.hypot(p["x"] - truth[("K2a", "T17")][0], p["y"] - truth[("K2a", "T17")][1]) < 1
+        status, body = r.request("GET", "/api/predict_line?exposure=")
+        assert status == 400 and "line=NAME" in body["error"]
+        assert r.request("GET", "/api/predict_line?line=E1") == (200, {"lines": []})

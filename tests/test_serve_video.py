@@ -128,3 +128,18 @@ def test_video_file_frames(tmp_path):
     from photogram.errors import InputError
     with pytest.raises(InputError, match="cannot read frame 9 of video"):
         read_frame(path, 9)
+
+
+def test_damaged_tracked_table_is_one_line_and_frees_the_lock(tmp_path):
+    from photogram.errors import InputError
+    from photogram.serve.session import Session
+    prj = _project(tmp_path / "tiny")
+    table = prj.parent / "results" / "jumper_points.csv"
+    good = table.read_text(encoding="utf-8")
+    table.write_text(good + "002,S2,P1,1.0\n", encoding="utf-8")
+    with pytest.raises(InputError) as exc:
+        Session(prj)
+    line = exc.value.one_line()
+    assert line.startswith(f"{table}:6: this record has 4 fields but the header has 6")
+    table.write_text(good, encoding="utf-8")
+    Session(prj).close()           # the lock taken before reading was released

@@ -83,6 +83,11 @@ def serve(project, *, field=None, images=None, port: int = 0, open_browser: bool
                     pass
         finally:
             server.server_close()
+            if session.dirty:
+                import logging
+                logging.getLogger("photogram").warning(
+                    "measure --serve: stopped with unsaved edits; %s holds the last save",
+                    session.points_table.path)
     finally:
         session.close()
     return 0

@@ -145,7 +145,7 @@ def _rays_of(session, point: str, exposure: str, skip_station: str | None = None
 def _predict(session, cams, xy, views, exclude) -> list[dict]:
     if len(cams) < 2:
         return []
-    X, nv = triangulate(cams, np.asarray(xy, float)[:, None, :])
+    X, _ = triangulate(cams, np.asarray(xy, float)[:, None, :])
     if not np.isfinite(X[0]).all():
         return []
     out = []

@@ -64,12 +64,14 @@ class Session:
         self._edit_lock = threading.RLock()
         self._edits: list[EditableTable] = []    # the table of each edit, for undo
         self._filelock = None
-        self.tables = self._tables()
-        self.points_table = self.tables[0]
-        self.lines_table = self.tables[1] if len(self.tables) > 1 else None
-        if lock:
-            self._lock()
+        points, lines = self._table_paths()
+        if lock:            # before reading: no other editor saves in between
+            self._lock(points)
         try:
+            self.points_table = EditableTable.read(points, "point")
+            self.lines_table = (EditableTable.read(lines, "line", first_oid=LINES_OID)
+                                if lines is not None else None)
+            self.tables = [t for t in (self.points_table, self.lines_table) if t is not None]
             self.views = self._views(images)
             self.images = ImageStore(self.views)
             self.images.check_all()
@@ -79,31 +81,28 @@ class Session:
             raise
 
     # ------------------------------------------------------------------ setup
-    def _tables(self) -> list[EditableTable]:
+    def _table_paths(self) -> tuple[Path, Path | None]:
+        """The points table and the lines table (or None) being edited."""
         src = self.project.sources
         if self.project.track is not None:
             from photogram.serve.video import track_tables
-            points, lines = track_tables(self.project)
-            src = {"image_points": points, "image_lines": lines}
+            return track_tables(self.project)
         path = src.get("image_points")
         if path is None:
             raise InputError("the project has no image points table ([observations] points)",
                              file=self.project.path,
                              hint="add [observations] points = \"image_points.csv\"")
-        tables = [EditableTable.read(path, "point")]
-        if src.get("image_lines") is not None:
-            tables.append(EditableTable.read(src["image_lines"], "line", first_oid=LINES_OID))
-        return tables
+        return Path(path), src.get("image_lines")
 
-    def _lock(self) -> None:
+    def _lock(self, table: Path) -> None:
         import filelock
-        path = Path(str(self.points_table.path) + ".lock")
+        path = Path(str(table) + ".lock")
         lock = filelock.FileLock(str(path), thread_local=False)
         try:
             lock.acquire(timeout=0)
         except filelock.Timeout:
             raise InputError(f"another photogram measure --serve is editing "
-                             f"{self.points_table.path} (lock {path} held)",
+                             f"{table} (lock {path} held)",
                              hint="stop that server first with Ctrl+C in its terminal") from None
         except OSError as exc:
             raise InputError(f"cannot create the lock file {path}: {exc.strerror}",
@@ -242,6 +241,10 @@ class Session:
             for t in self.tables:
                 if t is self.points_table or t.dirty:
                     path, backup = t.save()
+                    if t.changed_on_disk:
+                        self.messages.append(
+                            f"{path} had changed on disk since it was read (another program "
+                            f"wrote it); that version is kept as {backup}")
                     if t is self.points_table:
                         out = {"saved": str(path), "backup": str(backup) if backup else None,
                                "rows": len(t.rows)}

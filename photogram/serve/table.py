@@ -84,6 +84,8 @@ class EditableTable:
     _undo: list = field(default_factory=list)
     _next: int = 0
     dirty: bool = False
+    signature: str = ""          # sha256 of the file as read or last saved
+    changed_on_disk: bool = False   # the last save found another program's version
 
     @classmethod
     def read(cls, path, label: str = "point", first_oid: int = 0) -> "EditableTable":
@@ -107,7 +109,7 @@ class EditableTable:
             manual = c.get("_manual", "").strip().lower() in ("1", "true", "yes")
             rows.append(Row(first_oid + i, c, manual))
         return cls(path, label, comments, list(table.header), delim, rows,
-                   _next=first_oid + len(rows))
+                   _next=first_oid + len(rows), signature=_sha256(path))
 
     # ------------------------------------------------------------------ access
     def find(self, oid: int) -> Row:
@@ -207,8 +209,11 @@ class EditableTable:
 
     def save(self) -> tuple[Path, Path | None]:
         """Keep the old file as ``NAME.~N~`` and write the new one
-        atomically; returns (saved path, backup path or None)."""
+        atomically; returns (saved path, backup path or None). If another
+        program wrote the file since it was read (``photogram measure``
+        again), ``changed_on_disk`` is set: its version is the backup."""
         backup = None
+        self.changed_on_disk = self.path.is_file() and _sha256(self.path) != self.signature
         if self.path.is_file():
             backup = next_backup(self.path)
             try:
@@ -217,10 +222,16 @@ class EditableTable:
                 with open(backup, "xb") as f:
                     f.write(self.path.read_bytes())
         atomic_write_text(self.path, self.text())
+        self.signature = _sha256(self.path)
         self.dirty = False
         for r in self.rows:
             r.edited = False
         return self.path, backup
+
+
+def _sha256(path: Path) -> str:
+    import hashlib
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def _quoted(cell: str, delimiter: str) -> str:
