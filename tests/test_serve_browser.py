@@ -382,3 +382,59 @@ def test_unreadable_image_and_no_orientation_said_on_the_page(page, tmp_path):
         server.shutdown()
         server.server_close()
         session.close()
+
+
+def test_video_project_exposures_and_ski_line_points(page, tmp_path):
+    """A video project on the page (the tiny two-camera track project of
+    tests/test_serve_video.py): the exposure selector shows one exposure's
+    frames; a ski-line label and a real click add a point of that line where
+    clicked (an edge, not refined), which the save writes to the tracked
+    ski_lines.csv (the original kept as ski_lines.csv.~1~)."""
+    from selenium.webdriver.support.ui import Select
+    from test_serve_video import _project
+
+    from photogram.serve.server import make_server
+    from photogram.serve.session import Session
+    prj = _project(tmp_path / "tiny")
+    lines_csv = prj.parent / "results" / "ski_lines.csv"
+    original = lines_csv.read_bytes()
+    session = Session(prj)
+    server = make_server(session, port=0)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    shown = "return [...document.querySelectorAll('svg.view')].map(v => v.dataset.view);"
+    try:
+        page.d.get(server.url)
+        page.wait("return s.project && s.project.exposures;", what="the video project")
+        assert page.js(shown) == ["001/S1", "001/S2"]
+        # the line of 001/S1 drawn through its two points
+        assert page.js("return document.querySelector('svg.view[data-view=\"001/S1\"] "
+                       ".lines polyline').getAttribute('points');") == "10,30 50,32"
+        page.js("window.photogramState.error = null;")
+        Select(page.d.find_element("id", "exposure")).select_by_value("002")
+        page.wait("return document.querySelector('svg.view[data-view=\"002/S2\"]');",
+                  what="exposure 002")
+        assert page.js(shown) == ["002/S1", "002/S2"]
+        label = page.d.find_element("id", "label")
+        label.clear()
+        label.send_keys("L1")
+        page.click_image("002/S2", 40.3, 20.6)
+        added = page.wait("return s.project.lines.find(p => p.view === '002/S2');",
+                          what="the line point")
+        assert added["line"] == "L1"
+        # where clicked, to the rounding of the click to whole screen pixels
+        k = page.js("return 1 / document.querySelector('svg.view[data-view=\"002/S2\"]')"
+                    ".getScreenCTM().a;")
+        assert abs(added["x"] - 40.3) <= k and abs(added["y"] - 20.6) <= k, (added, k)
+        assert page.js("return document.querySelectorAll("
+                       "'svg.view[data-view=\"002/S2\"] .lines circle').length") == 1
+        page.button("save")
+        page.wait("return s.lastSave && !s.project.dirty;", what="the save")
+        rows = _read_csv(lines_csv)
+        new = [r for r in rows if (r["exposure"], r["station"]) == ("002", "S2")]
+        assert len(new) == 1 and new[0]["line"] == "L1"
+        assert abs(float(new[0]["x"]) - added["x"]) < 1e-3
+        assert Path(str(lines_csv) + ".~1~").read_bytes() == original
+    finally:
+        server.shutdown()
+        server.server_close()
+        session.close()
