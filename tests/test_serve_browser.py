@@ -28,7 +28,13 @@ does), the steps in order:
   other view, and the predicted positions (the point's rays triangulated)
   agree with the truth;
 * the run button runs ``photogram calibrate`` on the saved table and the
-  page shows sigma0 and the worst residuals.
+  page shows sigma0 and the worst residuals;
+* bad input (a second server on another copy): an unreadable photograph's
+  reason shown in its view, "not oriented" and no epipolar lines without
+  results;
+* a video project (a third server: the tiny track project of
+  tests/test_serve_video.py): the exposure selector, a ski-line point added
+  by a click and saved to ski_lines.csv.
 
 Skipped with the reason when selenium, chromium or chromedriver is missing.
 """
@@ -100,7 +106,7 @@ class Page:
                                      f"(waiting for {what})")
             if value:
                 return value
-            time.sleep(0.05)
+            time.sleep(0.1)
         raise AssertionError(f"timed out waiting for {what}; status: {self.status()!r}")
 
     def settle(self):
