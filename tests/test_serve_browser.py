@@ -109,6 +109,16 @@ class Page:
             time.sleep(0.1)
         raise AssertionError(f"timed out waiting for {what}; status: {self.status()!r}")
 
+    def leave(self):
+        """Let the page go without the unsaved-edits prompt (a prompt would
+        block the next navigation, and driver.quit() would leave the browser
+        running)."""
+        self.js("const s = window.photogramState; if (s && s.project) s.project.dirty = false;")
+
+    def goto(self, url):
+        self.leave()
+        self.d.get(url)
+
     def settle(self):
         self.wait("return true;", what="pending requests")
 
@@ -200,7 +210,10 @@ def page(request, tmp_path_factory):
         p.wait("return true;", what="window.photogramState.ready")
         yield p
     finally:
-        driver.quit()
+        try:
+            Page(driver, lab, server.url).leave()
+        finally:
+            driver.quit()
         server.shutdown()
         server.server_close()
         session.close()
@@ -368,7 +381,7 @@ def test_unreadable_image_and_no_orientation_said_on_the_page(page, tmp_path):
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
     try:
-        page.d.get(server.url)
+        page.goto(server.url)
         page.wait("return s.project && s.project.table.startsWith(arguments[0]);", str(lab),
                   what="the second project")
         note = page.d.find_element("id", "note").text
@@ -409,7 +422,7 @@ def test_video_project_exposures_and_ski_line_points(page, tmp_path):
     threading.Thread(target=server.serve_forever, daemon=True).start()
     shown = "return [...document.querySelectorAll('svg.view')].map(v => v.dataset.view);"
     try:
-        page.d.get(server.url)
+        page.goto(server.url)
         page.wait("return s.project && s.project.exposures;", what="the video project")
         assert page.js(shown) == ["001/S1", "001/S2"]
         # the line of 001/S1 drawn through its two points
