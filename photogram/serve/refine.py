@@ -13,10 +13,16 @@ corner convention of the observation tables (+0.5 px,
 detector's with the field's floor, ``sqrt(sigma^2 + sigma_floor^2)``, as
 :func:`photogram.measure.pipeline.measure_image` writes it.
 
-Eccentricity (Ahn et al. 1999, :mod:`photogram.measure.eccentricity`):
-with a field that gives the target diameter and normal, an oriented view
-and a labelled point with coordinates (the field's, else the project's),
-the plane of the target is mapped into the view by
+Eccentricity (Ahn et al. 1999, :mod:`photogram.measure.eccentricity`).
+*A plane field* (a grid, ring codes; no table of 3D targets): as
+:func:`photogram.measure.pipeline.measure_image` does, the homography from
+the field's plane to the view is fitted (plain least squares,
+``cv2.findHomography`` method 0) to the view's observations of the field's
+other targets (four or more; the clicked label left out) and the ellipse
+centre of the labelled target is corrected with it; no orientation is
+needed. *A 3D field* that gives the target diameter and normal, an
+oriented view and a labelled point with coordinates (the field's, else
+the project's): the plane of the target is mapped into the view by
 ``H = [P e1, P e2, P X]`` of the view's ideal projection matrix ``P``
 (:class:`photogram.lines.views.ViewCamera`), as
 ``photogram.measure.pipeline._eccentricity_3d`` does with its DLT
@@ -38,7 +44,7 @@ from photogram.measure.detect import detect_targets
 from photogram.measure.eccentricity import eccentricity
 from photogram.measure.pipeline import PIXEL_OFFSET
 
-__all__ = ["refine_click", "refine_at", "MANUAL_SIGMA"]
+__all__ = ["refine_click", "refine_at", "field_plane_eccentricity", "MANUAL_SIGMA"]
 
 MANUAL_SIGMA = 0.5          # px: a point kept as clicked
 
@@ -111,8 +117,10 @@ def detector_settings(field) -> dict:
 
 
 def target_plane(field, project, point):
-    """(X, normal, radius) of a labelled circular target, or a reason (str)
-    why its eccentricity cannot be corrected."""
+    """(X, normal, radius) of a labelled circular target of a 3D field,
+    ``"plane"`` for a target of a plane field (corrected through the
+    field's homography, :func:`field_plane_eccentricity`), or a reason
+    (str) why its eccentricity cannot be corrected."""
     targets = getattr(project, "targets", None)
     if targets is not None and targets.eccentricity:
         # the adjustment predicts ellipse centres: the table holds them uncorrected
@@ -125,10 +133,62 @@ def target_plane(field, project, point):
         return "the field gives no circle diameter"
     if point in set(field.markers.values()):
         return f"{point} is a marker, not a circle"
+    if not field.spatial:
+        ids = field.layout()[0]
+        if point not in ids:
+            return f"{point} is not a target of the field"
+        return "plane"
     if point in field.target_ids and field.target_normal is not None:
         i = field.target_ids.index(point)
         return field.target_xyz[i], field.target_normal[i], field.diameter / 2
     return f"the field gives no normal for {point}"
+
+
+def field_plane_eccentricity(field, observations, point):
+    """Ellipse centre minus image of the centre of target ``point`` of a
+    plane field (module doc), px, or a reason (str) when it cannot be
+    corrected.
+
+    Parameters
+    ----------
+    field : TargetField
+        A plane field (``field.layout()``: ids and plane coordinates).
+    observations : iterable of (label, x, y)
+        The view's observations (corner convention); ``point``'s own are
+        left out, so do labels that are not the field's.
+    point : str
+        A target of the field.
+    """
+    import cv2
+    ids, XY = field.layout()
+    pos = {k: i for i, k in enumerate(ids)}
+    src, dst = [], []
+    for label, x, y in observations:
+        if label != point and label in pos and np.isfinite(x) and np.isfinite(y):
+            src.append(XY[pos[label]])
+            dst.append((x - PIXEL_OFFSET, y - PIXEL_OFFSET))
+    if len(src) < 4:
+        return (f"{len(src)} other targets of the field measured in this view "
+                f"(4 are needed for its homography)")
+    H, _ = cv2.findHomography(np.asarray(src, float), np.asarray(dst, float), 0)
+    if H is None:
+        return "the field's homography could not be fitted to this view's observations"
+    return eccentricity(H, XY[[pos[point]]], field.diameter / 2)[0]
+
+
+def _view_observations(session, view):
+    """(label, x, y) of the points table's rows of ``view``."""
+    table = getattr(session, "points_table", None)
+    out = []
+    for row in (table.rows if table is not None else ()):
+        c = row.cells
+        if c.get("station") != view.station or c.get("exposure", "") not in ("", view.exposure or ""):
+            continue
+        try:
+            out.append((c.get(table.label, ""), float(c["x"]), float(c["y"])))
+        except (KeyError, ValueError):
+            continue
+    return out
 
 
 def plane_eccentricity(camera, X, normal, radius) -> np.ndarray:
@@ -158,12 +218,19 @@ def refine_click(session, view, x: float, y: float, point=None) -> dict:
     method, note = "ellipse", "ellipse centre (photogram measure's detector)"
     camera = session.orientation.cameras.get(view.station)
     plane = target_plane(session.field, session.project, point)
-    if camera is None:
-        note += "; no eccentricity correction: the view is not oriented"
+    e = None
+    if isinstance(plane, str) and plane == "plane":
+        e = field_plane_eccentricity(session.field, _view_observations(session, view), point)
+        if isinstance(e, str):
+            note += f"; no eccentricity correction: {e}"
+            e = None
     elif isinstance(plane, str):
         note += f"; no eccentricity correction: {plane}"
+    elif camera is None:
+        note += "; no eccentricity correction: the view is not oriented"
     else:
         e = plane_eccentricity(camera, *plane)
+    if e is not None:
         xy = xy - e
         method = "ellipse+eccentricity"
         note += f"; eccentricity ({e[0]:.3f}, {e[1]:.3f}) px corrected"
