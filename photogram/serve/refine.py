@@ -224,10 +224,10 @@ def refine_click(session, view, x: float, y: float, point=None) -> dict:
         if isinstance(e, str):
             note += f"; no eccentricity correction: {e}"
             e = None
-    elif isinstance(plane, str):
-        note += f"; no eccentricity correction: {plane}"
     elif camera is None:
         note += "; no eccentricity correction: the view is not oriented"
+    elif isinstance(plane, str):
+        note += f"; no eccentricity correction: {plane}"
     else:
         e = plane_eccentricity(camera, *plane)
     if e is not None:
