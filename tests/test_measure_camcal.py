@@ -245,3 +245,40 @@ def test_jpeg_reencoding_moves_the_green_radial_scale(scales, tmp_path_factory):
     print(f"green radial scale: {scales['green'] * 1e5:+.1f}e-5, re-encoded at quality 30 "
           f"{s30 * 1e5:+.1f}e-5")
     assert abs(s30 - scales["green"]) > 4e-5            # measured 7.7e-5 (OpenCV, quality 30)
+
+
+def test_epipolar_curves_of_measure_serve_on_the_real_photographs(calibration):
+    """Real data for ``photogram measure --serve``'s epipolar help
+    (photogram/serve/epipolar.py): with the calibrated C4040Z (DBAT's
+    camera model, whose distortion must be inverted to draw a curve, and
+    strong radial distortion), the curve of a target of one photograph
+    passes near the same target's measurement in every other photograph,
+    as far as the two measurements' residuals allow (sigma0 0.15 px)."""
+    from photogram.lines.views import cameras_from_project
+    from photogram.serve.epipolar import image_of_ray
+    pr = calibration.project
+    cams = cameras_from_project(pr)
+    names = pr.stations.names
+    width, height = pr.cameras["C4040Z"].image_size
+    ip = pr.image_points
+    obs = {(names[s], pr.points.ids[p]): xy for s, p, xy in zip(ip.station, ip.point, ip.xy)}
+    src = names[0]
+    labels = sorted(p for s, p in obs if s == src)[::9]            # 11 targets
+    dist = []
+    for label in labels:
+        cam = cams[src]
+        d = cam.rays(cam.ideal(obs[(src, label)][None]))[0]
+        for other in names[1:]:
+            if (other, label) not in obs:
+                continue
+            curve = np.array(image_of_ray(cams[other], cam.X0, d, width, height))
+            assert len(curve) >= 20
+            x = obs[(other, label)]
+            a, b = curve[:-1], curve[1:]
+            t = np.clip(((x - a) * (b - a)).sum(1) / ((b - a) ** 2).sum(1), 0, 1)
+            dist.append(np.min(np.hypot(*(a + t[:, None] * (b - a) - x).T)))
+    dist = np.array(dist)
+    print(f"CAMCAL epipolar curves: {len(dist)} pairs, distance to the measured target "
+          f"median {np.median(dist):.3f} px, max {dist.max():.3f} px")
+    assert len(dist) >= 150
+    assert np.median(dist) < 0.3 and dist.max() < 1.5

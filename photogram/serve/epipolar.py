@@ -12,8 +12,9 @@ With lens distortion the image of the ray is a curve: the ideal points
 are sampled along the segment and distorted by the camera model
 (:meth:`photogram.lines.views.ViewCamera.measured`), then clipped to the
 image as a polyline of at least 20 vertices. Ideal points far outside the
-format (beyond 1.5 times the corrected corners' radius) are dropped, so a
-distortion polynomial never folds them back into the picture.
+format (beyond 1.05 times the corrected border's largest radius) are
+dropped, so a distortion polynomial never folds them back into the picture
+(and a point whose inversion fails is left out, not the whole curve).
 
 **Predicted point.** A label with two or more rays among the table's
 observations of the exposure (and the click) is triangulated
@@ -32,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from photogram.errors import PhotogramError
+from photogram.errors import GeometryError, PhotogramError
 from photogram.lines.views import ViewCamera
 from photogram.serve.results import NOT_ORIENTED
 from photogram.track.rays import triangulate
@@ -43,14 +44,18 @@ MIN_VERTICES = 20
 
 
 def _ideal_limit(camera: ViewCamera, width: float, height: float) -> float:
-    """1.5 x the largest ideal radius of the image's border points."""
+    """1.05 x the largest ideal radius of the image's border points: no
+    ideal point beyond it images inside the format (a radial distortion
+    monotonic over the format), and a strong distortion polynomial (a DBAT
+    or PhotoModeler camera, defined from measured to ideal) need not be
+    inverted far outside it, where it folds."""
     t = np.linspace(0, 1, 9)
     border = np.concatenate([np.column_stack([t * width, np.zeros(9)]),
                              np.column_stack([t * width, np.full(9, height)]),
                              np.column_stack([np.zeros(9), t * height]),
                              np.column_stack([np.full(9, width), t * height])])
     ideal = camera.ideal(border)
-    return 1.5 * float(np.max(np.hypot(ideal[:, 0], ideal[:, 1])))
+    return 1.05 * float(np.max(np.hypot(ideal[:, 0], ideal[:, 1])))
 
 
 def _points(camera, start_h, end_h, s, limit):
@@ -65,8 +70,25 @@ def _points(camera, start_h, end_h, s, limit):
         ok = np.hypot(ideal[:, 0], ideal[:, 1]) < limit
         idx = np.flatnonzero(front)[ok]
         if len(idx):
-            out[idx] = camera.measured(ideal[ok])
+            out[idx] = _measured(camera, ideal[ok])
     return out
+
+
+def _measured(camera, ideal):
+    """``camera.measured`` of the ideal points (n, 2); where the model's
+    inversion does not converge for some of them (a distortion polynomial
+    that folds near the format's corners), point by point, NaN where it
+    fails."""
+    try:
+        return camera.measured(ideal)
+    except GeometryError:
+        out = np.full((len(ideal), 2), np.nan)
+        for i, p in enumerate(ideal):
+            try:
+                out[i] = camera.measured(p[None])[0]
+            except GeometryError:
+                pass
+        return out
 
 
 def image_of_ray(camera: ViewCamera, X0, d, width: float, height: float,
