@@ -44,7 +44,7 @@ def test_second_editor_is_refused(tmp_path, capsys):
         assert main(["measure", "--serve", str(prj)]) == 2
         err = _one_line(capsys)
         assert "another photogram measure --serve is editing" in err
-        assert "lab_image_points.csv.lock held" in err
+        assert ".lab_image_points.csv.lock held" in err
     finally:
         first.close()
     second = Session(prj)          # released: the next editor may open it

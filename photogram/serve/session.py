@@ -96,7 +96,7 @@ class Session:
 
     def _lock(self, table: Path) -> None:
         import filelock
-        path = Path(str(table) + ".lock")
+        path = table.parent / f".{table.name}.lock"     # hidden, as a results folder's lock
         lock = filelock.FileLock(str(path), thread_local=False)
         try:
             lock.acquire(timeout=0)
