@@ -38,7 +38,7 @@ def oriented_projects(tmp_path_factory):
     for name in ("field", "jumps"):
         shutil.copytree(PROJECTS / name, root / name,
                         ignore=shutil.ignore_patterns("results*", "video", ".*"))
-    stage_lab(root / "lab", calibrate=True)
+    stage_lab(root / "lab", calibrate=True, measured_copy=True)
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         assert main(["orient", "--no-report", "-q", str(root / "field" / "field.prj")]) == 0
     return root
