@@ -26,13 +26,20 @@ def measure_lab(folder: Path) -> Path:
     return Path(folder) / "results-measure" / "image_points.csv"
 
 
-def stage_lab(dest: Path, *, calibrate: bool = False, report: bool = False) -> Path:
+def stage_lab(dest: Path, *, calibrate: bool = False, report: bool = False,
+              measured_copy: bool = False) -> Path:
     """Copy projects/lab (without results folders) to ``dest`` and measure
     it (and calibrate it; its report.pdf only with ``report``: the report
-    costs more CPU than the adjustment); returns ``dest``."""
+    costs more CPU than the adjustment); returns ``dest``. With
+    ``measured_copy`` the measurement is the session's
+    (:func:`copy_measured_lab`): for callers that do not test the
+    measurement itself."""
     dest = Path(dest)
-    shutil.copytree(LAB, dest, ignore=shutil.ignore_patterns("results", "results-*", ".*"))
-    measure_lab(dest)
+    if measured_copy:
+        copy_measured_lab(dest)
+    else:
+        shutil.copytree(LAB, dest, ignore=shutil.ignore_patterns("results", "results-*", ".*"))
+        measure_lab(dest)
     if calibrate:
         from photogram_cli.main import main
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):

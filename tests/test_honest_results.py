@@ -164,7 +164,7 @@ def test_camera_to_world_station_sigmas_are_propagated_not_copied(tmp_path):
     shutil.copytree(root / "field", tmp_path / "field",
                     ignore=shutil.ignore_patterns("results*", ".*"))
     from lab_stage import stage_lab
-    stage_lab(tmp_path / "lab")               # copied and its photographs measured
+    stage_lab(tmp_path / "lab", measured_copy=True)   # copied, its photographs measured
     calibrate(read_project(tmp_path / "lab" / "lab.prj"), report=False)   # tables only
     field = tmp_path / "field"
     w2c_folder, _ = orient(read_project(field / "field.prj"), output=tmp_path / "w2c",

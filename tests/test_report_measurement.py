@@ -26,7 +26,8 @@ def _pages(path):
 
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory):
-    return stage_lab(tmp_path_factory.mktemp("report") / "lab", calibrate=True, report=True)
+    return stage_lab(tmp_path_factory.mktemp("report") / "lab", calibrate=True, report=True,
+                     measured_copy=True)
 
 
 def _measurement_text(pages):
