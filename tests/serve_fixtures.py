@@ -115,3 +115,59 @@ class Running:
         conn.close()
         ctype = r.getheader("Content-Type", "")
         return r.status, (json.loads(raw) if ctype.startswith("application/json") else raw)
+
+
+TINY_TRACK_PRJ = """[project]
+name = "tiny-track"
+length_unit = "m"
+angle_unit = "gon"
+image_unit = "px"
+
+[cameras.K]
+model = "brown"
+image_size = [64, 48]
+pixel_size = [0.01, 0.01]
+c = 60.0
+x0 = 32.0
+y0 = 24.0
+
+[stations]
+file = "stations.csv"
+
+[track]
+videos = { S1 = "video/S1", S2 = "video/S2" }
+seeds = "seeds.csv"
+exposures = "frames.csv"
+offsets = { S2 = 2 }
+"""
+
+
+def tiny_video_project(folder) -> Path:
+    """A small made-up track project in ``folder`` (created): two stations
+    whose recordings are folders of PNG frames (frame k uniform grey level
+    10 k, so the frame shown is known exactly), the tracked tables in
+    results/; returns its .prj."""
+    import cv2
+
+    folder.mkdir()
+    (folder / "track.prj").write_text(TINY_TRACK_PRJ, encoding="utf-8")
+    (folder / "stations.csv").write_text(
+        "station,camera,X0,Y0,Z0,omega,phi,kappa\nS1,K,0,0,10,0,0,0\nS2,K,2,0,10,0,0,0\n",
+        encoding="utf-8")
+    (folder / "seeds.csv").write_text("station,frame,marker,x,y\nS1,0,P1,10,10\n",
+                                      encoding="utf-8")
+    (folder / "frames.csv").write_text("exposure,frame\n001,3\n002,4\n", encoding="utf-8")
+    for st in ("S1", "S2"):
+        (folder / "video" / st).mkdir(parents=True)
+        for k in range(8):
+            img = np.full((48, 64, 3), 10 * k, np.uint8)
+            cv2.imwrite(str(folder / "video" / st / f"{k:06d}.png"), img)
+    out = folder / "results"
+    out.mkdir()
+    (out / "jumper_points.csv").write_text(
+        "# tracked\nexposure,station,point,x,y,sigma\n001,S1,P1,32.0,24.0,0.05\n"
+        "001,S2,P1,20.0,24.0,0.05\n002,S1,P1,33.0,24.0,0.05\n", encoding="utf-8")
+    (out / "ski_lines.csv").write_text(
+        "exposure,station,line,x,y,sigma\n001,S1,L1,10,30,0.2\n001,S1,L1,50,32,0.2\n",
+        encoding="utf-8")
+    return folder / "track.prj"

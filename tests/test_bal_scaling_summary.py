@@ -3,23 +3,17 @@
 CPU per iteration and the one-off setup, and the fitted exponent. Pure
 arithmetic on given numbers; no timing."""
 
-import importlib.util
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from benchmark_modules import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bal_scaling_bench",
-                                                  ROOT / "benchmarks" / "bal_scaling.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_benchmark("bal_scaling")
 
 
 def test_spans_between_callbacks_with_a_rejected_step(bench):

@@ -4,7 +4,6 @@ and the bad inputs of ``offsets``."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import re
 import shutil
@@ -19,6 +18,8 @@ from photogram.mocap.evaluation.sync import (apply_offsets, estimate_offsets, sh
                                              shift_series)
 from photogram_cli.main import main
 
+from benchmark_modules import load_benchmark
+
 # `make test-fast` leaves this module out (slow: docs/benchmarks.md, the test suite's slowest files).
 pytestmark = pytest.mark.slow
 
@@ -28,11 +29,7 @@ DATA = ROOT.parent / "shared" / "data" / "pose2sim-demo"
 
 
 def _bench():
-    spec = importlib.util.spec_from_file_location("mocap_sync_bench",
-                                                  ROOT / "benchmarks" / "mocap_sync.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_benchmark("mocap_sync")
 
 
 @pytest.fixture(scope="module")

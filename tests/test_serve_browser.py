@@ -33,7 +33,7 @@ does), the steps in order:
   reason shown in its view, "not oriented" and no epipolar lines without
   results;
 * a video project (a third server: the tiny track project of
-  tests/test_serve_video.py): the exposure selector, a ski-line point added
+  tests/serve_fixtures.py): the exposure selector, a ski-line point added
   by a click and saved to ski_lines.csv.
 
 Skipped with the reason when selenium, chromium or chromedriver is missing.
@@ -405,16 +405,16 @@ def test_unreadable_image_and_no_orientation_said_on_the_page(page, tmp_path):
 
 def test_video_project_exposures_and_ski_line_points(page, tmp_path):
     """A video project on the page (the tiny two-camera track project of
-    tests/test_serve_video.py): the exposure selector shows one exposure's
+    tests/serve_fixtures.py): the exposure selector shows one exposure's
     frames; a ski-line label and a real click add a point of that line where
     clicked (an edge, not refined), which the save writes to the tracked
     ski_lines.csv (the original kept as ski_lines.csv.~1~)."""
     from selenium.webdriver.support.ui import Select
-    from test_serve_video import _project
+    from serve_fixtures import tiny_video_project
 
     from photogram.serve.server import make_server
     from photogram.serve.session import Session
-    prj = _project(tmp_path / "tiny")
+    prj = tiny_video_project(tmp_path / "tiny")
     lines_csv = prj.parent / "results" / "ski_lines.csv"
     original = lines_csv.read_bytes()
     session = Session(prj)

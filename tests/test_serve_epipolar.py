@@ -15,9 +15,8 @@ from serve_fixtures import Running, lab_copy, truth_cameras, truth_points, truth
 def lab(tmp_path):
     from photogram.serve.session import Session
     prj = lab_copy(tmp_path / "lab")
-    s = Session(prj)
-    yield s, prj.parent
-    s.close()
+    with Session(prj) as s:
+        yield s, prj.parent
 
 
 def _ray_distance(cam, xy, X0, d):

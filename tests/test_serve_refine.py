@@ -17,9 +17,8 @@ from serve_fixtures import Running, lab_copy, truth_points
 def lab(tmp_path):
     from photogram.serve.session import Session
     prj = lab_copy(tmp_path / "lab")
-    s = Session(prj, field=prj.parent / "frame.toml")
-    yield s, truth_points(prj.parent)
-    s.close()
+    with Session(prj, field=prj.parent / "frame.toml") as s:
+        yield s, truth_points(prj.parent)
 
 
 def test_click_near_a_target_refines_to_the_true_centre(lab):

@@ -14,9 +14,8 @@ from serve_fixtures import Running, lab_copy
 @pytest.fixture
 def session(tmp_path):
     from photogram.serve.session import Session
-    s = Session(lab_copy(tmp_path / "lab"))
-    yield s
-    s.close()
+    with Session(lab_copy(tmp_path / "lab")) as s:
+        yield s
 
 
 def test_token_and_host_are_checked(session):

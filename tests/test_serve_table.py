@@ -16,9 +16,8 @@ from serve_fixtures import Running, lab_copy
 def lab(tmp_path):
     from photogram.serve.session import Session
     prj = lab_copy(tmp_path / "lab", oriented=False)
-    s = Session(prj)
-    yield s, prj.parent / "lab_image_points.csv"
-    s.close()
+    with Session(prj) as s:
+        yield s, prj.parent / "lab_image_points.csv"
 
 
 def test_edit_undo_save_with_numbered_backups(lab):

@@ -10,62 +10,15 @@ import cv2
 import numpy as np
 import pytest
 
-PRJ = """[project]
-name = "tiny-track"
-length_unit = "m"
-angle_unit = "gon"
-image_unit = "px"
+from serve_fixtures import tiny_video_project
 
-[cameras.K]
-model = "brown"
-image_size = [64, 48]
-pixel_size = [0.01, 0.01]
-c = 60.0
-x0 = 32.0
-y0 = 24.0
-
-[stations]
-file = "stations.csv"
-
-[track]
-videos = { S1 = "video/S1", S2 = "video/S2" }
-seeds = "seeds.csv"
-exposures = "frames.csv"
-offsets = { S2 = 2 }
-"""
-
-
-def _project(folder):
-    folder.mkdir()
-    (folder / "track.prj").write_text(PRJ, encoding="utf-8")
-    (folder / "stations.csv").write_text(
-        "station,camera,X0,Y0,Z0,omega,phi,kappa\nS1,K,0,0,10,0,0,0\nS2,K,2,0,10,0,0,0\n",
-        encoding="utf-8")
-    (folder / "seeds.csv").write_text("station,frame,marker,x,y\nS1,0,P1,10,10\n",
-                                      encoding="utf-8")
-    (folder / "frames.csv").write_text("exposure,frame\n001,3\n002,4\n", encoding="utf-8")
-    for st in ("S1", "S2"):
-        (folder / "video" / st).mkdir(parents=True)
-        for k in range(8):
-            img = np.full((48, 64, 3), 10 * k, np.uint8)
-            cv2.imwrite(str(folder / "video" / st / f"{k:06d}.png"), img)
-    out = folder / "results"
-    out.mkdir()
-    (out / "jumper_points.csv").write_text(
-        "# tracked\nexposure,station,point,x,y,sigma\n001,S1,P1,32.0,24.0,0.05\n"
-        "001,S2,P1,20.0,24.0,0.05\n002,S1,P1,33.0,24.0,0.05\n", encoding="utf-8")
-    (out / "ski_lines.csv").write_text(
-        "exposure,station,line,x,y,sigma\n001,S1,L1,10,30,0.2\n001,S1,L1,50,32,0.2\n",
-        encoding="utf-8")
-    return folder / "track.prj"
 
 
 @pytest.fixture
 def video(tmp_path):
     from photogram.serve.session import Session
-    s = Session(_project(tmp_path / "tiny"))
-    yield s
-    s.close()
+    with Session(tiny_video_project(tmp_path / "tiny")) as s:
+        yield s
 
 
 def test_views_are_exposure_frames_with_offsets(video):
@@ -106,7 +59,7 @@ def test_edits_keep_the_exposure_and_epipolar_stays_in_it(video):
 def test_missing_tracked_table_is_one_line(tmp_path):
     from photogram.errors import InputError
     from photogram.serve.session import Session
-    prj = _project(tmp_path / "tiny")
+    prj = tiny_video_project(tmp_path / "tiny")
     (prj.parent / "results" / "jumper_points.csv").unlink()
     with pytest.raises(InputError) as exc:
         Session(prj)
@@ -133,7 +86,7 @@ def test_video_file_frames(tmp_path):
 def test_damaged_tracked_table_is_one_line_and_frees_the_lock(tmp_path):
     from photogram.errors import InputError
     from photogram.serve.session import Session
-    prj = _project(tmp_path / "tiny")
+    prj = tiny_video_project(tmp_path / "tiny")
     table = prj.parent / "results" / "jumper_points.csv"
     good = table.read_text(encoding="utf-8")
     table.write_text(good + "002,S2,P1,1.0\n", encoding="utf-8")

@@ -109,6 +109,12 @@ class Session:
                              hint="check that the folder is writable") from None
         self._filelock = lock
 
+    def __enter__(self) -> "Session":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
     def close(self) -> None:
         """Release the editor lock (idempotent)."""
         if self._filelock is not None:
