@@ -111,6 +111,9 @@ def _extra_options(name: str, sub: argparse.ArgumentParser) -> None:
                          help="allow a [mocap.source] of kind \"plugin\" to import and run its "
                               "Python module (code named in the project file; only for "
                               "projects you trust)")
+        sub.add_argument("--no-figures", action="store_true",
+                         help="no PNG figures in the results folder (batch runs; a report "
+                              "then says they were not drawn)")
     if name == "check":
         sub.add_argument("--force", action="store_true",
                          help="with --output: replace existing files")

@@ -142,8 +142,10 @@ def _run_example(name: str, projects: Path, cwd: Path, in_process: bool) -> None
     argv = next(s[1] for s in STEPS if s[0] == name)
     # the examples' figures are in summary.json and the tables: no report.pdf
     # (it costs more CPU than the adjustment; tests/test_report*.py test it)
-    no_report = ["--no-report"] if argv[0] in NO_REPORT else []
-    args = [argv[0], str(projects / argv[1]), *_options(argv[2:], projects), "-q", *no_report]
+    skip = ["--no-report"] if argv[0] in NO_REPORT else []
+    # nor mocap's PNG figures (tests/test_mocap_project.py and the report tests test them)
+    skip += ["--no-figures"] if argv[0] == "mocap" else []
+    args = [argv[0], str(projects / argv[1]), *_options(argv[2:], projects), "-q", *skip]
     code, err = _run_step(args, cwd, in_process)
     if code != 0:
         raise RuntimeError(f"photogram {' '.join(args)} exited {code}: {err[-3000:]}")

@@ -68,7 +68,7 @@ def _run_error(prj, capsys):
 
 
 def test_a_good_project_has_no_warnings(project, capsys):
-    assert main(["mocap", "--no-report", "-q", str(project)]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", "-q", str(project)]) == 0
     s = json.loads((project.parent / "results" / "summary.json").read_text())
     assert s["warnings"] == []                    # no false alarm on a correct project
     assert s["accuracy"]["mpjpe"] < 0.05
@@ -130,7 +130,7 @@ def test_degrees_declared_as_radians_are_refused(project, capsys):
 def test_radians_declared_as_degrees_are_warned_and_the_misfit_named(project, capsys):
     _edit_rows(project.parent / "stations.csv", _to_radians)
     _edit_rows(project.parent / "camera_frames.csv", _to_radians)
-    assert main(["mocap", "--no-report", str(project)]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", str(project)]) == 0
     out = capsys.readouterr().out
     w = json.loads((project.parent / "results" / "summary.json").read_text())["warnings"]
     # the seventh, "camera residuals stand out" (check_outliers), compares

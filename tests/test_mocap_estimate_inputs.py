@@ -67,7 +67,7 @@ def _variant(folder, name, prj="ski-estimate.prj", edits=(), stations=None):
 
 def _run(folder, name, **kw):
     prj = _variant(folder, name, **kw)
-    assert main(["mocap", "--no-report", str(prj), "-q", "--force"]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", str(prj), "-q", "--force"]) == 0
     return folder / f"results-{name}"
 
 

@@ -44,7 +44,7 @@ def video_project(tmp_path_factory):
 
 def test_estimate_from_videos_reports_the_featureless_camera(video_project):
     prj, sim = video_project
-    assert main(["mocap", "--no-report", str(prj), "-q"]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", str(prj), "-q"]) == 0
     out = prj.parent / "results-estimate"
     summary = json.loads((out / "summary.json").read_text())
     rot = summary["rotation"]
@@ -69,12 +69,12 @@ def test_estimated_rotations_feed_back_as_known(video_project, tmp_path):
     prj, sim = video_project
     out = prj.parent / "results-estimate"
     if not (out / "rotations.csv").is_file():
-        main(["mocap", "--no-report", str(prj), "-q"])
+        main(["mocap", "--no-report", "--no-figures", str(prj), "-q"])
     known = prj.parent / "known.prj"
     text = (prj.parent / "ski.prj").read_text().replace(
         'camera_frames = "camera_frames.csv"', 'camera_frames = "results-estimate/rotations.csv"')
     known.write_text(text.replace('folder = "results"', 'folder = "results-known"'))
-    assert main(["mocap", "--no-report", str(known), "-q"]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", str(known), "-q"]) == 0
     summary = json.loads((prj.parent / "results-known" / "summary.json").read_text())
     assert summary["accuracy"]["mpjpe"] < 0.3
 

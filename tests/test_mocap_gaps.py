@@ -73,7 +73,7 @@ def _views_written(res: Path, n_frames: int) -> np.ndarray:
 def _run(tmp_path, n_cameras):
     sim, one, none = _blanked(n_cameras)
     write_simulated_project(sim, tmp_path, name="ski")
-    assert main(["mocap", "--no-report", str(tmp_path / "ski.prj"), "-q"]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", str(tmp_path / "ski.prj"), "-q"]) == 0
     return sim, one, none, tmp_path / "results"
 
 

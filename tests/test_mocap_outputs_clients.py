@@ -131,7 +131,7 @@ def ptz_results(tmp_path_factory):
     folder = tmp_path_factory.mktemp("ski-outputs")
     sim = simulate_session(seed=11, n_runs=1, frames_per_run=40)
     write_simulated_project(sim, folder, name="ski")
-    assert main(["mocap", "--no-report", str(folder / "ski.prj"), "-q"]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", str(folder / "ski.prj"), "-q"]) == 0
     return folder, folder / "results", sim
 
 
@@ -251,7 +251,7 @@ def test_estimated_rotations_are_written_as_pan_tilt_roll(tmp_path):
         per[name] = RotationDifferences(dR, np.full(29, 500), np.full(29, 600),
                                         np.ones(29, bool), 0.0, 30)
     write_rotation_differences(tmp_path / "rotation_differences.csv", per)
-    assert main(["mocap", "--no-report", str(prj), "-q"]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", str(prj), "-q"]) == 0
     out = tmp_path / "results-estimate"
     mot = read_mot(out / "camera_rotations.mot")
     _check_opensim_layout(out / "camera_rotations.mot")

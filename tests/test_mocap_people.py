@@ -274,7 +274,7 @@ def test_command_reports_the_choice_and_keeps_the_bystander_out(tmp_path, capsys
     sim = simulate_session(seed=6, frames_per_run=40)
     write_simulated_project(sim, tmp_path, name="ski")
     by = _with_bystander(tmp_path / "detections.csv", sim)
-    assert main(["mocap", "--no-report", "-q", str(tmp_path / "ski.prj")]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", "-q", str(tmp_path / "ski.prj")]) == 0
     s = json.loads((tmp_path / "results" / "summary.json").read_text())
     people = s["people"]["cameras"]
     # the per-camera track of a pan-tilt camera keeps the copy 300 px off the

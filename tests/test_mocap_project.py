@@ -43,6 +43,7 @@ def test_mocap_command_writes_the_results_folder(small_project, capsys):
                  "trajectory.png", "angles.png", "reprojection.png", "skeletons.png"):
         assert (res / name).is_file(), name
     s = json.loads((res / "summary.json").read_text())
+    assert s["figures"] is True                     # drawn (not --no-figures)
     assert s["counts"] == {"frames": 120, "cameras": 6, "joints": 24,
                            "detections": s["counts"]["detections"], "runs": 2}
     assert s["accuracy"]["mpjpe"] < 0.03 and s["accuracy"]["knee_flexion_mae"] < 3.0

@@ -236,7 +236,7 @@ def _write_scene(folder, estimate):
 def test_command_reports_tracking_truthfully(tmp_path, estimate):
     from photogram_cli.main import main
     prj, s, obs = _write_scene(tmp_path, estimate)
-    assert main(["mocap", "--no-report", "-q", str(prj)]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", "-q", str(prj)]) == 0
     out = tmp_path / ("results-estimate" if estimate else "results")
     summary = json.loads((out / "summary.json").read_text())
     tracking = summary["tracking"]
@@ -294,7 +294,7 @@ def test_estimate_mode_check_reports_a_per_camera_track_on_another_person(tmp_pa
                                   np.ones(n - 1, bool), 0.0, n)
         for c, name in enumerate(s.cameras.names)})
     prj = write_estimate_project(s, tmp_path, name="ski")
-    assert main(["mocap", "--no-report", "-q", str(prj)]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", "-q", str(prj)]) == 0
     summary = json.loads((tmp_path / "results-estimate" / "summary.json").read_text())
     people = summary["people"]
     assert people["mode"] == "chosen with the estimated rotations (second pass)"

@@ -88,7 +88,7 @@ def test_plugin_module_is_not_imported_without_allow_plugin(tmp_path, capsys, ca
         load_function(f".{MODULE}:detect", tmp_path, allow=True)
     # with the opt-in: imported, announced with its file
     caplog.set_level(logging.INFO)
-    assert main(["mocap", "--no-report", "-q", "--allow-plugin", str(prj)]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", "-q", "--allow-plugin", str(prj)]) == 0
     assert marker.exists()
     notices = [r.getMessage() for r in caplog.records if "importing module" in r.getMessage()]
     assert len(notices) == 1 and str(tmp_path / f"{MODULE}.py") in notices[0]
@@ -112,7 +112,7 @@ def test_mocap_errors_are_one_line_in_a_real_process(tmp_path):
     sim = simulate_session(seed=5, n_runs=1, frames_per_run=20)
     write_simulated_project(sim, tmp_path / "p", name="ski")
     prj = tmp_path / "p" / "ski.prj"
-    ok = _run("mocap", "--no-report", "p/ski.prj", cwd=tmp_path)
+    ok = _run("mocap", "--no-report", "--no-figures", "p/ski.prj", cwd=tmp_path)
     assert ok.returncode == 0, ok.stderr
     assert "reconstruction:" in ok.stderr                  # progress of a good run is shown
     text = prj.read_text()

@@ -281,7 +281,7 @@ def test_offsets_applied_and_estimated_in_a_run(project):
 
     def run(extra):
         project.write_text(text.replace("[mocap]\n", f"[mocap]\n{extra}\n", 1))
-        assert main(["mocap", "--no-report", "-q", "--force", str(project)]) == 0
+        assert main(["mocap", "--no-report", "--no-figures", "-q", "--force", str(project)]) == 0
         return json.loads((project.parent / "results" / "summary.json").read_text())
 
     raw, given, est = run(""), run("offsets = { C3 = 2 }"), run('offsets = "estimate"')

@@ -166,7 +166,8 @@ def test_plugin_source_end_to_end_through_the_command(tmp_path, capsys):
         '[mocap]\nfps = 25\n\n[mocap.source]\nkind = "plugin"\nnetwork = "mynet:detect"\n'
         'skeleton = "coco17"\ncameras = { A = "A", B = "B" }\n\n'
         '[mocap.tracking]\ncrop_size = 64\nsigma_centre = 2\nsigma_side = 4\n')
-    assert main(["mocap", "--no-report", "-q", "--allow-plugin", str(tmp_path / "p.prj")]) == 0
+    assert main(["mocap", "--no-report", "--no-figures", "-q", "--allow-plugin",
+                 str(tmp_path / "p.prj")]) == 0
     det = (tmp_path / "results" / "detections.csv").read_text().splitlines()
     assert len(det) == 2 + 2 * 8 * 17
     (tmp_path / "p.prj").write_text((tmp_path / "p.prj").read_text().replace(

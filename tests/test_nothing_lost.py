@@ -109,7 +109,8 @@ def test_interrupted_mocap_resumes_with_the_next_camera(tmp_path, monkeypatch):
 
     monkeypatch.setattr(homography, "rotation_differences", interrupted)
     out = tmp_path / "results-estimate"
-    assert main(["mocap", "--no-report", str(prj), "-q"]) != 0                # interrupted
+    batch = ["mocap", "--no-report", "--no-figures", str(prj), "-q"]
+    assert main(batch) != 0                                    # interrupted
     # the unfinished run waits in the staging folder; no results folder yet
     staging = tmp_path / ".results-estimate.incomplete"
     assert sorted(p.name for p in (staging / PARTIAL / "rotation_differences").iterdir()) == \
@@ -118,13 +119,13 @@ def test_interrupted_mocap_resumes_with_the_next_camera(tmp_path, monkeypatch):
     calls.clear()
     monkeypatch.setattr(homography, "rotation_differences", lambda *a, **k: (calls.append(1),
                                                                             real(*a, **k))[1])
-    assert main(["mocap", "--no-report", str(prj), "-q"]) == 0                # resumed, no --force needed
+    assert main(batch) == 0                                    # resumed, no --force needed
     assert len(calls) == 4                                     # C3..C6 only
     assert not (out / PARTIAL).exists() and not staging.exists()   # cleaned up when complete
     resumed = (out / "rotations.csv").read_text()
     # the same as a run that was never interrupted
     monkeypatch.setattr(homography, "rotation_differences", real)
-    assert main(["mocap", "--no-report", str(prj), "-q", "--output", str(tmp_path / "clean")]) == 0
+    assert main([*batch, "--output", str(tmp_path / "clean")]) == 0
     assert (tmp_path / "clean" / "rotations.csv").read_text() == resumed
     summary = json.loads((out / "summary.json").read_text())
     assert np.isfinite(summary["accuracy"]["mpjpe"])

@@ -48,7 +48,7 @@ class _Tee(logging.Handler):
 
 
 def mocap(project, output: str | Path | None = None, *, allow_plugin: bool = False,
-          live: bool = False, report: bool = True):
+          live: bool = False, report: bool = True, figures: bool = True):
     """Run the pipeline on ``project`` and write its results folder.
 
     Parameters
@@ -66,6 +66,10 @@ def mocap(project, output: str | Path | None = None, *, allow_plugin: bool = Fal
     report : bool
         Write report.pdf (``--no-report``: not; `photogram report` builds it
         later from the folder).
+    figures : bool
+        Draw the PNG figures of the results folder (``--no-figures``: not,
+        for batch runs; summary.json says ``"figures": false`` and the
+        report's Run table says they were not drawn).
 
     Returns
     -------
@@ -91,14 +95,16 @@ def mocap(project, output: str | Path | None = None, *, allow_plugin: bool = Fal
                         inputs=project_inputs(project)) as stage:
         project.output.folder = str(stage.path)
         try:
-            result, tee = _run_into(project, stage.path, allow_plugin, live, report)
+            result, tee = _run_into(project, stage.path, allow_plugin, live, report,
+                                    figures)
         finally:
             project.output.folder = str(final)
     tee.pass_on()                         # the progress messages, now that nothing failed
     return final, result
 
 
-def _run_into(project, folder, allow_plugin: bool, live: bool, report: bool = True):
+def _run_into(project, folder, allow_plugin: bool, live: bool, report: bool = True,
+              figures: bool = True):
     """The pipeline, its results files and report in ``folder``; returns the
     result and the handler holding the progress messages back."""
     from photogram.mocap.outputs import write_outputs
@@ -119,7 +125,7 @@ def _run_into(project, folder, allow_plugin: bool, live: bool, report: bool = Tr
         logger.removeHandler(tee)
         logger.setLevel(saved[0])
         logger.propagate = saved[1]
-    write_outputs(result, project, folder, stream.getvalue())
+    write_outputs(result, project, folder, stream.getvalue(), figures=figures)
     if report:                            # report.pdf, as every command (not with --no-report)
         from photogram.report import write_report
         write_report(folder)
@@ -134,7 +140,8 @@ def run(project, args=None) -> int:
     """Command-line entry: run, write, print one line."""
     folder, result = mocap(project, allow_plugin=bool(getattr(args, "allow_plugin", False)),
                            live=bool(getattr(args, "verbose", 0)),
-                           report=not getattr(args, "no_report", False))
+                           report=not getattr(args, "no_report", False),
+                           figures=not getattr(args, "no_figures", False))
     if not getattr(args, "quiet", False):
         rec = result.reconstruction
         rp = [v["median_px"] for v in result.reprojection.values() if v["median_px"] is not None]

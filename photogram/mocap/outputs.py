@@ -23,6 +23,7 @@ file                     content
                          joint-frames and why), accuracy (truth), comparison
                          with the reference
 ``*.png``                trajectory, angles, speed, reprojection errors, skeletons
+                         (not with ``figures=False``, ``--no-figures``)
 ``log.txt``              the log of the run
 =======================  ==========================================================
 """
@@ -60,7 +61,9 @@ def _save(fig, path: Path) -> Path:
     return atomic_write_bytes(path, buf.getvalue())
 
 
-def summary(result, project) -> dict:
+def summary(result, project, figures: bool = True) -> dict:
+    """The content of summary.json; ``figures``: whether the PNG figures
+    were drawn (``--no-figures``: not)."""
     rec = result.reconstruction
     ms = project.mocap
     b = result.biomechanics
@@ -90,6 +93,7 @@ def summary(result, project) -> dict:
         "axes": "world, Z up, project length unit; TRC: Y up (Y, Z, X)",
         "timings": result.info.get("timings", {}),
         "warnings": list(project.warnings),
+        "figures": bool(figures),
     }
     if rec.gaps is not None:                    # joint-frames fewer than 2 cameras see
         out["gaps"] = rec.gaps.summary(result.skeleton.joints)
@@ -140,7 +144,10 @@ def _detections_table(result) -> str:
     return format_table(cols, comment="tracked detections used by the reconstruction (px)")
 
 
-def write_outputs(result, project, folder: Path, log_text: str = "") -> list[Path]:
+def write_outputs(result, project, folder: Path, log_text: str = "", *,
+                  figures: bool = True) -> list[Path]:
+    """Write the results folder (module docstring); ``figures=False``: without
+    the PNG figures (batch runs), as summary.json says. Returns the files."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     sk, X = result.skeleton, result.reconstruction.joints
@@ -190,9 +197,10 @@ def write_outputs(result, project, folder: Path, log_text: str = "") -> list[Pat
             from photogram.mocap.motion.rotation_series import write_rotation_differences
             written.append(write_rotation_differences(folder / "rotation_differences.csv",
                                                       per, first_frame=int(result.frames[0])))
-    written += _plots(result, folder, unit)
+    if figures:
+        written += _plots(result, folder, unit)
     written.append(atomic_write_text(folder / "summary.json", json.dumps(
-        summary(result, project), indent=2, allow_nan=False) + "\n"))
+        summary(result, project, figures), indent=2, allow_nan=False) + "\n"))
     written.append(atomic_write_text(folder / "log.txt", log_text))
     return written
 

@@ -172,6 +172,9 @@ def _overview(doc, s, L):
                   if L == "m" else f"{num(acc.get('mpjpe'), 3)} {L} (SIMULATED truth)"),
                  ("knee flexion error", f"{num(acc.get('knee_flexion_mae'), 3)} deg (mean abs)"),
                  ("speed error", f"{num(acc.get('speed_mae'), 3)} {L}/s (mean abs)")]
+    if s.get("figures") is False:               # photogram mocap --no-figures
+        rows.append(("figures", "not drawn (photogram mocap --no-figures): no trajectory, "
+                                "angles, reprojection or skeleton figures in this report"))
     doc.pairs(rows, title="Run")
 
 
