@@ -178,3 +178,36 @@ def test_http_predictions_by_label_and_line_errors(lab):
         status, body = r.request("GET", "/api/predict_line?exposure=")
         assert status == 400 and "line=NAME" in body["error"]
         assert r.request("GET", "/api/predict_line?line=E1") == (200, {"lines": []})
+
+
+def test_epipolar_curve_of_a_distant_scene():
+    """A ray whose visible part is all far away (two stations 10 m apart
+    looking at points 2 km off, a ski-jump hill seen from the valley): the
+    curve is sampled along the image, not along the ray's parameter (which
+    crowds the whole visible ray into its last 0.5 %), so it is found,
+    spans the view and passes through the true image of each point."""
+    from photogram.lines.views import ViewCamera
+    from photogram.serve.epipolar import image_of_ray
+    io = [1500.0, 320.0, 240.0, -2e-8, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    # looking along +Y: omega = 100 gon turns the camera's -z axis to +Y
+    a = ViewCamera.from_angles([np.pi / 2, 0.0, 0.0], [0.0, 0.0, 0.0], io)
+    b = ViewCamera.from_angles([np.pi / 2, 0.0, 0.0], [10.0, 0.0, 0.0], io)
+    for X in ([30.0, 2000.0, 5.0], [-40.0, 1500.0, -20.0], [5.0, 3000.0, 40.0]):
+        X = np.array(X)
+        d = X - a.X0
+        d /= np.linalg.norm(d)
+        truth_b = b.project(X[None])[0]
+        assert 0 < truth_b[0] < 640 and 0 < truth_b[1] < 480
+        pts = np.array(image_of_ray(b, a.X0, d, 640, 480))
+        assert len(pts) >= 20
+        seg = np.diff(pts, axis=0)
+        t = np.clip(((truth_b - pts[:-1]) * seg).sum(1) / (seg * seg).sum(1), 0, 1)
+        assert np.hypot(*(pts[:-1] + t[:, None] * seg - truth_b).T).min() < 1e-3
+        # one end on the border (the epipole, the image of a's centre, is far
+        # outside), the other at the vanishing point of d inside the view
+        v = b.matrix[:, :3] @ d
+        vanishing = b.measured((v[:2] / v[2])[None])[0]
+        ends = sorted((pts[0], pts[-1]), key=lambda e: np.hypot(*(e - vanishing)))
+        assert np.hypot(*(ends[0] - vanishing)) < 1e-6
+        assert min(ends[1][0], ends[1][1], 640 - ends[1][0], 480 - ends[1][1]) < 1e-6
+

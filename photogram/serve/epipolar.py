@@ -7,14 +7,20 @@ the image of its ray (Hartley & Zisserman 2003, sec. 9.1): the points
 centre ``X0`` in direction ``d``. In homogeneous ideal coordinates of the
 other view, ``x(s) = (1 - s) P (X0, 1) + s P (d, 0)`` for ``s in [0, 1)``
 runs from the epipole to the vanishing point of ``d``
-(``lambda = s / (1 - s)``); only points in front of that camera are kept.
-With lens distortion the image of the ray is a curve: the ideal points
-are sampled along the segment and distorted by the camera model
-(:meth:`photogram.lines.views.ViewCamera.measured`), then clipped to the
-image as a polyline of at least 20 vertices. Ideal points far outside the
-format (beyond 1.05 times the corrected border's largest radius) are
-dropped, so a distortion polynomial never folds them back into the picture
-(and a point whose inversion fails is left out, not the whole curve).
+(``lambda = s / (1 - s)``) along one ideal line; only points in front of
+that camera are kept. The line is sampled uniformly along its chord in the
+disk of ideal points that can image inside the format (1.05 times the
+corrected border's largest radius), not uniformly in ``s`` (which crowds
+the far part of a long ray, the whole visible ray of a distant scene,
+into a sliver of ``s``), each chord point mapped back to its ``s`` to keep
+it on the half-line. With lens distortion the image of the ray is a curve:
+the ideal points are distorted by the camera model
+(:meth:`photogram.lines.views.ViewCamera.measured`), the ends found where
+the curve leaves the image (or the ray ends), and the curve drawn as a
+polyline of at least 20 vertices equally spaced along it. Ideal points
+beyond the disk are never distorted, so a distortion polynomial never
+folds them back into the picture (and a point whose inversion fails is
+left out, not the curve).
 
 **Predicted point.** A label with two or more rays among the table's
 observations of the exposure (and the click) is triangulated
@@ -58,19 +64,41 @@ def _ideal_limit(camera: ViewCamera, width: float, height: float) -> float:
     return 1.05 * float(np.max(np.hypot(ideal[:, 0], ideal[:, 1])))
 
 
-def _points(camera, start_h, end_h, s, limit):
-    """Measured image points (n, 2) at parameters s of the homogeneous
-    segment, NaN behind the camera or beyond the ideal radius ``limit``."""
-    xh = (1 - s)[:, None] * start_h + s[:, None] * end_h
-    w = xh[:, 2]
-    front = w < -1e-12                       # the camera looks along -z
-    out = np.full((len(s), 2), np.nan)
-    if front.any():
-        ideal = xh[front, :2] / w[front, None]
-        ok = np.hypot(ideal[:, 0], ideal[:, 1]) < limit
-        idx = np.flatnonzero(front)[ok]
-        if len(idx):
-            out[idx] = _measured(camera, ideal[ok])
+def _chord(start_h, end_h, limit):
+    """The chord of the ideal line through the homogeneous points
+    ``start_h``, ``end_h`` inside the disk of radius ``limit``: (foot, half
+    vector), the chord being ``foot + (2 u - 1) half`` for u in [0, 1]; None
+    if the line misses the disk (or the two points coincide)."""
+    line = np.cross(start_h, end_h)
+    norm = np.hypot(line[0], line[1])
+    if not norm > 1e-300:
+        return None
+    foot = -line[2] * line[:2] / norm ** 2
+    dist = abs(line[2]) / norm
+    if dist >= limit:
+        return None
+    half = np.sqrt(limit ** 2 - dist ** 2) * np.array([-line[1], line[0]]) / norm
+    return foot, half
+
+
+def _points(camera, start_h, end_h, chord, u):
+    """Measured image points (n, 2) at parameters u of the chord, NaN where
+    the chord's point is not on the segment ``s in [0, 1)`` of ``(1 - s)
+    start_h + s end_h`` or behind the camera (module doc)."""
+    foot, half = chord
+    ideal = foot + (2 * np.asarray(u, float)[:, None] - 1) * half
+    # the s of each chord point: (1 - s) alpha + s beta = 0 (alpha, beta parallel)
+    alpha = start_h[:2] - ideal * start_h[2]
+    beta = end_h[:2] - ideal * end_h[2]
+    diff = alpha - beta
+    den = (diff * diff).sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sv = (alpha * diff).sum(axis=1) / den
+    w = (1 - sv) * start_h[2] + sv * end_h[2]
+    ok = (den > 0) & (sv >= 0) & (sv < 1) & (w < 0)      # the camera looks along -z
+    out = np.full((len(ideal), 2), np.nan)
+    if ok.any():
+        out[ok] = _measured(camera, ideal[ok])
     return out
 
 
@@ -100,42 +128,53 @@ def image_of_ray(camera: ViewCamera, X0, d, width: float, height: float,
     P = camera.matrix
     start_h = P @ np.append(np.asarray(X0, float), 1.0)
     end_h = P @ np.append(np.asarray(d, float), 0.0)
-    limit = _ideal_limit(camera, width, height)
+    chord = _chord(start_h, end_h, _ideal_limit(camera, width, height))
+    if chord is None:
+        return []
 
     def inside(xy):
         return np.isfinite(xy).all(axis=1) & (xy[:, 0] >= 0) & (xy[:, 0] <= width) & \
             (xy[:, 1] >= 0) & (xy[:, 1] <= height)
 
-    s = np.linspace(0.0, 1.0, 4001)[:-1]
-    ins = inside(_points(camera, start_h, end_h, s, limit))
+    def image(u):
+        return _points(camera, start_h, end_h, chord, u)
+
+    u = np.linspace(0.0, 1.0, 1001)
+    ins = inside(image(u))
     if not ins.any():
         return []
     i0, i1 = np.flatnonzero(ins)[[0, -1]]
-    lo, hi = s[i0], s[i1]
-    # the border crossings by bisection between the last outside and first inside sample
-    for k, sign in ((i0, -1), (i1, 1)):
-        j = k + sign
-        if 0 <= j < len(s):
-            a, b = s[k], s[j]          # a inside, b outside
-            for _ in range(40):
-                m = 0.5 * (a + b)
-                if inside(_points(camera, start_h, end_h, np.array([m]), limit))[0]:
-                    a = m
-                else:
-                    b = m
+    lo, hi = u[i0], u[i1]
+    # the ends (the image's border, or the ray's ends: its start, the
+    # vanishing point): the interval between the last outside and the
+    # first inside sample narrowed 32-fold per pass, both ends in one call
+    # of the camera model (6 passes: 1e-12 of the chord)
+    sides = [(k, sign) for k, sign in ((i0, -1), (i1, 1)) if 0 <= k + sign < len(u)]
+    if sides:
+        a = np.array([u[k] for k, _ in sides])                  # inside
+        b = np.array([u[k + sign] for k, sign in sides])        # outside
+        t = np.linspace(0.0, 1.0, 33)[1:-1]
+        rows = np.arange(len(a))
+        for _ in range(6):
+            m = a[:, None] + t[None, :] * (b - a)[:, None]      # (ends, 31)
+            ok = inside(image(m.ravel())).reshape(m.shape)
+            j = np.cumprod(ok, axis=1).sum(axis=1)    # samples inside before the first outside
+            a, b = (np.where(j > 0, m[rows, np.maximum(j - 1, 0)], a),
+                    np.where(j < m.shape[1], m[rows, np.minimum(j, m.shape[1] - 1)], b))
+        for (_, sign), value in zip(sides, a):
             if sign < 0:
-                lo = a
+                lo = value
             else:
-                hi = a
-    # vertices equally spaced along the curve (the parameter s is not)
-    fine = np.linspace(lo, hi, 4001)
-    pts = _points(camera, start_h, end_h, fine, limit)
+                hi = value
+    # vertices equally spaced along the curve
+    fine = np.linspace(lo, hi, 1001)
+    pts = image(fine)
     ok = np.isfinite(pts).all(axis=1)
     fine, pts = fine[ok], pts[ok]
     arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-    s_at = np.interp(np.linspace(0.0, arc[-1], max(n, MIN_VERTICES)), arc, fine)
-    s_at[0], s_at[-1] = lo, hi
-    xy = _points(camera, start_h, end_h, s_at, limit)
+    u_at = np.interp(np.linspace(0.0, arc[-1], max(n, MIN_VERTICES)), arc, fine)
+    u_at[0], u_at[-1] = lo, hi
+    xy = image(u_at)
     xy = xy[inside(xy)]
     return [[float(x), float(y)] for x, y in xy]
 
