@@ -2,7 +2,7 @@
 (tests/test_serve_*.py): the rendered photographs with their truth, the
 typed observations (``lab-typed.prj`` reads ``lab_image_points.csv``) and,
 when ``oriented``, a results folder ``results-typed/`` whose cameras and
-stations are the *true* ones (truth/cameras.csv, truth/stations.csv), so
+stations (and points) are the *true* ones (truth/cameras.csv, truth/stations.csv), so
 that epipolar curves and predictions can be checked against the true
 geometry; its residuals.csv holds three made-up rows with known w."""
 
@@ -70,6 +70,7 @@ def lab_copy(dest: Path, *, oriented: bool = True) -> Path:
                      ("c", "x0", "y0", "K1", "K2", "K3", "P1", "P2", "B1", "B2")] + [""]
         (out / "cameras.toml").write_text("\n".join(text), encoding="utf-8")
         shutil.copy(dest / "truth" / "stations.csv", out / "stations.csv")
+        shutil.copy(dest / "truth" / "points.csv", out / "points.csv")
         (out / "summary.json").write_text(json.dumps({"command": "calibrate", "sigma0": 1.25}),
                                           encoding="utf-8")
         (out / "residuals.csv").write_text(

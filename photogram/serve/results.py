@@ -18,14 +18,13 @@ why: the page then offers no epipolar help but still works.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from photogram.errors import PhotogramError
 from photogram.lines.views import ViewCamera, cameras_from_project
+from photogram.project.results import read_results
 
 __all__ = ["Orientation", "read_orientation", "residual_rows", "NOT_ORIENTED"]
 
@@ -54,71 +53,63 @@ def read_orientation(project) -> Orientation:
         return Orientation(cameras_from_project(project),
                            f"stations oriented from the project ({src})")
     folder = project.output_folder()
-    summary_path = folder / "summary.json"
-    if not summary_path.is_file():
+    if not (folder / "summary.json").is_file():
         return Orientation(note=f"{NOT_ORIENTED} (no results in {folder})")
     try:
-        summary = json.loads(summary_path.read_text(encoding="utf-8"))
-        sigma0 = summary.get("sigma0")
-        sigma0 = float(sigma0) if isinstance(sigma0, (int, float)) else None
-        command = str(summary.get("command", "adjustment"))
-        residuals = _residuals(folder / "residuals.csv")
-        cameras = _cameras(project, folder)
+        res = read_results(folder)
+        residuals = _residuals(res.residuals)
+        cameras = _cameras(project, res)
     except (PhotogramError, OSError, ValueError, KeyError) as exc:
         text = exc.one_line() if isinstance(exc, PhotogramError) else str(exc)
         return Orientation(note=f"{NOT_ORIENTED} (cannot read {folder}: {text})")
+    sigma0 = res.summary.get("sigma0")
+    sigma0 = float(sigma0) if isinstance(sigma0, (int, float)) else None
     if not cameras:
         return Orientation(note=f"{NOT_ORIENTED} (no stations in {folder / 'stations.csv'})",
                            sigma0=sigma0, residuals=residuals)
     s0 = f", sigma0 {sigma0:.2f}" if sigma0 is not None else ""
+    command = str(res.summary.get("command", "adjustment"))
     return Orientation(cameras, f"stations oriented from {folder.name}/ ({command}{s0})",
                        sigma0, residuals)
 
 
-def _cameras(project, folder: Path) -> dict[str, ViewCamera]:
-    """ViewCameras of the stations of ``folder``/stations.csv with the
-    cameras of ``folder``/cameras.toml."""
+def _cameras(project, res) -> dict[str, ViewCamera]:
+    """ViewCameras of the stations of a results folder (its stations.csv
+    with its cameras.toml, else the project's camera)."""
     from photogram.geometry import opk_to_matrix
-    from photogram.project.camera_schema import invert_opk, load_cameras_file
-    from photogram.project.results_read import read_results_table
+    from photogram.project.camera_schema import invert_opk
     from photogram.project.tables import angle_to_rad
-    _, cams = load_cameras_file(folder / "cameras.toml")
-    table = read_results_table(folder / "stations.csv", ("station", "camera"))
+    table = res.stations
     unit = project.units.angle
+    angles = np.column_stack([[angle_to_rad(float(v), unit) for v in table[k]]
+                              for k in ("omega", "phi", "kappa")]).reshape(-1, 3)
+    if project.rotation_direction == "camera_to_world" and len(angles):
+        angles = invert_opk(angles)
+    X0 = table[["X0", "Y0", "Z0"]].to_numpy(float).reshape(-1, 3)
     out = {}
-    for _, r in table.iterrows():
-        cam = cams.get(r["camera"]) or project.cameras.get(r["camera"])
-        if cam is None:
+    for station, camera, ang, x0 in zip(table["station"], table["camera"], angles, X0):
+        cam = res.cameras.get(camera) or project.cameras.get(camera)
+        if cam is None or not (np.isfinite(ang).all() and np.isfinite(x0).all()):
             continue
-        angles = np.array([angle_to_rad(float(r[k]), unit) for k in ("omega", "phi", "kappa")])
-        if project.rotation_direction == "camera_to_world":
-            angles = invert_opk(angles[None])[0]
-        X0 = np.array([float(r[k]) for k in ("X0", "Y0", "Z0")])
-        if not (np.isfinite(angles).all() and np.isfinite(X0).all()):
-            continue
-        out[str(r["station"])] = ViewCamera(opk_to_matrix(angles), X0, cam.values(),
-                                            cam.model, str(r["station"]))
+        out[str(station)] = ViewCamera(opk_to_matrix(ang), x0, cam.values(), cam.model,
+                                       str(station))
     return out
 
 
-def _residuals(path: Path) -> list[dict]:
-    """Rows of residuals.csv: station, point, vx, vy, w = max(|wx|, |wy|)."""
-    if not path.is_file():
+def _residuals(table) -> list[dict]:
+    """Rows of residuals.csv: station, point, vx, vy, w = max(|wx|, |wy|)
+    (0 where the w-tests are missing); line rows left out."""
+    if "point" not in table.columns or not len(table):
         return []
-    from photogram.project.results_read import read_results_table
-    table = read_results_table(path, ("station", "point", "line"))
-    if "point" not in table.columns:
-        return []
-    rows = []
-    for _, r in table.iterrows():
-        pt = r["point"]
-        if not isinstance(pt, str) or not pt:
-            continue
-        wx, wy = float(r.get("wx", np.nan)), float(r.get("wy", np.nan))
-        w = max(abs(wx), abs(wy)) if np.isfinite([wx, wy]).all() else 0.0
-        rows.append({"view": str(r["station"]), "point": pt, "vx": float(r["vx"]),
-                     "vy": float(r["vy"]), "w": w})
-    return rows
+    keep = np.array([isinstance(p, str) and p != "" for p in table["point"]], bool)
+    t = table[keep]
+    nan = np.full(len(t), np.nan)
+    wx = t["wx"].to_numpy(float) if "wx" in t.columns else nan
+    wy = t["wy"].to_numpy(float) if "wy" in t.columns else nan
+    w = np.where(np.isfinite(wx) & np.isfinite(wy), np.maximum(np.abs(wx), np.abs(wy)), 0.0)
+    return [{"view": str(st), "point": pt, "vx": float(vx), "vy": float(vy), "w": float(wi)}
+            for st, pt, vx, vy, wi in zip(t["station"], t["point"], t["vx"].to_numpy(float),
+                                          t["vy"].to_numpy(float), w)]
 
 
 def residual_rows(orientation: Orientation, oid_of) -> tuple[list[dict], list[dict]]:

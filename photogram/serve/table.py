@@ -27,12 +27,14 @@ for the life of the server (the page addresses observations by it).
 from __future__ import annotations
 
 import copy
+import glob
 import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from photogram.errors import InputError
+from photogram.montecarlo.manifest import file_digest
 from photogram.project.atomic import atomic_write_text
 from photogram.project.tables import read_table
 
@@ -109,7 +111,7 @@ class EditableTable:
             manual = c.get("_manual", "").strip().lower() in ("1", "true", "yes")
             rows.append(Row(first_oid + i, c, manual))
         return cls(path, label, comments, list(table.header), delim, rows,
-                   _next=first_oid + len(rows), signature=_sha256(path))
+                   _next=first_oid + len(rows), signature=file_digest(path))
 
     # ------------------------------------------------------------------ access
     def find(self, oid: int) -> Row:
@@ -213,7 +215,7 @@ class EditableTable:
         program wrote the file since it was read (``photogram measure``
         again), ``changed_on_disk`` is set: its version is the backup."""
         backup = None
-        self.changed_on_disk = self.path.is_file() and _sha256(self.path) != self.signature
+        self.changed_on_disk = self.path.is_file() and file_digest(self.path) != self.signature
         if self.path.is_file():
             backup = next_backup(self.path)
             try:
@@ -222,16 +224,11 @@ class EditableTable:
                 with open(backup, "xb") as f:
                     f.write(self.path.read_bytes())
         atomic_write_text(self.path, self.text())
-        self.signature = _sha256(self.path)
+        self.signature = file_digest(self.path)
         self.dirty = False
         for r in self.rows:
             r.edited = False
         return self.path, backup
-
-
-def _sha256(path: Path) -> str:
-    import hashlib
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def _quoted(cell: str, delimiter: str) -> str:
@@ -247,16 +244,11 @@ def next_backup(path) -> Path:
     numbered backups; never an existing file)."""
     path = Path(path)
     largest = 0
-    for p in path.parent.glob(glob_escape(path.name) + ".~*~"):
+    for p in path.parent.glob(glob.escape(path.name) + ".~*~"):
         m = _BACKUP.search(p.name)
         if m and p.name[:m.start()] == path.name:
             largest = max(largest, int(m.group(1)))
     return path.with_name(f"{path.name}.~{largest + 1}~")
-
-
-def glob_escape(name: str) -> str:
-    """``name`` with glob's special characters escaped."""
-    return re.sub(r"([\[\]*?])", r"[\1]", name)
 
 
 def check_label(label, what: str = "point") -> None:
