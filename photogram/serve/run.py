@@ -19,7 +19,7 @@ import os
 import subprocess
 from pathlib import Path
 
-from photogram.serve.results import read_orientation, residual_rows
+from photogram.serve.results import read_orientation
 from photogram.serve.table import BadEdit
 
 __all__ = ["run_command", "COMMANDS", "TIMEOUT"]
@@ -72,6 +72,6 @@ def run_command(session, command, timeout: float = TIMEOUT) -> dict:
         rc, err = -1, f"photogram {command} did not finish within {timeout:.0f} s (stopped)"
     lines = [line.strip() for line in (err or "").splitlines() if line.strip()]
     session.orientation = read_orientation(session.project)
-    _, worst = residual_rows(session.orientation, session._oid_of)
+    _, worst = session.residuals()
     return {"rc": rc, "sigma0": session.orientation.sigma0, "worst": worst,
             "message": lines[-1] if lines else "", "project": session.body()}

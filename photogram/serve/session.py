@@ -161,11 +161,12 @@ class Session:
     def dirty(self) -> bool:
         return any(t.dirty for t in self.tables)
 
-    def _oid_of(self, view: str, point: str):
-        for r in self.points_table.rows:
-            if r.cells["station"] == view and r.cells["point"] == point:
-                return r.oid
-        return None
+    def residuals(self) -> tuple[list[dict], list[dict]]:
+        """The residual rows of the last adjustment with the oids of their
+        observations, and the 20 largest |w| (:func:`residual_rows`; the
+        oids looked up in one dict, built in one pass over the table)."""
+        oids = {(_view_id(r.cells), r.cells["point"]): r.oid for r in self.points_table.rows}
+        return residual_rows(self.orientation, lambda view, point: oids.get((view, point)))
 
     def _labels(self) -> list[str]:
         """The point ids for the label chooser: the points table's, or the
@@ -181,7 +182,7 @@ class Session:
             pt, lt = self.points_table, self.lines_table
             obs = [_row_json(r, "point") for r in pt.rows]
             lines = [_row_json(r, "line") for r in lt.rows] if lt is not None else []
-            residuals, worst = residual_rows(self.orientation, self._oid_of)
+            residuals, worst = self.residuals()
             return {"name": self.project.name, "project": str(self.project.path),
                     "table": str(pt.path), "lines_table": str(lt.path) if lt else None,
                     "exposures": self.exposures,
