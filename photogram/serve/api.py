@@ -21,10 +21,6 @@ class ApiError(Exception):
         self.status = status
 
 
-def _api_error(status: int, message: str) -> ApiError:
-    return ApiError(status, message)
-
-
 def _number(value, name: str) -> float:
     try:
         v = float(value)
@@ -47,7 +43,7 @@ def image(session, query, body):
     try:
         return session.images.png(view.id), "image/png"
     except PhotogramError as exc:
-        raise _api_error(404, exc.one_line()) from None
+        raise ApiError(404, exc.one_line()) from None
 
 
 def edit(session, query, body):
@@ -77,11 +73,8 @@ def epipolar(session, query, body):
     """GET /api/epipolar?view=ID&x=..&y=.. | ?oid=N | ?view=ID&point=P."""
     from photogram.serve.epipolar import epipolar_help
     if query.get("oid") is not None:
-        try:
-            oid = int(query["oid"])
-        except ValueError:
-            raise BadEdit(f"oid must be an integer, not {query['oid']!r}") from None
-        return epipolar_help(session, oid=oid)
+        from photogram.serve.session import parse_oid
+        return epipolar_help(session, oid=parse_oid(query["oid"]))
     view = session.view(query.get("view"))
     if query.get("x") is not None or query.get("y") is not None:
         xy = (_number(query.get("x"), "x"), _number(query.get("y"), "y"))

@@ -217,7 +217,7 @@ class Session:
                           manual=bool(req.get("manual")), exposure=v.exposure or "")
                 self._edits.append(table)
             elif op in ("move", "delete", "relabel"):
-                oid = _int(req.get("oid"))
+                oid = parse_oid(req.get("oid"))
                 table = self.table_of(oid)
                 if op == "move":
                     table.move(oid, req.get("x"), req.get("y"), req.get("sigma"),
@@ -282,7 +282,8 @@ def _float(text):
     return v if v == v else None
 
 
-def _int(value) -> int:
+def parse_oid(value) -> int:
+    """An oid from a request (:class:`BadEdit` if not an integer)."""
     try:
         return int(value)
     except (TypeError, ValueError):
